@@ -1,0 +1,319 @@
+//! The generator's entry point: a builder that turns scene files into Rust
+//! modules, all or nothing, writing only files whose content changed.
+//!
+//! ```no_run
+//! flexdyn_codegen::Builder::new()
+//!     .scenes_in("scenes")
+//!     .out_dir("generated")
+//!     .generate()
+//!     .unwrap();
+//! ```
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use quote::quote;
+
+use crate::emit::{emit, struct_name, FunctionReport};
+use crate::error::Error;
+use crate::lagrange::derive;
+use crate::model::Model;
+use crate::program::OpCount;
+
+/// A scene turned into Rust source, not yet written anywhere.
+#[derive(Debug, Clone)]
+pub struct Generated {
+    /// Scene name (module and file name).
+    pub name: String,
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Formatted module source.
+    pub source: String,
+    /// Numbers of coordinates, constraints and actuators.
+    pub dims: (usize, usize, usize),
+    /// Operation counts per emitted function.
+    pub functions: Vec<FunctionReport>,
+    /// Time spent parsing, deriving and emitting.
+    pub elapsed: Duration,
+}
+
+impl Generated {
+    /// Operations of all emitted functions.
+    pub fn total_ops(&self) -> OpCount {
+        let mut t = OpCount::default();
+        for f in &self.functions {
+            t += f.ops;
+        }
+        t
+    }
+}
+
+impl fmt::Display for Generated {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (nq, nc, nu) = self.dims;
+        write!(
+            f,
+            "{}: {nq} coordinates, {nc} constraints, {nu} actuators; {} ops ({}) in {:.1} ms",
+            self.name,
+            self.total_ops().total(),
+            self.total_ops(),
+            self.elapsed.as_secs_f64() * 1e3
+        )
+    }
+}
+
+/// Generate the Rust module of one scene file, in memory.
+pub fn generate_scene(path: &Path) -> Result<Generated, Error> {
+    let start = Instant::now();
+    let mut model = Model::load(path)?;
+    let eq = derive(&mut model).map_err(|e| Error {
+        file: path.to_path_buf(),
+        line: 0,
+        column: 0,
+        context: Some(e.context.clone()),
+        message: e.message.clone(),
+    })?;
+    let emitted = emit(&model, &eq);
+    Ok(Generated {
+        name: model.name.clone(),
+        scene: path.to_path_buf(),
+        source: emitted.source,
+        dims: (model.nq(), model.constraints.len(), model.actuators.len()),
+        functions: emitted.functions,
+        elapsed: start.elapsed(),
+    })
+}
+
+/// Configures and runs the generator.
+#[derive(Debug, Clone, Default)]
+pub struct Builder {
+    scenes: Vec<PathBuf>,
+    dirs: Vec<PathBuf>,
+    out_dir: Option<PathBuf>,
+    rerun_if_changed: bool,
+    index: Option<Index>,
+}
+
+/// Settings of the index module.
+#[derive(Debug, Clone)]
+struct Index {
+    file: String,
+    trait_path: String,
+    wrapper: String,
+}
+
+/// What a run produced.
+#[derive(Debug, Clone)]
+pub struct Report {
+    /// Every scene, in order.
+    pub scenes: Vec<Generated>,
+    /// Files written (those whose content changed).
+    pub written: Vec<PathBuf>,
+}
+
+impl Builder {
+    /// A builder with no scenes.
+    pub fn new() -> Builder {
+        Builder::default()
+    }
+
+    /// Add a scene file.
+    pub fn scene(mut self, path: impl Into<PathBuf>) -> Builder {
+        self.scenes.push(path.into());
+        self
+    }
+
+    /// Add every `*.toml` file of a directory (sorted by name).
+    pub fn scenes_in(mut self, dir: impl Into<PathBuf>) -> Builder {
+        self.dirs.push(dir.into());
+        self
+    }
+
+    /// Where to write the modules; defaults to `$OUT_DIR`.
+    pub fn out_dir(mut self, dir: impl Into<PathBuf>) -> Builder {
+        self.out_dir = Some(dir.into());
+        self
+    }
+
+    /// Print `cargo:rerun-if-changed` for every input (for build scripts).
+    pub fn emit_rerun_if_changed(mut self, yes: bool) -> Builder {
+        self.rerun_if_changed = yes;
+        self
+    }
+
+    /// Also write an index module `file` that declares one module per scene
+    /// (each `include!`s its file), `SCENES` with their names, and a function
+    /// `model(name)` returning the scene's default model as
+    /// `Box<dyn trait_path>` built by `wrapper::<_, NQ, NC, NU>(model)`.
+    /// Both paths (for example `crate::dynamic::DynModel` and
+    /// `crate::dynamic::erase`) come from the build script, not from scenes.
+    pub fn index(
+        mut self,
+        file: impl Into<String>,
+        trait_path: impl Into<String>,
+        wrapper: impl Into<String>,
+    ) -> Builder {
+        self.index = Some(Index {
+            file: file.into(),
+            trait_path: trait_path.into(),
+            wrapper: wrapper.into(),
+        });
+        self
+    }
+
+    /// All scene files, explicit ones first, then each directory's sorted.
+    pub fn scene_files(&self) -> Result<Vec<PathBuf>, Error> {
+        let mut files = self.scenes.clone();
+        for dir in &self.dirs {
+            let io = |e: std::io::Error| Error {
+                file: dir.clone(),
+                line: 0,
+                column: 0,
+                context: None,
+                message: format!("cannot list scene directory: {e}"),
+            };
+            let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
+                .map_err(io)?
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(io)?
+                .into_iter()
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+                .collect();
+            found.sort();
+            files.extend(found);
+        }
+        Ok(files)
+    }
+
+    /// Generate every scene; write nothing unless all succeed.
+    pub fn generate(self) -> Result<Report, Error> {
+        if self.rerun_if_changed {
+            for dir in &self.dirs {
+                println!("cargo:rerun-if-changed={}", dir.display());
+            }
+        }
+        let files = self.scene_files()?;
+        if self.rerun_if_changed {
+            for f in &files {
+                println!("cargo:rerun-if-changed={}", f.display());
+            }
+        }
+        let mut scenes: Vec<Generated> = Vec::new();
+        for f in &files {
+            let g = generate_scene(f)?;
+            if let Some(other) = scenes.iter().find(|s| s.name == g.name) {
+                return Err(Error {
+                    file: f.clone(),
+                    line: 0,
+                    column: 0,
+                    context: None,
+                    message: format!(
+                        "scene name `{}` is already used by {}",
+                        g.name,
+                        other.scene.display()
+                    ),
+                });
+            }
+            scenes.push(g);
+        }
+        let out_dir = match &self.out_dir {
+            Some(d) => d.clone(),
+            None => std::env::var_os("OUT_DIR").map(PathBuf::from).ok_or_else(|| Error {
+                file: PathBuf::new(),
+                line: 0,
+                column: 0,
+                context: None,
+                message: "no output directory: set one with Builder::out_dir or run from a build script".into(),
+            })?,
+        };
+        let mut outputs: Vec<(PathBuf, String)> = scenes
+            .iter()
+            .map(|s| (out_dir.join(format!("{}.rs", s.name)), s.source.clone()))
+            .collect();
+        if let Some(index) = &self.index {
+            let text = index_source(&scenes, index).map_err(|message| Error {
+                file: PathBuf::from(&index.file),
+                line: 0,
+                column: 0,
+                context: None,
+                message,
+            })?;
+            outputs.push((out_dir.join(&index.file), text));
+        }
+        let io = |p: &Path, e: std::io::Error| Error {
+            file: p.to_path_buf(),
+            line: 0,
+            column: 0,
+            context: None,
+            message: format!("cannot write: {e}"),
+        };
+        std::fs::create_dir_all(&out_dir).map_err(|e| io(&out_dir, e))?;
+        let mut written = Vec::new();
+        for (path, text) in outputs {
+            if write_if_changed(&path, &text).map_err(|e| io(&path, e))? {
+                written.push(path);
+            }
+        }
+        Ok(Report { scenes, written })
+    }
+}
+
+/// Write `text` to `path` unless it already holds exactly that; the write goes
+/// through a temporary file and a rename, so readers never see half a file.
+/// Returns whether the file was written.
+pub fn write_if_changed(path: &Path, text: &str) -> std::io::Result<bool> {
+    if std::fs::read(path).is_ok_and(|old| old == text.as_bytes()) {
+        return Ok(false);
+    }
+    let tmp = path.with_extension("rs.tmp");
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)?;
+    Ok(true)
+}
+
+fn index_source(scenes: &[Generated], index: &Index) -> Result<String, String> {
+    let path = |s: &str| -> Result<syn::Path, String> {
+        syn::parse_str(s).map_err(|e| format!("`{s}` is not a path: {e}"))
+    };
+    let wrapper = path(&index.wrapper)?;
+    let trait_path = path(&index.trait_path)?;
+    let mods = scenes.iter().map(|s| {
+        let m = quote::format_ident!("{}", s.name);
+        let file = format!("{}.rs", s.name);
+        let doc = format!("Generated equations of scene `{}`.", s.name);
+        quote! {
+            #[doc = #doc]
+            pub mod #m { include!(#file); }
+        }
+    });
+    let names = scenes.iter().map(|s| s.name.as_str());
+    let arms = scenes.iter().map(|s| {
+        let m = quote::format_ident!("{}", s.name);
+        let st = quote::format_ident!("{}", struct_name(&s.name));
+        let name = s.name.as_str();
+        quote! {
+            #name => Some(#wrapper::<_, { #m::NQ }, { #m::NC }, { #m::NU }>(#m::#st::default())),
+        }
+    });
+    let tokens = quote! {
+        #(#mods)*
+
+        /// Names of every generated scene.
+        pub const SCENES: &[&str] = &[#(#names),*];
+
+        /// The default model of a scene, by name.
+        pub fn model(name: &str) -> Option<Box<dyn #trait_path>> {
+            match name {
+                #(#arms)*
+                _ => None,
+            }
+        }
+    };
+    let file: syn::File = syn::parse2(tokens).map_err(|e| e.to_string())?;
+    Ok(format!(
+        "// @generated by flexdyn-codegen: index of the generated scenes.\n\n{}",
+        prettyplease::unparse(&file)
+    ))
+}

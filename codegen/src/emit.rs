@@ -1,0 +1,642 @@
+//! Rust emission: one module per scene, built with `quote` from the scheduled
+//! programs (never from scene text) and formatted with `prettyplease`.
+
+use proc_macro2::{Literal, TokenStream};
+use quote::{format_ident, quote};
+
+use crate::expr::{Graph, Id, Symbol};
+use crate::lagrange::Equations;
+use crate::model::Model;
+use crate::program::{schedule, Code, OpCount, Program, Stmt};
+
+/// Operation counts of one emitted function.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FunctionReport {
+    /// Function name.
+    pub name: &'static str,
+    /// Its operations.
+    pub ops: OpCount,
+}
+
+/// The emitted module of one scene.
+#[derive(Debug, Clone)]
+pub struct Emitted {
+    /// Formatted source, `@generated` header first.
+    pub source: String,
+    /// Per-function operation counts.
+    pub functions: Vec<FunctionReport>,
+}
+
+impl Emitted {
+    /// Operations of all functions together.
+    pub fn total_ops(&self) -> OpCount {
+        let mut total = OpCount::default();
+        for f in &self.functions {
+            total += f.ops;
+        }
+        total
+    }
+}
+
+/// Name of the model struct for a scene name: `double_pendulum` -> `DoublePendulum`.
+pub fn struct_name(scene: &str) -> String {
+    scene
+        .split('_')
+        .filter(|p| !p.is_empty())
+        .map(|p| {
+            let mut c = p.chars();
+            c.next()
+                .map(|f| f.to_ascii_uppercase().to_string() + c.as_str())
+                .unwrap_or_default()
+        })
+        .collect()
+}
+
+/// How a function's inputs are named in its signature.
+#[derive(Clone, Copy)]
+struct Inputs {
+    q: bool,
+    qd: bool,
+    t: bool,
+}
+
+struct Emitter<'a> {
+    graph: &'a Graph,
+    model: &'a Model,
+    reports: Vec<FunctionReport>,
+}
+
+fn lit(x: f64) -> TokenStream {
+    let text = format!("{:?}", x.abs());
+    let l: Literal = text
+        .parse()
+        .unwrap_or_else(|_| Literal::f64_unsuffixed(x.abs()));
+    if x.is_sign_negative() && x != 0.0 {
+        quote!(-#l)
+    } else {
+        quote!(#l)
+    }
+}
+
+fn usize_lit(i: usize) -> Literal {
+    Literal::usize_unsuffixed(i)
+}
+
+/// Precedence classes for parenthesising.
+const SUM: u8 = 1;
+const PRODUCT: u8 = 2;
+const ATOM: u8 = 3;
+
+impl Emitter<'_> {
+    fn param_ident(&self, i: u32) -> proc_macro2::Ident {
+        format_ident!("{}", self.model.runtime_parameters[i as usize].name)
+    }
+
+    fn precedence(c: &Code) -> u8 {
+        match c {
+            Code::Sum { .. } => SUM,
+            Code::Prod { .. } => PRODUCT,
+            Code::Lit(x) if *x < 0.0 => SUM,
+            _ => ATOM,
+        }
+    }
+
+    /// Tokens for `c`, parenthesised when its precedence is below `need`.
+    fn code(&self, c: &Code, need: u8) -> TokenStream {
+        let body = match c {
+            Code::Var(v) => {
+                let id = format_ident!("v{}", v);
+                quote!(#id)
+            }
+            Code::Sym(Symbol::Q(i)) => {
+                let i = usize_lit(*i as usize);
+                quote!(q[#i])
+            }
+            Code::Sym(Symbol::Qd(i)) => {
+                let i = usize_lit(*i as usize);
+                quote!(qd[#i])
+            }
+            Code::Sym(Symbol::Time) => quote!(t),
+            Code::Sym(Symbol::Param(i)) => {
+                let p = self.param_ident(*i);
+                quote!(self.#p)
+            }
+            Code::Lit(x) => lit(*x),
+            Code::Sum { constant, terms } => self.sum(*constant, terms),
+            Code::Prod { num, den } => {
+                let num_t: Vec<TokenStream> = num.iter().map(|f| self.code(f, ATOM)).collect();
+                let numerator = join_mul(quote!(1.0), &num_t);
+                match den.as_slice() {
+                    [] => numerator,
+                    [d] => {
+                        let d = self.code(d, ATOM);
+                        quote!(#numerator / #d)
+                    }
+                    _ => {
+                        let den_t: Vec<TokenStream> =
+                            den.iter().map(|f| self.code(f, ATOM)).collect();
+                        let d = join_mul(quote!(1.0), &den_t);
+                        quote!(#numerator / (#d))
+                    }
+                }
+            }
+            Code::Call(f, a) => {
+                let name = format_ident!("{}", f.name());
+                let a = self.code(a, SUM);
+                quote!(math::#name(#a))
+            }
+            Code::Atan2(y, x) => {
+                let y = self.code(y, SUM);
+                let x = self.code(x, SUM);
+                quote!(math::atan2(#y, #x))
+            }
+        };
+        if Self::precedence(c) < need {
+            quote!((#body))
+        } else {
+            body
+        }
+    }
+
+    fn term(&self, coef: f64, t: &Code) -> TokenStream {
+        let a = coef.abs();
+        if a == 1.0 {
+            self.code(t, PRODUCT)
+        } else {
+            let l = lit(a);
+            let t = self.code(t, PRODUCT);
+            quote!(#l * #t)
+        }
+    }
+
+    fn sum(&self, constant: f64, terms: &[(f64, Code)]) -> TokenStream {
+        let pos: Vec<&(f64, Code)> = terms.iter().filter(|(c, _)| *c > 0.0).collect();
+        let neg: Vec<&(f64, Code)> = terms.iter().filter(|(c, _)| *c < 0.0).collect();
+        let mut out = TokenStream::new();
+        let mut first = true;
+        for (c, t) in &pos {
+            let tt = self.term(*c, t);
+            if first {
+                out = tt;
+                first = false;
+            } else {
+                out = quote!(#out + #tt);
+            }
+        }
+        if first && constant != 0.0 {
+            out = lit(constant);
+            first = false;
+        } else if constant > 0.0 {
+            let l = lit(constant);
+            out = quote!(#out + #l);
+        } else if constant < 0.0 {
+            let l = lit(-constant);
+            out = quote!(#out - #l);
+        }
+        for (c, t) in &neg {
+            let tt = self.term(*c, t);
+            if first {
+                out = quote!(-#tt);
+                first = false;
+            } else {
+                out = quote!(#out - #tt);
+            }
+        }
+        out
+    }
+
+    fn stmts(&self, p: &Program) -> TokenStream {
+        let mut out = TokenStream::new();
+        for s in &p.stmts {
+            out.extend(match s {
+                Stmt::Let { var, value } => {
+                    let v = format_ident!("v{}", var);
+                    let e = self.code(value, SUM);
+                    quote!(let #v = #e;)
+                }
+                Stmt::SinCos { sin, cos, arg } => {
+                    let s = format_ident!("v{}", sin);
+                    let c = format_ident!("v{}", cos);
+                    let a = self.code(arg, SUM);
+                    quote!(let (#s, #c) = math::sin_cos(#a);)
+                }
+            });
+        }
+        out
+    }
+
+    /// Which inputs a set of expressions reads.
+    fn inputs(&self, ids: &[Id]) -> Inputs {
+        let syms = self.graph.symbols(ids);
+        Inputs {
+            q: syms.iter().any(|s| matches!(s, Symbol::Q(_))),
+            qd: syms.iter().any(|s| matches!(s, Symbol::Qd(_))),
+            t: syms.contains(&Symbol::Time),
+        }
+    }
+
+    fn record(&mut self, name: &'static str, p: &Program) {
+        self.reports.push(FunctionReport { name, ops: p.ops });
+    }
+
+    /// A function writing a vector output.
+    fn vector_fn(
+        &mut self,
+        name: &'static str,
+        doc: &str,
+        ids: &[Id],
+        with_qd: bool,
+        out_name: &str,
+        vis: TokenStream,
+    ) -> TokenStream {
+        let n = self.model.nq();
+        let len = usize_lit(ids.len());
+        let nq = usize_lit(n);
+        let p = schedule(self.graph, ids);
+        self.record(name, &p);
+        let used = self.inputs(ids);
+        let body = self.stmts(&p);
+        let out = format_ident!("{}", out_name);
+        let assigns = p.outputs.iter().enumerate().map(|(i, c)| {
+            let i = usize_lit(i);
+            let e = self.code(c, SUM);
+            quote!(#out[#i] = #e;)
+        });
+        let out_arg = if ids.is_empty() {
+            format_ident!("_{}", out_name)
+        } else {
+            out.clone()
+        };
+        let (q, qd, t) = input_idents(used);
+        let fname = format_ident!("{}", name);
+        let qd_arg = if with_qd {
+            quote!(#qd: &SVector<f64, #nq>,)
+        } else {
+            quote!()
+        };
+        quote! {
+            #[doc = #doc]
+            #[inline]
+            #vis fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SVector<f64, #len>) {
+                #body
+                #(#assigns)*
+            }
+        }
+    }
+
+    /// A function writing a matrix output from `rows x cols` entries (`None`
+    /// entries mirror another; zero entries are written as zeros).
+    fn matrix_fn(
+        &mut self,
+        name: &'static str,
+        doc: &str,
+        entries: &[Vec<Id>],
+        cols: usize,
+        with_qd: bool,
+        symmetric: bool,
+        vis: TokenStream,
+    ) -> TokenStream {
+        let rows = entries.len();
+        let nq = usize_lit(self.model.nq());
+        let zero = self.graph.find_constant(0.0);
+        let mut ids = Vec::new();
+        let mut slots = Vec::new();
+        for (i, row) in entries.iter().enumerate() {
+            for (j, &e) in row.iter().enumerate() {
+                if symmetric && j < i {
+                    continue;
+                }
+                if Some(e) != zero {
+                    ids.push(e);
+                    slots.push((i, j));
+                }
+            }
+        }
+        let p = schedule(self.graph, &ids);
+        self.record(name, &p);
+        let used = self.inputs(&ids);
+        let body = self.stmts(&p);
+        let mut assigns = TokenStream::new();
+        let has_zeros = slots.len()
+            < if symmetric {
+                rows * (rows + 1) / 2
+            } else {
+                rows * cols
+            };
+        if has_zeros {
+            assigns.extend(quote!(out.fill(0.0);));
+        }
+        for (c, &(i, j)) in p.outputs.iter().zip(&slots) {
+            let (il, jl) = (usize_lit(i), usize_lit(j));
+            let e = self.code(c, SUM);
+            assigns.extend(quote!(out[(#il, #jl)] = #e;));
+            if symmetric && i != j {
+                assigns.extend(quote!(out[(#jl, #il)] = out[(#il, #jl)];));
+            }
+        }
+        let (q, qd, t) = input_idents(used);
+        let fname = format_ident!("{}", name);
+        let (r, c) = (usize_lit(rows), usize_lit(cols));
+        let qd_arg = if with_qd {
+            quote!(#qd: &SVector<f64, #nq>,)
+        } else {
+            quote!()
+        };
+        let out_arg = if rows * cols == 0 {
+            quote!(_out)
+        } else {
+            quote!(out)
+        };
+        quote! {
+            #[doc = #doc]
+            #[inline]
+            #vis fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SMatrix<f64, #r, #c>) {
+                #body
+                #assigns
+            }
+        }
+    }
+
+    fn scalar_fn(&mut self, name: &'static str, doc: &str, id: Id, with_qd: bool) -> TokenStream {
+        let nq = usize_lit(self.model.nq());
+        let p = schedule(self.graph, &[id]);
+        self.record(name, &p);
+        let used = self.inputs(&[id]);
+        let body = self.stmts(&p);
+        let e = self.code(&p.outputs[0], SUM);
+        let (q, qd, t) = input_idents(used);
+        let fname = format_ident!("{}", name);
+        let qd_arg = if with_qd {
+            quote!(#qd: &SVector<f64, #nq>,)
+        } else {
+            quote!()
+        };
+        quote! {
+            #[doc = #doc]
+            #[inline]
+            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64) -> f64 {
+                #body
+                #e
+            }
+        }
+    }
+}
+
+/// `a * b * c` from factor tokens (the `seed` is used when there are none).
+fn join_mul(seed: TokenStream, factors: &[TokenStream]) -> TokenStream {
+    let mut it = factors.iter();
+    let Some(first) = it.next() else {
+        return seed;
+    };
+    let mut out = first.clone();
+    for f in it {
+        out = quote!(#out * #f);
+    }
+    out
+}
+
+fn input_idents(used: Inputs) -> (proc_macro2::Ident, proc_macro2::Ident, proc_macro2::Ident) {
+    let name = |used: bool, n: &str| {
+        if used {
+            format_ident!("{}", n)
+        } else {
+            format_ident!("_{}", n)
+        }
+    };
+    (name(used.q, "q"), name(used.qd, "qd"), name(used.t, "t"))
+}
+
+/// Emit the module of a scene.
+pub fn emit(model: &Model, eq: &Equations) -> Emitted {
+    let mut e = Emitter {
+        graph: &model.graph,
+        model,
+        reports: Vec::new(),
+    };
+    let n = model.nq();
+    let nc = model.constraints.len();
+    let nu = model.actuators.len();
+    let (nq_l, nc_l, nu_l) = (usize_lit(n), usize_lit(nc), usize_lit(nu));
+    let sname = format_ident!("{}", struct_name(&model.name));
+    let scene = model.name.as_str();
+
+    let mass = e.matrix_fn(
+        "mass_matrix",
+        "Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.",
+        &eq.mass,
+        n,
+        false,
+        true,
+        quote!(),
+    );
+    let bias = e.vector_fn(
+        "bias",
+        "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.",
+        &eq.bias,
+        true,
+        "h",
+        quote!(),
+    );
+    let phi = e.vector_fn(
+        "constraints",
+        "Constraint residuals `Phi(q, t)`.",
+        &eq.phi,
+        false,
+        "phi",
+        quote!(),
+    );
+    let phi_q = e.matrix_fn(
+        "constraint_jacobian",
+        "Constraint Jacobian `Phi_q(q, t)`.",
+        &eq.phi_q,
+        n,
+        false,
+        false,
+        quote!(),
+    );
+    let phi_t = e.vector_fn(
+        "constraint_time_derivative",
+        "Explicit time derivative of the constraints `Phi_t(q, t)`.",
+        &eq.phi_t,
+        false,
+        "phi_t",
+        quote!(),
+    );
+    let gamma = e.vector_fn(
+        "constraint_rhs",
+        "Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.",
+        &eq.gamma,
+        true,
+        "gamma",
+        quote!(),
+    );
+    let kinetic = e.scalar_fn(
+        "kinetic_energy",
+        "Kinetic energy `T`.",
+        eq.kinetic_energy,
+        true,
+    );
+    let potential = e.scalar_fn(
+        "potential_energy",
+        "Potential energy `V` (gravity and elastic).",
+        eq.potential_energy,
+        false,
+    );
+
+    // Actuator map: constant.
+    let mut b_assigns = TokenStream::new();
+    let any_actuator = nu > 0;
+    if any_actuator {
+        b_assigns.extend(quote!(b.fill(0.0);));
+    }
+    for (i, row) in eq.actuator_map.iter().enumerate() {
+        for (j, &g) in row.iter().enumerate() {
+            if g != 0.0 {
+                let (il, jl) = (usize_lit(i), usize_lit(j));
+                let l = lit(g);
+                b_assigns.extend(quote!(b[(#il, #jl)] = #l;));
+            }
+        }
+    }
+    let b_arg = if any_actuator { quote!(b) } else { quote!(_b) };
+
+    // Optional outputs as inherent methods.
+    let mut inherent = TokenStream::new();
+    if model.outputs.forces {
+        for (name, doc, ids, qd) in [
+            (
+                "coriolis_forces",
+                "Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).",
+                &eq.coriolis,
+                true,
+            ),
+            (
+                "potential_forces",
+                "Gravity and elastic forces `dV/dq`.",
+                &eq.potential_forces,
+                false,
+            ),
+            (
+                "damping_forces",
+                "Damping forces `dD/dqd`.",
+                &eq.damping_forces,
+                true,
+            ),
+        ] {
+            inherent.extend(e.vector_fn(name, doc, ids, qd, "out", quote!(pub)));
+        }
+    }
+    if let Some(cm) = &eq.coriolis_matrix {
+        let f = e.matrix_fn(
+            "coriolis_matrix",
+            "Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.",
+            cm,
+            n,
+            true,
+            false,
+            quote!(pub),
+        );
+        inherent.extend(f);
+    }
+
+    let coords = model.coordinates.iter().map(|c| c.name.as_str());
+    let acts = model.actuators.iter().map(|a| a.name.as_str());
+    let fields = model.runtime_parameters.iter().map(|p| {
+        let id = format_ident!("{}", p.name);
+        let doc = format!("Runtime parameter (nominal value {:?}).", p.value);
+        quote!(#[doc = #doc] pub #id: f64,)
+    });
+    let defaults = model.runtime_parameters.iter().map(|p| {
+        let id = format_ident!("{}", p.name);
+        let v = lit(p.value);
+        quote!(#id: #v,)
+    });
+    let struct_doc = format!(
+        "Equations of motion of scene `{scene}`: {n} coordinates, {nc} constraints, {nu} actuators. Fields are the runtime parameters."
+    );
+    let lints = quote! {
+        #[allow(
+            clippy::approx_constant,
+            clippy::excessive_precision,
+            clippy::too_many_lines,
+            clippy::unreadable_literal,
+            clippy::neg_multiply,
+            clippy::identity_op,
+            clippy::suspicious_operation_groupings,
+            unused_parens
+        )]
+    };
+    let inherent_block = if inherent.is_empty() {
+        quote!()
+    } else {
+        quote! {
+            #lints
+            impl #sname { #inherent }
+        }
+    };
+    let tokens = quote! {
+        use flexdyn_runtime::math;
+        use flexdyn_runtime::nalgebra::{SMatrix, SVector};
+
+        /// Number of generalized coordinates.
+        pub const NQ: usize = #nq_l;
+        /// Number of constraints.
+        pub const NC: usize = #nc_l;
+        /// Number of actuator inputs.
+        pub const NU: usize = #nu_l;
+
+        #[doc = #struct_doc]
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        pub struct #sname { #(#fields)* }
+
+        impl Default for #sname {
+            fn default() -> Self {
+                Self { #(#defaults)* }
+            }
+        }
+
+        #inherent_block
+
+        #lints
+        impl flexdyn_runtime::Model<#nq_l, #nc_l, #nu_l> for #sname {
+            const NAME: &'static str = #scene;
+            const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
+            const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];
+            #mass
+            #bias
+            #phi
+            #phi_q
+            #phi_t
+            #gamma
+            #[inline]
+            fn actuator_map(&self, #b_arg: &mut SMatrix<f64, #nq_l, #nu_l>) {
+                #b_assigns
+            }
+            #kinetic
+            #potential
+        }
+    };
+    let file: syn::File = syn::parse2(tokens).expect("emitted tokens form a valid Rust file");
+    let body = prettyplease::unparse(&file);
+    let mut total = OpCount::default();
+    let mut header = format!(
+        "// @generated by flexdyn-codegen {} from scene `{scene}`. Do not edit: edit the scene and rebuild.\n\
+         // Operation counts (add / mul / div / call):\n",
+        env!("CARGO_PKG_VERSION")
+    );
+    for r in &e.reports {
+        total += r.ops;
+        header.push_str(&format!(
+            "//   {:<28} {:>6} {:>6} {:>6} {:>6}\n",
+            r.name, r.ops.adds, r.ops.muls, r.ops.divs, r.ops.calls
+        ));
+    }
+    header.push_str(&format!(
+        "//   {:<28} {:>6} {:>6} {:>6} {:>6}\n\n",
+        "total", total.adds, total.muls, total.divs, total.calls
+    ));
+    Emitted {
+        source: header + &body,
+        functions: e.reports,
+    }
+}

@@ -1,0 +1,21 @@
+//! flexdyn-codegen: from a scene's energies to specialised Rust.
+//!
+//! Data flow, one module per arrow:
+//! scene file ([`scene`]) -> parsed expressions ([`parse`]) -> component
+//! energies ([`model`]) -> derived terms ([`lagrange`]) -> optimised
+//! straight-line program ([`program`]) -> emitted Rust ([`emit`]), driven by
+//! the [`Builder`].
+
+mod builder;
+pub mod diff;
+pub mod emit;
+pub mod error;
+pub mod expr;
+pub mod lagrange;
+pub mod model;
+pub mod parse;
+pub mod program;
+pub mod scene;
+
+pub use builder::{generate_scene, write_if_changed, Builder, Generated, Report};
+pub use error::Error;

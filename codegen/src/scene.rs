@@ -1,0 +1,238 @@
+//! The scene file format: TOML read with serde into raw, position-carrying
+//! structures. Nothing here interprets expressions; see [`crate::model`].
+//!
+//! Every expression and number keeps its byte span in the file so that later
+//! stages can report errors at the right line and column. Unknown fields are
+//! rejected.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::error::{Error, Source};
+
+/// A number or an expression written as a string.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum Scalar {
+    /// A literal number.
+    Number(f64),
+    /// An expression in the scene grammar.
+    Expr(String),
+}
+
+/// A scalar with its position in the file.
+pub type SScalar = Spanned<Scalar>;
+
+/// A parameter: a plain number (folded into the generated code) or a table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum ParameterDef {
+    /// Folded as a constant at generation time.
+    Value(f64),
+    /// A table with options.
+    Table(ParameterTable),
+}
+
+/// A parameter with options.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterTable {
+    /// Nominal value.
+    pub value: f64,
+    /// Leave the parameter as a runtime input of the generated model
+    /// (a field of the model struct) instead of folding it.
+    #[serde(default)]
+    pub runtime: bool,
+}
+
+/// A generalized coordinate.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CoordinateDef {
+    /// Name usable in expressions.
+    pub name: Spanned<String>,
+    /// Range of positions the scene is used in (validation samples from it).
+    pub range: Option<Spanned<[f64; 2]>>,
+    /// Range of velocities the scene is used in.
+    pub velocity_range: Option<Spanned<[f64; 2]>>,
+}
+
+/// An elementary rotation of a frame.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotationDef {
+    /// `"x"`, `"y"`, `"z"`, or a direction as three numbers.
+    pub axis: Spanned<AxisDef>,
+    /// The angle, in radians.
+    pub angle: SScalar,
+}
+
+/// An axis of rotation.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum AxisDef {
+    /// `"x"`, `"y"` or `"z"`.
+    Named(String),
+    /// A direction (normalised when read).
+    Vector([f64; 3]),
+}
+
+/// A kinematic frame: translation and rotation relative to a parent frame.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameDef {
+    /// Name used by components and other frames.
+    pub name: Spanned<String>,
+    /// Parent frame, the world frame when absent.
+    pub parent: Option<Spanned<String>>,
+    /// Origin of this frame in the parent frame.
+    pub translation: Option<Spanned<Vec<SScalar>>>,
+    /// Rotations applied in order (intrinsic), each about an axis of the
+    /// frame produced by the previous ones.
+    #[serde(default)]
+    pub rotation: Vec<RotationDef>,
+}
+
+/// A component of the mechanism. Which fields apply depends on `type`;
+/// [`crate::model`] checks that.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ComponentDef {
+    /// Name for messages and reports.
+    pub name: Option<Spanned<String>>,
+    /// `energy`, `point_mass`, `rod`, `rigid_body`, `spring`, `damper`.
+    #[serde(rename = "type")]
+    pub kind: Spanned<String>,
+    /// Kinetic energy (`energy`).
+    pub kinetic: Option<SScalar>,
+    /// Potential energy (`energy`).
+    pub potential: Option<SScalar>,
+    /// Rayleigh dissipation function (`energy`).
+    pub dissipation: Option<SScalar>,
+    /// Mass (`point_mass`, `rod`, `rigid_body`).
+    pub mass: Option<SScalar>,
+    /// Frame the positions are given in (world when absent).
+    pub frame: Option<Spanned<String>>,
+    /// Position of a point mass, or of a rigid body's centre of mass.
+    pub position: Option<Spanned<Vec<SScalar>>>,
+    /// First end of a rod.
+    pub from: Option<Spanned<Vec<SScalar>>>,
+    /// Second end of a rod.
+    pub to: Option<Spanned<Vec<SScalar>>>,
+    /// Inertia tensor about the centre of mass in frame axes (3x3).
+    pub inertia: Option<Spanned<Vec<Vec<SScalar>>>>,
+    /// Stiffness of a spring.
+    pub stiffness: Option<SScalar>,
+    /// Damping coefficient of a damper.
+    pub damping: Option<SScalar>,
+    /// The stretch (spring) or the quantity whose rate is damped (damper),
+    /// e.g. `q[1] - q[0]` for a torsion spring between two links.
+    pub expression: Option<SScalar>,
+    /// Rest value of a spring's expression.
+    pub rest: Option<SScalar>,
+}
+
+/// A holonomic constraint `expression(q, t) = 0`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintDef {
+    /// Name for messages.
+    pub name: Option<Spanned<String>>,
+    /// The residual.
+    pub expression: SScalar,
+}
+
+/// An actuator input driving one generalized coordinate.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorDef {
+    /// Name of the input.
+    pub name: Spanned<String>,
+    /// Coordinate whose generalized force the input is.
+    pub coordinate: Spanned<String>,
+    /// Gain (generalized force per unit input), 1 by default.
+    pub gain: Option<Spanned<f64>>,
+}
+
+/// The whole scene file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneDef {
+    /// Identifier: module name of the generated code.
+    pub name: Spanned<String>,
+    /// Free text for people; never copied into generated code.
+    pub description: Option<String>,
+    /// Gravity vector in world axes (default `[0, 0, -9.81]`).
+    pub gravity: Option<Spanned<Vec<SScalar>>>,
+    /// Parameters by name.
+    #[serde(default)]
+    pub parameters: BTreeMap<Spanned<String>, Spanned<ParameterDef>>,
+    /// Generalized coordinates in order.
+    pub coordinates: Vec<CoordinateDef>,
+    /// Kinematic frames.
+    #[serde(default)]
+    pub frames: Vec<FrameDef>,
+    /// Components.
+    #[serde(default)]
+    pub components: Vec<ComponentDef>,
+    /// Constraints.
+    #[serde(default)]
+    pub constraints: Vec<ConstraintDef>,
+    /// Actuators.
+    #[serde(default)]
+    pub actuators: Vec<ActuatorDef>,
+    /// Optional outputs beyond the runtime's core set: `coriolis_matrix`,
+    /// `forces` (Coriolis, potential and damping forces separately).
+    #[serde(default)]
+    pub outputs: Vec<Spanned<String>>,
+}
+
+/// Largest scene file accepted, in bytes.
+pub const MAX_SCENE_BYTES: usize = 4 << 20;
+
+/// Parse a scene file's text.
+pub fn parse_scene(source: &Source) -> Result<SceneDef, Error> {
+    if source.text().len() > MAX_SCENE_BYTES {
+        return Err(source.error(format!(
+            "scene file is larger than {} bytes",
+            MAX_SCENE_BYTES
+        )));
+    }
+    toml::from_str::<SceneDef>(source.text()).map_err(|e| {
+        let offset = e.span().map_or(0, |s| s.start);
+        let message = e.message().trim().to_owned();
+        source.error_at(offset, None, message)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn parse(text: &str) -> Result<SceneDef, Error> {
+        parse_scene(&Source::new(Path::new("s.toml"), text.into()))
+    }
+
+    #[test]
+    fn minimal_scene_parses() {
+        let s = parse(
+            "name = \"p\"\n[parameters]\nm = 1.0\nl = { value = 2.0, runtime = true }\n\
+             [[coordinates]]\nname = \"x\"\n[[components]]\ntype = \"point_mass\"\nmass = \"m\"\n\
+             position = [\"x\", 0, 0]\n",
+        )
+        .unwrap();
+        assert_eq!(s.name.get_ref(), "p");
+        assert_eq!(s.parameters.len(), 2);
+        assert_eq!(s.components.len(), 1);
+    }
+
+    #[test]
+    fn unknown_field_is_located() {
+        let e = parse("name = \"p\"\ncoordinates = []\nbogus = 1\n").unwrap_err();
+        assert_eq!(e.line, 3, "{e}");
+        assert!(e.message.contains("bogus"), "{e}");
+    }
+}

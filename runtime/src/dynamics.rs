@@ -1,0 +1,169 @@
+//! Constrained forward dynamics: the KKT system
+//!
+//! ```text
+//! M qdd - Phi_q^T lambda = B tau - h
+//! Phi_q qdd              = gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi
+//! ```
+//!
+//! solved by a Schur complement on the stack: Cholesky `M = L L^T`,
+//! `Y = L^-1 Phi_q^T`, `S = Y^T Y = Phi_q M^-1 Phi_q^T` factored by an
+//! equilibrated, diagonally pivoted Cholesky whose pivot ratio is the
+//! condition estimate reported (and checked) for the constraint Jacobian.
+
+use crate::error::{Error, ErrorKind, Quantity};
+use crate::eval;
+use crate::linalg::{cholesky, solve_lower, solve_lower_transpose, SpdSolver};
+use crate::model::Model;
+use nalgebra::{SMatrix, SVector};
+
+/// Baumgarte stabilisation gains: the acceleration constraint becomes
+/// `Phi_q qdd = gamma - 2 alpha dPhi/dt - beta^2 Phi`, which makes the
+/// constraint violation obey `Phi'' + 2 alpha Phi' + beta^2 Phi = 0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Baumgarte {
+    /// Damping gain `alpha` (1/s).
+    pub alpha: f64,
+    /// Stiffness gain `beta` (1/s).
+    pub beta: f64,
+}
+
+impl Baumgarte {
+    /// No stabilisation (`alpha = beta = 0`): pure index-1 formulation.
+    pub const NONE: Baumgarte = Baumgarte { alpha: 0.0, beta: 0.0 };
+}
+
+impl Default for Baumgarte {
+    /// `alpha = beta = 10 / s` (critically damped violation, time constant 0.1 s).
+    fn default() -> Self {
+        Baumgarte { alpha: 10.0, beta: 10.0 }
+    }
+}
+
+/// Configuration of the constrained acceleration solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DynamicsConfig {
+    /// Baumgarte gains.
+    pub baumgarte: Baumgarte,
+    /// Largest accepted condition estimate of the (equilibrated)
+    /// `Phi_q M^-1 Phi_q^T`; above it the solve fails with
+    /// [`ErrorKind::SingularConstraintJacobian`].
+    pub max_condition: f64,
+}
+
+impl Default for DynamicsConfig {
+    fn default() -> Self {
+        DynamicsConfig { baumgarte: Baumgarte::default(), max_condition: 1e12 }
+    }
+}
+
+/// Result of a forward-dynamics solve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Accelerations<const NQ: usize, const NC: usize> {
+    /// Generalized accelerations `qdd`.
+    pub qdd: SVector<f64, NQ>,
+    /// Constraint forces (Lagrange multipliers) `lambda`; the generalized
+    /// constraint force is `Phi_q^T lambda`.
+    pub lambda: SVector<f64, NC>,
+    /// Condition estimate of `Phi_q M^-1 Phi_q^T` (1 when unconstrained).
+    pub condition: f64,
+}
+
+/// Factored saddle-point matrix `[[M, Phi_q^T], [Phi_q, 0]]`.
+pub(crate) struct Kkt<const NQ: usize, const NC: usize> {
+    l: SMatrix<f64, NQ, NQ>,
+    y: SMatrix<f64, NQ, NC>,
+    s: SpdSolver<NC>,
+    pub(crate) condition: f64,
+}
+
+impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
+    /// Factors the KKT matrix; errors are reported at time `t`.
+    pub(crate) fn new(
+        mut m: SMatrix<f64, NQ, NQ>,
+        phi_q: &SMatrix<f64, NC, NQ>,
+        max_condition: f64,
+        t: f64,
+    ) -> Result<Self, Error> {
+        if let Err((pivot, value)) = cholesky(&mut m) {
+            return Err(Error::new(ErrorKind::MassMatrixNotPositiveDefinite { pivot, value }, t));
+        }
+        let mut y = phi_q.transpose();
+        solve_lower(&m, &mut y);
+        let s_mat = y.transpose() * y;
+        match SpdSolver::factor(&s_mat, max_condition) {
+            Ok((s, condition)) => Ok(Kkt { l: m, y, s, condition }),
+            Err(condition) => Err(Error::new(
+                ErrorKind::SingularConstraintJacobian { condition, limit: max_condition },
+                t,
+            )),
+        }
+    }
+
+    /// Solves `M x - Phi_q^T mu = f`, `Phi_q x = c`.
+    pub(crate) fn solve(&self, f: &SVector<f64, NQ>, c: &SVector<f64, NC>) -> (SVector<f64, NQ>, SVector<f64, NC>) {
+        let mut z = *f;
+        solve_lower(&self.l, &mut z);
+        let mut mu = c - self.y.transpose() * z;
+        self.s.solve(&mut mu);
+        let mut x = z + self.y * mu;
+        solve_lower_transpose(&self.l, &mut x);
+        (x, mu)
+    }
+}
+
+/// Solves the constrained equations of motion for the accelerations and
+/// constraint forces at `(q, qd, t)` with actuator input `tau`.
+///
+/// The inputs are assumed finite (the integrators check them); model outputs
+/// are checked. Errors: [`ErrorKind::NonFiniteModelOutput`],
+/// [`ErrorKind::MassMatrixNotPositiveDefinite`],
+/// [`ErrorKind::SingularConstraintJacobian`], [`ErrorKind::NonFiniteResult`].
+pub fn accelerations<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    config: &DynamicsConfig,
+    q: &SVector<f64, NQ>,
+    qd: &SVector<f64, NQ>,
+    t: f64,
+    tau: &SVector<f64, NU>,
+) -> Result<Accelerations<NQ, NC>, Error>
+where
+    M: Model<NQ, NC, NU>,
+{
+    let m = eval::mass(model, q, t)?;
+    let h = eval::bias(model, q, qd, t)?;
+    let b = eval::actuator_map(model, t)?;
+    let f = b * tau - h;
+    let phi_q = eval::constraint_jacobian(model, q, t)?;
+    let c = stabilised_rhs(model, &config.baumgarte, q, qd, t, &phi_q)?;
+    let kkt = Kkt::new(m, &phi_q, config.max_condition, t)?;
+    let (qdd, lambda) = kkt.solve(&f, &c);
+    eval::check_result(&qdd, Quantity::Acceleration, t)?;
+    eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
+    Ok(Accelerations { qdd, lambda, condition: kkt.condition })
+}
+
+/// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` (zero-sized when `NC == 0`).
+pub(crate) fn stabilised_rhs<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    gains: &Baumgarte,
+    q: &SVector<f64, NQ>,
+    qd: &SVector<f64, NQ>,
+    t: f64,
+    phi_q: &SMatrix<f64, NC, NQ>,
+) -> Result<SVector<f64, NC>, Error>
+where
+    M: Model<NQ, NC, NU>,
+{
+    if NC == 0 {
+        return Ok(SVector::zeros());
+    }
+    let gamma = eval::constraint_rhs(model, q, qd, t)?;
+    let mut c = gamma;
+    if gains.alpha != 0.0 || gains.beta != 0.0 {
+        let phi = eval::constraints(model, q, t)?;
+        let phi_t = eval::constraint_time_derivative(model, q, t)?;
+        let phi_dot = phi_q * qd + phi_t;
+        c -= phi_dot * (2.0 * gains.alpha) + phi * (gains.beta * gains.beta);
+    }
+    Ok(c)
+}

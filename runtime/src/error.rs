@@ -1,0 +1,289 @@
+//! Error values returned by every solver in this crate.
+//!
+//! Errors are small `Copy` values: an [`ErrorKind`] saying what went wrong,
+//! with the numbers that show it, and the simulation time at which it
+//! happened. No solver panics on bad numbers; every failure is one of these.
+
+use core::fmt;
+
+/// Which quantity an error refers to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quantity {
+    /// Generalized coordinates `q`.
+    Position,
+    /// Generalized velocities `qd`.
+    Velocity,
+    /// Generalized accelerations `qdd`.
+    Acceleration,
+    /// Time `t`.
+    Time,
+    /// Actuator inputs `tau`.
+    Input,
+    /// Prescribed coordinate values (inverse dynamics).
+    PrescribedPosition,
+    /// Prescribed coordinate velocities (inverse dynamics).
+    PrescribedVelocity,
+    /// Prescribed coordinate accelerations (inverse dynamics).
+    PrescribedAcceleration,
+    /// Mass matrix `M` returned by the model.
+    MassMatrix,
+    /// Bias forces `h` returned by the model.
+    Bias,
+    /// Analytic bias Jacobians returned by the model.
+    BiasJacobian,
+    /// Constraint residuals `Phi` returned by the model.
+    Constraints,
+    /// Constraint Jacobian `Phi_q` returned by the model.
+    ConstraintJacobian,
+    /// Explicit time derivative `Phi_t` returned by the model.
+    ConstraintTimeDerivative,
+    /// Acceleration right-hand side `gamma` returned by the model.
+    ConstraintRhs,
+    /// Actuator map `B` returned by the model.
+    ActuatorMap,
+    /// Constraint forces (Lagrange multipliers) `lambda`.
+    ConstraintForces,
+}
+
+impl Quantity {
+    /// Short human-readable name.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Quantity::Position => "position q",
+            Quantity::Velocity => "velocity qd",
+            Quantity::Acceleration => "acceleration qdd",
+            Quantity::Time => "time t",
+            Quantity::Input => "actuator input tau",
+            Quantity::PrescribedPosition => "prescribed position",
+            Quantity::PrescribedVelocity => "prescribed velocity",
+            Quantity::PrescribedAcceleration => "prescribed acceleration",
+            Quantity::MassMatrix => "mass matrix M",
+            Quantity::Bias => "bias forces h",
+            Quantity::BiasJacobian => "bias Jacobians",
+            Quantity::Constraints => "constraints Phi",
+            Quantity::ConstraintJacobian => "constraint Jacobian Phi_q",
+            Quantity::ConstraintTimeDerivative => "constraint time derivative Phi_t",
+            Quantity::ConstraintRhs => "constraint acceleration rhs gamma",
+            Quantity::ActuatorMap => "actuator map B",
+            Quantity::ConstraintForces => "constraint forces lambda",
+        }
+    }
+}
+
+/// What went wrong.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ErrorKind {
+    /// A component of the state passed in (`q`, `qd` or `t`) is NaN or infinite.
+    NonFiniteState {
+        /// [`Quantity::Position`], [`Quantity::Velocity`] or [`Quantity::Time`].
+        quantity: Quantity,
+        /// Index of the first offending component.
+        index: usize,
+    },
+    /// A caller-supplied input (actuator input, prescribed motion) is NaN or infinite.
+    NonFiniteInput {
+        /// Which input.
+        quantity: Quantity,
+        /// Index of the first offending component.
+        index: usize,
+    },
+    /// The model returned a NaN or infinite value.
+    NonFiniteModelOutput {
+        /// Which model function.
+        quantity: Quantity,
+    },
+    /// The solve completed on finite data but produced NaN or infinity
+    /// (overflow), typically because the step was far too large.
+    NonFiniteResult {
+        /// Which result.
+        quantity: Quantity,
+    },
+    /// The mass matrix is not (numerically) positive definite: the Cholesky
+    /// pivot at `pivot` is `value <= 0`.
+    MassMatrixNotPositiveDefinite {
+        /// Index of the failing pivot.
+        pivot: usize,
+        /// The pivot value (diagonal of the partially factored matrix).
+        value: f64,
+    },
+    /// The constraint Jacobian is singular or too ill-conditioned for the
+    /// operation (rank deficient `Phi_q M^-1 Phi_q^T`, or the Jacobian of the
+    /// unprescribed coordinates in inverse dynamics).
+    SingularConstraintJacobian {
+        /// Condition estimate (`f64::INFINITY` when exactly singular).
+        condition: f64,
+        /// The limit it exceeded.
+        limit: f64,
+    },
+    /// The Newton iteration matrix of the implicit integrator is singular.
+    SingularIterationMatrix {
+        /// Condition estimate (`f64::INFINITY` when exactly singular).
+        condition: f64,
+    },
+    /// The actuators cannot balance the required forces: `[Phi_q^T B]` does not
+    /// span the space it must (actuation singularity of a parallel mechanism,
+    /// or a zero actuator map).
+    SingularActuation {
+        /// Condition estimate of the actuation matrix projected onto the
+        /// free motion directions.
+        condition: f64,
+        /// The limit it exceeded.
+        limit: f64,
+    },
+    /// A Newton iteration (implicit step, position projection, inverse
+    /// kinematics) did not reach its tolerance within its iteration cap.
+    NewtonNotConverged {
+        /// Iterations performed.
+        iterations: u32,
+        /// Last residual / correction norm, relative to the tolerance where the
+        /// solver uses a scaled norm (see the solver's docs).
+        residual: f64,
+    },
+    /// An iterative dense decomposition (Jacobi SVD) did not converge within
+    /// its sweep cap.
+    DecompositionNotConverged {
+        /// Sweeps performed.
+        sweeps: u32,
+    },
+    /// The step size is not a finite positive number.
+    InvalidStepSize {
+        /// The offending step size.
+        dt: f64,
+    },
+    /// The step size exceeds what the integrator accepts: either the configured
+    /// `max_step`, or (explicit schemes) the estimated stability limit
+    /// `dt * spectral_radius`.
+    StepTooLarge {
+        /// The offending step size.
+        dt: f64,
+        /// The measured quantity that exceeded its limit: `dt` itself for the
+        /// `max_step` check, the estimate of `dt * rho(J)` for the stability check.
+        value: f64,
+        /// The limit.
+        limit: f64,
+    },
+    /// The adaptive integrator would need a step below its minimum step size.
+    StepSizeUnderflow {
+        /// The step size it would need.
+        dt: f64,
+        /// The configured minimum.
+        min_step: f64,
+    },
+    /// The adaptive integrator rejected too many trial steps in one call.
+    TooManyRejections {
+        /// Trial steps rejected.
+        rejections: u32,
+        /// Scaled error norm of the last trial (1 = at tolerance).
+        error_norm: f64,
+    },
+    /// An adaptive integrator asked to advance by a fixed interval used up
+    /// its substep budget before reaching the end of it.
+    SubstepLimit {
+        /// Accepted substeps taken.
+        substeps: u32,
+        /// Part of the interval covered before giving up.
+        reached: f64,
+    },
+    /// Invalid solver set-up (e.g. prescribed coordinate indices out of range
+    /// or repeated, or too few constraints to determine the free coordinates).
+    InvalidConfiguration {
+        /// What is wrong.
+        reason: &'static str,
+    },
+}
+
+/// A solver error: what went wrong and at which simulation time.
+///
+/// `t` is the time of the state the failed operation started from (for a
+/// step, the time *before* the step; the state is left unchanged).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Error {
+    /// What went wrong.
+    pub kind: ErrorKind,
+    /// Simulation time at which it happened.
+    pub t: f64,
+}
+
+impl Error {
+    /// Creates an error.
+    pub const fn new(kind: ErrorKind, t: f64) -> Self {
+        Error { kind, t }
+    }
+}
+
+impl fmt::Display for ErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ErrorKind::NonFiniteState { quantity, index } => {
+                write!(f, "non-finite state: {}[{}]", quantity.name(), index)
+            }
+            ErrorKind::NonFiniteInput { quantity, index } => {
+                write!(f, "non-finite input: {}[{}]", quantity.name(), index)
+            }
+            ErrorKind::NonFiniteModelOutput { quantity } => {
+                write!(f, "model returned a non-finite {}", quantity.name())
+            }
+            ErrorKind::NonFiniteResult { quantity } => {
+                write!(f, "solve produced a non-finite {} (overflow; step too large?)", quantity.name())
+            }
+            ErrorKind::MassMatrixNotPositiveDefinite { pivot, value } => write!(
+                f,
+                "mass matrix not positive definite: Cholesky pivot {} = {:e}",
+                pivot, value
+            ),
+            ErrorKind::SingularConstraintJacobian { condition, limit } => write!(
+                f,
+                "singular or ill-conditioned constraint Jacobian: condition estimate {:e} > limit {:e}",
+                condition, limit
+            ),
+            ErrorKind::SingularIterationMatrix { condition } => write!(
+                f,
+                "singular Newton iteration matrix: condition estimate {:e}",
+                condition
+            ),
+            ErrorKind::SingularActuation { condition, limit } => write!(
+                f,
+                "actuation singular: condition estimate {:e} > limit {:e}",
+                condition, limit
+            ),
+            ErrorKind::NewtonNotConverged { iterations, residual } => write!(
+                f,
+                "Newton iteration did not converge in {} iterations (residual {:e})",
+                iterations, residual
+            ),
+            ErrorKind::DecompositionNotConverged { sweeps } => {
+                write!(f, "Jacobi SVD did not converge in {} sweeps", sweeps)
+            }
+            ErrorKind::InvalidStepSize { dt } => write!(f, "invalid step size {:e}", dt),
+            ErrorKind::StepTooLarge { dt, value, limit } => write!(
+                f,
+                "step size {:e} too large: {:e} exceeds limit {:e}",
+                dt, value, limit
+            ),
+            ErrorKind::StepSizeUnderflow { dt, min_step } => write!(
+                f,
+                "adaptive step size {:e} fell below the minimum {:e}",
+                dt, min_step
+            ),
+            ErrorKind::TooManyRejections { rejections, error_norm } => write!(
+                f,
+                "adaptive step rejected {} times (last scaled error {:e})",
+                rejections, error_norm
+            ),
+            ErrorKind::SubstepLimit { substeps, reached } => write!(
+                f,
+                "adaptive integration used its {} substeps after covering {:e} of the interval",
+                substeps, reached
+            ),
+            ErrorKind::InvalidConfiguration { reason } => write!(f, "invalid configuration: {}", reason),
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "at t = {}: {}", self.t, self.kind)
+    }
+}
+
+impl core::error::Error for Error {}

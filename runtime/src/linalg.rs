@@ -1,0 +1,492 @@
+//! Small dense factorisations on fixed-size stack matrices.
+//!
+//! Hand-written (rather than nalgebra's decompositions) so that every failure
+//! is reported as a value with the numbers that show it, loops have static
+//! bounds, and generic code needs no extra dimension trait bounds.
+
+use crate::math::sqrt;
+use nalgebra::{SMatrix, SVector};
+
+/// Largest absolute entry; NaN if any entry is NaN.
+pub(crate) fn max_abs<const R: usize, const C: usize>(a: &SMatrix<f64, R, C>) -> f64 {
+    let mut m = 0.0f64;
+    for x in a.iter() {
+        let ax = x.abs();
+        if ax.is_nan() {
+            return f64::NAN;
+        }
+        if ax > m {
+            m = ax;
+        }
+    }
+    m
+}
+
+/// True if every entry is finite.
+pub(crate) fn all_finite<const R: usize, const C: usize>(a: &SMatrix<f64, R, C>) -> bool {
+    a.iter().all(|x| x.is_finite())
+}
+
+/// Index of the first non-finite entry (column-major for matrices).
+pub(crate) fn first_non_finite<const R: usize>(a: &SVector<f64, R>) -> Option<usize> {
+    a.iter().position(|x| !x.is_finite())
+}
+
+/// In-place Cholesky factorisation `A = L L^T` of a symmetric matrix; only the
+/// lower triangle of `a` is read, and on success it holds `L` (the strict upper
+/// triangle is zeroed).
+///
+/// Fails with `(pivot index, pivot value)` when a pivot is not positive, or
+/// is below `eps * A_jj` (numerically singular), or is not finite.
+pub(crate) fn cholesky<const N: usize>(a: &mut SMatrix<f64, N, N>) -> Result<(), (usize, f64)> {
+    for j in 0..N {
+        let ajj = a[(j, j)];
+        let mut d = ajj;
+        for k in 0..j {
+            d -= a[(j, k)] * a[(j, k)];
+        }
+        if !d.is_finite() || d <= f64::EPSILON * ajj.abs() || d <= 0.0 {
+            return Err((j, d));
+        }
+        let l = sqrt(d);
+        a[(j, j)] = l;
+        for i in (j + 1)..N {
+            let mut s = a[(i, j)];
+            for k in 0..j {
+                s -= a[(i, k)] * a[(j, k)];
+            }
+            a[(i, j)] = s / l;
+        }
+        for i in 0..j {
+            a[(i, j)] = 0.0;
+        }
+    }
+    Ok(())
+}
+
+/// Solves `L x = b` in place (forward substitution) for every column of `b`.
+pub(crate) fn solve_lower<const N: usize, const K: usize>(l: &SMatrix<f64, N, N>, b: &mut SMatrix<f64, N, K>) {
+    for c in 0..K {
+        for i in 0..N {
+            let mut s = b[(i, c)];
+            for k in 0..i {
+                s -= l[(i, k)] * b[(k, c)];
+            }
+            b[(i, c)] = s / l[(i, i)];
+        }
+    }
+}
+
+/// Solves `L^T x = b` in place (backward substitution) for every column of `b`.
+pub(crate) fn solve_lower_transpose<const N: usize, const K: usize>(
+    l: &SMatrix<f64, N, N>,
+    b: &mut SMatrix<f64, N, K>,
+) {
+    for c in 0..K {
+        for i in (0..N).rev() {
+            let mut s = b[(i, c)];
+            for k in (i + 1)..N {
+                s -= l[(k, i)] * b[(k, c)];
+            }
+            b[(i, c)] = s / l[(i, i)];
+        }
+    }
+}
+
+/// Symmetric positive semi-definite solver: Jacobi equilibration followed by a
+/// diagonally pivoted Cholesky factorisation, which reveals (near) rank
+/// deficiency through its pivots.
+pub(crate) struct SpdSolver<const N: usize> {
+    l: SMatrix<f64, N, N>,
+    perm: [usize; N],
+    scale: SVector<f64, N>,
+}
+
+impl<const N: usize> SpdSolver<N> {
+    /// Factors `a` (symmetric, both triangles read). Returns the solver and a
+    /// condition estimate of the equilibrated matrix (ratio of the largest to
+    /// the smallest pivot; a lower bound of the 2-norm condition number).
+    /// `Err(estimate)` when a pivot vanishes or the estimate exceeds `limit`
+    /// (the estimate is `INFINITY` for an exactly singular matrix).
+    pub(crate) fn factor(a: &SMatrix<f64, N, N>, limit: f64) -> Result<(Self, f64), f64> {
+        let mut scale = SVector::<f64, N>::zeros();
+        for i in 0..N {
+            let d = a[(i, i)];
+            if !(d > 0.0) || !d.is_finite() {
+                return Err(f64::INFINITY);
+            }
+            scale[i] = 1.0 / sqrt(d);
+        }
+        let mut w = SMatrix::<f64, N, N>::zeros();
+        for j in 0..N {
+            for i in 0..N {
+                w[(i, j)] = scale[i] * a[(i, j)] * scale[j];
+            }
+        }
+        let mut perm = [0usize; N];
+        for (i, p) in perm.iter_mut().enumerate() {
+            *p = i;
+        }
+        let mut l = SMatrix::<f64, N, N>::zeros();
+        let mut dmax = 0.0f64;
+        let mut dmin = f64::INFINITY;
+        for j in 0..N {
+            // Choose the largest remaining diagonal.
+            let mut p = j;
+            for i in (j + 1)..N {
+                if w[(i, i)] > w[(p, p)] {
+                    p = i;
+                }
+            }
+            if p != j {
+                w.swap_rows(j, p);
+                w.swap_columns(j, p);
+                l.swap_rows(j, p);
+                perm.swap(j, p);
+            }
+            let d = w[(j, j)];
+            if j == 0 {
+                dmax = d;
+            }
+            if !(d > 0.0) || !d.is_finite() || d <= 4.0 * f64::EPSILON * dmax {
+                return Err(f64::INFINITY);
+            }
+            dmin = dmin.min(d);
+            let ljj = sqrt(d);
+            l[(j, j)] = ljj;
+            for i in (j + 1)..N {
+                l[(i, j)] = w[(i, j)] / ljj;
+            }
+            for k in (j + 1)..N {
+                for i in (j + 1)..N {
+                    w[(i, k)] -= l[(i, j)] * l[(k, j)];
+                }
+            }
+        }
+        let estimate = if N == 0 { 1.0 } else { dmax / dmin };
+        if !(estimate <= limit) {
+            return Err(estimate);
+        }
+        Ok((SpdSolver { l, perm, scale }, estimate))
+    }
+
+    /// Solves `A x = b` in place.
+    pub(crate) fn solve(&self, b: &mut SVector<f64, N>) {
+        // (D A D) y = D b, x = D y, with P (D A D) P^T = L L^T.
+        let mut y = SVector::<f64, N>::zeros();
+        for i in 0..N {
+            let pi = self.perm[i];
+            y[i] = self.scale[pi] * b[pi];
+        }
+        solve_lower(&self.l, &mut y);
+        solve_lower_transpose(&self.l, &mut y);
+        for i in 0..N {
+            let pi = self.perm[i];
+            b[pi] = self.scale[pi] * y[i];
+        }
+    }
+}
+
+/// LU factorisation with partial pivoting, `P A = L U`.
+pub(crate) struct Lu<const N: usize> {
+    lu: SMatrix<f64, N, N>,
+    perm: [usize; N],
+}
+
+impl<const N: usize> Lu<N> {
+    /// Factors `a`. Returns the factorisation and a condition estimate
+    /// (largest entry of `A` over the smallest pivot magnitude); `Err(estimate)`
+    /// when a pivot is zero / not finite or the estimate exceeds `limit`.
+    pub(crate) fn factor(a: &SMatrix<f64, N, N>, limit: f64) -> Result<(Self, f64), f64> {
+        let norm = max_abs(a);
+        if !norm.is_finite() {
+            return Err(f64::INFINITY);
+        }
+        let mut lu = *a;
+        let mut perm = [0usize; N];
+        for (i, p) in perm.iter_mut().enumerate() {
+            *p = i;
+        }
+        let mut pmin = f64::INFINITY;
+        for j in 0..N {
+            let mut p = j;
+            for i in (j + 1)..N {
+                if lu[(i, j)].abs() > lu[(p, j)].abs() {
+                    p = i;
+                }
+            }
+            if p != j {
+                lu.swap_rows(j, p);
+                perm.swap(j, p);
+            }
+            let piv = lu[(j, j)];
+            if piv == 0.0 || !piv.is_finite() {
+                return Err(f64::INFINITY);
+            }
+            pmin = pmin.min(piv.abs());
+            for i in (j + 1)..N {
+                let f = lu[(i, j)] / piv;
+                lu[(i, j)] = f;
+                for k in (j + 1)..N {
+                    lu[(i, k)] -= f * lu[(j, k)];
+                }
+            }
+        }
+        let estimate = if N == 0 { 1.0 } else { norm / pmin };
+        if !(estimate <= limit) {
+            return Err(estimate);
+        }
+        Ok((Lu { lu, perm }, estimate))
+    }
+
+    /// Solves `A x = b` in place.
+    pub(crate) fn solve(&self, b: &mut SVector<f64, N>) {
+        let mut y = SVector::<f64, N>::zeros();
+        for i in 0..N {
+            y[i] = b[self.perm[i]];
+        }
+        for i in 0..N {
+            let mut s = y[i];
+            for k in 0..i {
+                s -= self.lu[(i, k)] * y[k];
+            }
+            y[i] = s;
+        }
+        for i in (0..N).rev() {
+            let mut s = y[i];
+            for k in (i + 1)..N {
+                s -= self.lu[(i, k)] * y[k];
+            }
+            y[i] = s / self.lu[(i, i)];
+        }
+        *b = y;
+    }
+}
+
+/// Thin singular value decomposition `A = U S V^T` of an `R x C` matrix by
+/// one-sided (Hestenes) Jacobi rotations. Works for any shape; when `C > R`
+/// at least `C - R` singular values are zero.
+pub(crate) struct Svd<const R: usize, const C: usize> {
+    /// Columns `sigma_j u_j` (i.e. `A V`).
+    us: SMatrix<f64, R, C>,
+    /// Right singular vectors as columns.
+    v: SMatrix<f64, C, C>,
+    /// Singular values (unsorted, aligned with the columns).
+    sigma: SVector<f64, C>,
+    /// Indices of `sigma` in decreasing order.
+    order: [usize; C],
+}
+
+impl<const R: usize, const C: usize> Svd<R, C> {
+    /// Decomposes `a`; `Err(sweeps)` if the rotations have not converged
+    /// (all column pairs orthogonal to working precision) within `max_sweeps`.
+    /// `a` must be finite.
+    pub(crate) fn new(a: &SMatrix<f64, R, C>, max_sweeps: u32) -> Result<Self, u32> {
+        let mut w = *a;
+        let mut v = SMatrix::<f64, C, C>::identity();
+        let mut converged = C < 2;
+        let mut sweep = 0;
+        while !converged && sweep < max_sweeps {
+            sweep += 1;
+            let mut rotated = false;
+            for p in 0..C {
+                for q in (p + 1)..C {
+                    let mut alpha = 0.0;
+                    let mut beta = 0.0;
+                    let mut gamma = 0.0;
+                    for i in 0..R {
+                        alpha += w[(i, p)] * w[(i, p)];
+                        beta += w[(i, q)] * w[(i, q)];
+                        gamma += w[(i, p)] * w[(i, q)];
+                    }
+                    if gamma == 0.0 || gamma.abs() <= f64::EPSILON * sqrt(alpha) * sqrt(beta) {
+                        continue;
+                    }
+                    rotated = true;
+                    let zeta = (beta - alpha) / (2.0 * gamma);
+                    let t = if zeta.abs() > 1e100 {
+                        0.5 / zeta
+                    } else {
+                        let sgn = if zeta >= 0.0 { 1.0 } else { -1.0 };
+                        sgn / (zeta.abs() + sqrt(1.0 + zeta * zeta))
+                    };
+                    let c = 1.0 / sqrt(1.0 + t * t);
+                    let s = c * t;
+                    for i in 0..R {
+                        let wp = w[(i, p)];
+                        let wq = w[(i, q)];
+                        w[(i, p)] = c * wp - s * wq;
+                        w[(i, q)] = s * wp + c * wq;
+                    }
+                    for i in 0..C {
+                        let vp = v[(i, p)];
+                        let vq = v[(i, q)];
+                        v[(i, p)] = c * vp - s * vq;
+                        v[(i, q)] = s * vp + c * vq;
+                    }
+                }
+            }
+            if !rotated {
+                converged = true;
+            }
+        }
+        if !converged {
+            return Err(sweep);
+        }
+        let mut sigma = SVector::<f64, C>::zeros();
+        for j in 0..C {
+            sigma[j] = w.column(j).norm();
+        }
+        let mut order = [0usize; C];
+        for (i, o) in order.iter_mut().enumerate() {
+            *o = i;
+        }
+        // Insertion sort, decreasing.
+        for i in 1..C {
+            let mut k = i;
+            while k > 0 && sigma[order[k - 1]] < sigma[order[k]] {
+                order.swap(k - 1, k);
+                k -= 1;
+            }
+        }
+        Ok(Svd { us: w, v, sigma, order })
+    }
+
+    /// Largest singular value (0 for an empty matrix).
+    pub(crate) fn sigma_max(&self) -> f64 {
+        if C == 0 {
+            0.0
+        } else {
+            self.sigma[self.order[0]]
+        }
+    }
+
+    /// The `k`-th largest singular value (0-based); 0 if out of range.
+    pub(crate) fn sigma_sorted(&self, k: usize) -> f64 {
+        if k < C {
+            self.sigma[self.order[k]]
+        } else {
+            0.0
+        }
+    }
+
+    /// Number of singular values above `rel_tol * sigma_max`.
+    pub(crate) fn rank(&self, rel_tol: f64) -> usize {
+        let thr = rel_tol * self.sigma_max();
+        let mut r = 0;
+        for k in 0..C {
+            if self.sigma[self.order[k]] > thr && self.sigma[self.order[k]] > 0.0 {
+                r += 1;
+            }
+        }
+        r
+    }
+
+    /// Condition of the leading `k` singular values, `sigma_1 / sigma_k`
+    /// (`INFINITY` if `sigma_k` is zero, 1 for `k == 0`).
+    pub(crate) fn condition_of_leading(&self, k: usize) -> f64 {
+        if k == 0 {
+            return 1.0;
+        }
+        let sk = self.sigma_sorted(k - 1);
+        if sk > 0.0 {
+            self.sigma_max() / sk
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// Least-squares minimum-norm solution of `A x = b` using the leading
+    /// `rank` singular triplets.
+    pub(crate) fn solve(&self, b: &SVector<f64, R>, rank: usize, x: &mut SVector<f64, C>) {
+        x.fill(0.0);
+        for k in 0..rank.min(C) {
+            let j = self.order[k];
+            let s2 = self.sigma[j] * self.sigma[j];
+            if s2 > 0.0 {
+                let coef = self.us.column(j).dot(b) / s2;
+                *x += self.v.column(j) * coef;
+            }
+        }
+    }
+
+    /// Least-squares minimum-norm solution of `A^T y = c` using the leading
+    /// `rank` singular triplets.
+    pub(crate) fn solve_transpose(&self, c: &SVector<f64, C>, rank: usize, y: &mut SVector<f64, R>) {
+        y.fill(0.0);
+        for k in 0..rank.min(C) {
+            let j = self.order[k];
+            let s2 = self.sigma[j] * self.sigma[j];
+            if s2 > 0.0 {
+                let coef = self.v.column(j).dot(c) / s2;
+                *y += self.us.column(j) * coef;
+            }
+        }
+    }
+
+    /// Removes from `x` its component in the span of the leading `rank` left
+    /// singular vectors (i.e. projects onto the orthogonal complement of the
+    /// range of `A`).
+    pub(crate) fn remove_range(&self, x: &mut SVector<f64, R>, rank: usize) {
+        for k in 0..rank.min(C) {
+            let j = self.order[k];
+            let s2 = self.sigma[j] * self.sigma[j];
+            if s2 > 0.0 {
+                let coef = self.us.column(j).dot(x) / s2;
+                *x -= self.us.column(j) * coef;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_solves() {
+        let a = SMatrix::<f64, 3, 3>::new(4.0, 2.0, 0.4, 2.0, 3.0, 0.5, 0.4, 0.5, 2.0);
+        let mut l = a;
+        assert!(cholesky(&mut l).is_ok());
+        let b = SVector::<f64, 3>::new(1.0, -2.0, 0.5);
+        let mut x = SMatrix::<f64, 3, 1>::from_column_slice(b.as_slice());
+        solve_lower(&l, &mut x);
+        solve_lower_transpose(&l, &mut x);
+        assert!((a * x - b).norm() < 1e-14);
+        let mut bad = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 1.0);
+        assert!(matches!(cholesky(&mut bad), Err((1, _))));
+    }
+
+    #[test]
+    fn spd_and_lu_solve_and_detect_singular() {
+        let a = SMatrix::<f64, 3, 3>::new(4.0, 2.0, 0.4, 2.0, 3.0, 0.5, 0.4, 0.5, 2.0);
+        let b = SVector::<f64, 3>::new(1.0, -2.0, 0.5);
+        let (s, _) = SpdSolver::factor(&a, 1e12).ok().unwrap_or_else(|| unreachable!());
+        let mut x = b;
+        s.solve(&mut x);
+        assert!((a * x - b).norm() < 1e-14);
+        let (lu, _) = Lu::factor(&a, 1e12).ok().unwrap_or_else(|| unreachable!());
+        let mut y = b;
+        lu.solve(&mut y);
+        assert!((a * y - b).norm() < 1e-14);
+        let sing = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 4.0);
+        assert!(SpdSolver::factor(&sing, 1e12).is_err());
+        assert!(Lu::factor(&sing, 1e12).is_err());
+    }
+
+    #[test]
+    fn svd_min_norm() {
+        // Underdetermined 2x3 system via A^T (3x2).
+        let a = SMatrix::<f64, 2, 3>::new(1.0, 2.0, 3.0, 0.0, 1.0, -1.0);
+        let at = a.transpose();
+        let svd = Svd::new(&at, 30).ok().unwrap_or_else(|| unreachable!());
+        assert_eq!(svd.rank(1e-12), 2);
+        let c = SVector::<f64, 2>::new(1.0, 2.0);
+        let mut x = SVector::<f64, 3>::zeros();
+        svd.solve_transpose(&c, 2, &mut x);
+        assert!((a * x - c).norm() < 1e-14);
+        // Minimum norm: x lies in the row space of A.
+        let n = a.row(0).transpose().cross(&a.row(1).transpose());
+        assert!(x.dot(&n).abs() < 1e-14);
+    }
+}

@@ -1,0 +1,69 @@
+//! The interface between generated equations of motion and the solvers.
+//!
+//! A generated scene module implements [`Model`] for its model struct. The
+//! equations of motion it describes are
+//!
+//! ```text
+//! M(q, t) qdd + h(q, qd, t) = Phi_q(q, t)^T lambda + B tau
+//! Phi(q, t) = 0
+//! ```
+//!
+//! with `h` the bias forces (Coriolis/centrifugal, gravity, elastic and
+//! damping forces, all moved to the left-hand side). Every method writes into
+//! caller-provided fixed-size storage, allocates nothing and never panics;
+//! non-finite inputs propagate as non-finite outputs for the solver to detect.
+
+use nalgebra::{SMatrix, SVector};
+
+/// Equations of motion of one scene: `NQ` generalized coordinates, `NC`
+/// holonomic constraints and `NU` actuator inputs.
+pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
+    /// The scene's name.
+    const NAME: &'static str;
+    /// Names of the generalized coordinates, in order.
+    const COORDINATES: [&'static str; NQ];
+    /// Names of the actuator inputs, in order.
+    const ACTUATORS: [&'static str; NU];
+
+    /// Mass matrix `M(q, t)` (symmetric, positive definite).
+    fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>);
+
+    /// Bias forces `h(q, qd, t)`: Coriolis/centrifugal terms plus the gradient
+    /// of the potential energy plus damping forces.
+    fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>);
+
+    /// Constraint residuals `Phi(q, t)`.
+    fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>);
+
+    /// Constraint Jacobian `Phi_q(q, t)`.
+    fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>);
+
+    /// Explicit time derivative of the constraints, `Phi_t(q, t)`; the velocity
+    /// constraint is `Phi_q qd + Phi_t = 0`.
+    fn constraint_time_derivative(
+        &self,
+        q: &SVector<f64, NQ>,
+        t: f64,
+        phi_t: &mut SVector<f64, NC>,
+    );
+
+    /// Acceleration right-hand side `gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt`,
+    /// so that `Phi_q qdd = gamma` on the constraint manifold.
+    fn constraint_rhs(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        gamma: &mut SVector<f64, NC>,
+    );
+
+    /// Actuator map `B`: actuator `j` contributes `B[:, j] * tau[j]` to the
+    /// generalized forces.
+    fn actuator_map(&self, b: &mut SMatrix<f64, NQ, NU>);
+
+    /// Kinetic energy `T(q, qd, t)`.
+    fn kinetic_energy(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> f64;
+
+    /// Potential energy `V(q, t)` (gravity and elastic).
+    fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64;
+}

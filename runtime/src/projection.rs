@@ -1,0 +1,116 @@
+//! Coordinate projection of `q` and `qd` back onto the constraint manifold.
+//!
+//! Positions: Newton iterations `q <- q + dq` with the mass-weighted
+//! minimum-norm correction `min |dq|_M  s.t.  Phi_q dq = -Phi` (metric `M`
+//! evaluated once at the starting point). Velocities: the `M`-orthogonal
+//! projection onto `Phi_q qd + Phi_t = 0` at the corrected positions, which
+//! removes the least kinetic energy.
+
+use crate::dynamics::Kkt;
+use crate::error::{Error, ErrorKind, Quantity};
+use crate::eval;
+use crate::model::Model;
+use crate::state::{inf_norm, Drift, State};
+use nalgebra::SVector;
+
+/// Configuration of [`project`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProjectionConfig {
+    /// Target `max |Phi|` after projection (model units).
+    pub position_tolerance: f64,
+    /// Velocity residual `max |Phi_q qd + Phi_t|` above which velocities are projected.
+    pub velocity_tolerance: f64,
+    /// Cap on Newton iterations for the position projection.
+    pub max_iterations: u32,
+    /// Largest accepted condition estimate of `Phi_q M^-1 Phi_q^T`.
+    pub max_condition: f64,
+}
+
+impl Default for ProjectionConfig {
+    fn default() -> Self {
+        ProjectionConfig {
+            position_tolerance: 1e-12,
+            velocity_tolerance: 1e-12,
+            max_iterations: 8,
+            max_condition: 1e12,
+        }
+    }
+}
+
+/// What a projection did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProjectionReport {
+    /// Newton iterations of the position projection (0 if already within tolerance).
+    pub iterations: u32,
+    /// True if the velocities were projected.
+    pub velocity_projected: bool,
+    /// Drift before projection.
+    pub before: Drift,
+    /// Drift after projection.
+    pub after: Drift,
+}
+
+/// Projects `state.q` and `state.qd` onto the constraint manifold at
+/// `state.t`. On error `state` is unchanged.
+///
+/// Errors: non-finite model outputs, [`ErrorKind::MassMatrixNotPositiveDefinite`],
+/// [`ErrorKind::SingularConstraintJacobian`], [`ErrorKind::NewtonNotConverged`]
+/// (residual = `max |Phi|` after the last iteration).
+pub fn project<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    state: &mut State<NQ>,
+    config: &ProjectionConfig,
+) -> Result<ProjectionReport, Error>
+where
+    M: Model<NQ, NC, NU>,
+{
+    if NC == 0 {
+        return Ok(ProjectionReport::default());
+    }
+    let t = state.t;
+    state.check_finite()?;
+    let mut q = state.q;
+    let m0 = eval::mass(model, &q, t)?;
+    let zero_f = SVector::<f64, NQ>::zeros();
+    let mut iterations = 0u32;
+    let mut phi = eval::constraints(model, &q, t)?;
+    let mut before = Drift { position: inf_norm(&phi), velocity: 0.0 };
+    loop {
+        let res = inf_norm(&phi);
+        if res <= config.position_tolerance {
+            break;
+        }
+        if iterations >= config.max_iterations {
+            return Err(Error::new(ErrorKind::NewtonNotConverged { iterations, residual: res }, t));
+        }
+        let phi_q = eval::constraint_jacobian(model, &q, t)?;
+        let kkt = Kkt::new(m0, &phi_q, config.max_condition, t)?;
+        let (dq, _) = kkt.solve(&zero_f, &(-phi));
+        q += dq;
+        eval::check_result(&q, Quantity::Position, t)?;
+        iterations += 1;
+        phi = eval::constraints(model, &q, t)?;
+    }
+    let phi_q = eval::constraint_jacobian(model, &q, t)?;
+    let phi_t = eval::constraint_time_derivative(model, &q, t)?;
+    let mut qd = state.qd;
+    {
+        let phi_q0 = eval::constraint_jacobian(model, &state.q, t)?;
+        let phi_t0 = eval::constraint_time_derivative(model, &state.q, t)?;
+        before.velocity = inf_norm(&(phi_q0 * state.qd + phi_t0));
+    }
+    let vres = phi_q * qd + phi_t;
+    let mut velocity_projected = false;
+    if inf_norm(&vres) > config.velocity_tolerance {
+        let m = eval::mass(model, &q, t)?;
+        let kkt = Kkt::new(m, &phi_q, config.max_condition, t)?;
+        let (dv, _) = kkt.solve(&zero_f, &(-vres));
+        qd += dv;
+        eval::check_result(&qd, Quantity::Velocity, t)?;
+        velocity_projected = true;
+    }
+    let after = Drift { position: inf_norm(&phi), velocity: inf_norm(&(phi_q * qd + phi_t)) };
+    state.q = q;
+    state.qd = qd;
+    Ok(ProjectionReport { iterations, velocity_projected, before, after })
+}

@@ -1,0 +1,120 @@
+//! Scene models behind one object-safe interface, for tools that pick a scene
+//! at run time (the command line, validation). Uses heap-allocated results;
+//! real-time code uses the generated types and [`flexdyn_runtime::Model`]
+//! directly.
+
+use flexdyn_runtime::Model;
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
+
+/// A generated model with its dimensions erased.
+pub trait DynModel {
+    /// Scene name.
+    fn name(&self) -> &'static str;
+    /// Coordinate names.
+    fn coordinates(&self) -> &'static [&'static str];
+    /// Actuator names.
+    fn actuators(&self) -> &'static [&'static str];
+    /// Number of coordinates.
+    fn nq(&self) -> usize {
+        self.coordinates().len()
+    }
+    /// Number of constraints.
+    fn nc(&self) -> usize;
+    /// Number of actuators.
+    fn nu(&self) -> usize {
+        self.actuators().len()
+    }
+    /// Mass matrix.
+    fn mass_matrix(&self, q: &[f64], t: f64) -> DMatrix<f64>;
+    /// Bias forces.
+    fn bias(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64>;
+    /// Constraint residuals.
+    fn constraints(&self, q: &[f64], t: f64) -> DVector<f64>;
+    /// Constraint Jacobian.
+    fn constraint_jacobian(&self, q: &[f64], t: f64) -> DMatrix<f64>;
+    /// Explicit time derivative of the constraints.
+    fn constraint_time_derivative(&self, q: &[f64], t: f64) -> DVector<f64>;
+    /// Acceleration right-hand side.
+    fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64>;
+    /// Actuator map.
+    fn actuator_map(&self) -> DMatrix<f64>;
+    /// Kinetic energy.
+    fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64;
+    /// Potential energy.
+    fn potential_energy(&self, q: &[f64], t: f64) -> f64;
+}
+
+/// A model with its dimensions as const parameters.
+pub struct Erased<M, const NQ: usize, const NC: usize, const NU: usize>(pub M);
+
+/// Wrap a model for dynamic use.
+pub fn erase<M, const NQ: usize, const NC: usize, const NU: usize>(model: M) -> Box<dyn DynModel>
+where
+    M: Model<NQ, NC, NU> + 'static,
+{
+    Box::new(Erased::<M, NQ, NC, NU>(model))
+}
+
+fn vector<const N: usize>(x: &[f64]) -> SVector<f64, N> {
+    assert_eq!(x.len(), N, "expected {N} values, got {}", x.len());
+    SVector::from_column_slice(x)
+}
+
+impl<M, const NQ: usize, const NC: usize, const NU: usize> DynModel for Erased<M, NQ, NC, NU>
+where
+    M: Model<NQ, NC, NU>,
+{
+    fn name(&self) -> &'static str {
+        M::NAME
+    }
+    fn coordinates(&self) -> &'static [&'static str] {
+        &M::COORDINATES
+    }
+    fn actuators(&self) -> &'static [&'static str] {
+        &M::ACTUATORS
+    }
+    fn nc(&self) -> usize {
+        NC
+    }
+    fn mass_matrix(&self, q: &[f64], t: f64) -> DMatrix<f64> {
+        let mut m = SMatrix::<f64, NQ, NQ>::zeros();
+        self.0.mass_matrix(&vector(q), t, &mut m);
+        DMatrix::from_column_slice(NQ, NQ, m.as_slice())
+    }
+    fn bias(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
+        let mut h = SVector::<f64, NQ>::zeros();
+        self.0.bias(&vector(q), &vector(qd), t, &mut h);
+        DVector::from_column_slice(h.as_slice())
+    }
+    fn constraints(&self, q: &[f64], t: f64) -> DVector<f64> {
+        let mut p = SVector::<f64, NC>::zeros();
+        self.0.constraints(&vector(q), t, &mut p);
+        DVector::from_column_slice(p.as_slice())
+    }
+    fn constraint_jacobian(&self, q: &[f64], t: f64) -> DMatrix<f64> {
+        let mut j = SMatrix::<f64, NC, NQ>::zeros();
+        self.0.constraint_jacobian(&vector(q), t, &mut j);
+        DMatrix::from_column_slice(NC, NQ, j.as_slice())
+    }
+    fn constraint_time_derivative(&self, q: &[f64], t: f64) -> DVector<f64> {
+        let mut p = SVector::<f64, NC>::zeros();
+        self.0.constraint_time_derivative(&vector(q), t, &mut p);
+        DVector::from_column_slice(p.as_slice())
+    }
+    fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
+        let mut g = SVector::<f64, NC>::zeros();
+        self.0.constraint_rhs(&vector(q), &vector(qd), t, &mut g);
+        DVector::from_column_slice(g.as_slice())
+    }
+    fn actuator_map(&self) -> DMatrix<f64> {
+        let mut b = SMatrix::<f64, NQ, NU>::zeros();
+        self.0.actuator_map(&mut b);
+        DMatrix::from_column_slice(NQ, NU, b.as_slice())
+    }
+    fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64 {
+        self.0.kinetic_energy(&vector(q), &vector(qd), t)
+    }
+    fn potential_energy(&self, q: &[f64], t: f64) -> f64 {
+        self.0.potential_energy(&vector(q), t)
+    }
+}
