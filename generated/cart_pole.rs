@@ -23,13 +23,8 @@ pub const NC: usize = 0;
 /// Number of actuator inputs.
 pub const NU: usize = 1;
 ///Equations of motion of scene `cart_pole`: 2 coordinates, 0 constraints, 1 actuators. Fields are the runtime parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CartPole {}
-impl Default for CartPole {
-    fn default() -> Self {
-        Self {}
-    }
-}
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CartPole;
 #[allow(
     clippy::approx_constant,
     clippy::excessive_precision,

@@ -23,13 +23,8 @@ pub const NC: usize = 0;
 /// Number of actuator inputs.
 pub const NU: usize = 2;
 ///Equations of motion of scene `double_pendulum`: 2 coordinates, 0 constraints, 2 actuators. Fields are the runtime parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DoublePendulum {}
-impl Default for DoublePendulum {
-    fn default() -> Self {
-        Self {}
-    }
-}
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DoublePendulum;
 #[allow(
     clippy::approx_constant,
     clippy::excessive_precision,

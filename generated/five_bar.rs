@@ -22,13 +22,8 @@ pub const NC: usize = 2;
 /// Number of actuator inputs.
 pub const NU: usize = 2;
 ///Equations of motion of scene `five_bar`: 4 coordinates, 2 constraints, 2 actuators. Fields are the runtime parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FiveBar {}
-impl Default for FiveBar {
-    fn default() -> Self {
-        Self {}
-    }
-}
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FiveBar;
 #[allow(
     clippy::approx_constant,
     clippy::excessive_precision,

@@ -22,13 +22,8 @@ pub const NC: usize = 2;
 /// Number of actuator inputs.
 pub const NU: usize = 1;
 ///Equations of motion of scene `slider_crank`: 3 coordinates, 2 constraints, 1 actuators. Fields are the runtime parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SliderCrank {}
-impl Default for SliderCrank {
-    fn default() -> Self {
-        Self {}
-    }
-}
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SliderCrank;
 #[allow(
     clippy::approx_constant,
     clippy::excessive_precision,

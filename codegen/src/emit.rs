@@ -291,13 +291,13 @@ impl Emitter<'_> {
         name: &'static str,
         doc: &str,
         entries: &[Vec<Id>],
-        cols: usize,
         with_qd: bool,
         symmetric: bool,
         vis: TokenStream,
     ) -> TokenStream {
         let rows = entries.len();
-        let nq = usize_lit(self.model.nq());
+        let cols = self.model.nq();
+        let nq = usize_lit(cols);
         let zero = self.graph.find_constant(0.0);
         let mut ids = Vec::new();
         let mut slots = Vec::new();
@@ -424,7 +424,6 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         "mass_matrix",
         "Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.",
         &eq.mass,
-        n,
         false,
         true,
         quote!(),
@@ -449,7 +448,6 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         "constraint_jacobian",
         "Constraint Jacobian `Phi_q(q, t)`.",
         &eq.phi_q,
-        n,
         false,
         false,
         quote!(),
@@ -531,7 +529,6 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
             "coriolis_matrix",
             "Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.",
             cm,
-            n,
             true,
             false,
             quote!(pub),
@@ -554,6 +551,25 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
     let struct_doc = format!(
         "Equations of motion of scene `{scene}`: {n} coordinates, {nc} constraints, {nu} actuators. Fields are the runtime parameters."
     );
+    let struct_def = if model.runtime_parameters.is_empty() {
+        quote! {
+            #[doc = #struct_doc]
+            #[derive(Debug, Clone, Copy, Default, PartialEq)]
+            pub struct #sname;
+        }
+    } else {
+        quote! {
+            #[doc = #struct_doc]
+            #[derive(Debug, Clone, Copy, PartialEq)]
+            pub struct #sname { #(#fields)* }
+
+            impl Default for #sname {
+                fn default() -> Self {
+                    Self { #(#defaults)* }
+                }
+            }
+        }
+    };
     let lints = quote! {
         #[allow(
             clippy::approx_constant,
@@ -585,15 +601,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         /// Number of actuator inputs.
         pub const NU: usize = #nu_l;
 
-        #[doc = #struct_doc]
-        #[derive(Debug, Clone, Copy, PartialEq)]
-        pub struct #sname { #(#fields)* }
-
-        impl Default for #sname {
-            fn default() -> Self {
-                Self { #(#defaults)* }
-            }
-        }
+        #struct_def
 
         #inherent_block
 

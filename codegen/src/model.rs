@@ -822,20 +822,18 @@ impl<'a> Builder<'a> {
         }
         let mut ids = [[self.graph.constant(0.0); 3]; 3];
         let mut val = [[0.0; 3]; 3];
-        for i in 0..3 {
-            for j in 0..3 {
-                let s = &rows.get_ref()[i][j];
+        for (i, row) in rows.get_ref().iter().enumerate() {
+            for (j, s) in row.iter().enumerate() {
                 ids[i][j] = self.scalar(s, Some(ctx), false)?;
                 val[i][j] = self.nominal_value(ids[i][j], s.span().start, ctx, "inertia")?;
             }
         }
         let scale = val.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-        for i in 0..3 {
-            for j in 0..i {
-                if (val[i][j] - val[j][i]).abs() > 1e-12 * scale.max(1e-300) {
-                    return Err(self.err(at, Some(ctx), "inertia tensor is not symmetric"));
-                }
-            }
+        let asymmetric = [(0, 1), (0, 2), (1, 2)]
+            .iter()
+            .any(|&(i, j)| (val[i][j] - val[j][i]).abs() > 1e-12 * scale.max(1e-300));
+        if asymmetric {
+            return Err(self.err(at, Some(ctx), "inertia tensor is not symmetric"));
         }
         if !positive_definite_3x3(&val) {
             return Err(self.err(at, Some(ctx), "inertia tensor is not positive definite"));
@@ -851,7 +849,7 @@ fn positive_definite_3x3(a: &[[f64; 3]; 3]) -> bool {
         for j in 0..=i {
             let s: f64 = a[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
             if i == j {
-                if !(s > 0.0) {
+                if s.is_nan() || s <= 0.0 {
                     return false;
                 }
                 l[i][i] = s.sqrt();

@@ -7,14 +7,16 @@
 
 use std::collections::BTreeMap;
 
+use std::fmt;
+
+use serde::de::{self, Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
 use crate::error::{Error, Source};
 
 /// A number or an expression written as a string.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
+#[derive(Debug, Clone)]
 pub enum Scalar {
     /// A literal number.
     Number(f64),
@@ -26,13 +28,85 @@ pub enum Scalar {
 pub type SScalar = Spanned<Scalar>;
 
 /// A parameter: a plain number (folded into the generated code) or a table.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
+#[derive(Debug, Clone)]
 pub enum ParameterDef {
     /// Folded as a constant at generation time.
     Value(f64),
     /// A table with options.
     Table(ParameterTable),
+}
+
+// `Scalar` and `ParameterDef` are deserialized by hand rather than as
+// untagged enums, so that a wrong type or an unknown field inside a parameter
+// table is reported as such instead of "data did not match any variant".
+
+struct ScalarVisitor;
+
+impl<'de> Visitor<'de> for ScalarVisitor {
+    type Value = Scalar;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a number or an expression string")
+    }
+
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<Scalar, E> {
+        Ok(Scalar::Number(v))
+    }
+
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<Scalar, E> {
+        Ok(Scalar::Number(v as f64))
+    }
+
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<Scalar, E> {
+        Ok(Scalar::Number(v as f64))
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<Scalar, E> {
+        Ok(Scalar::Expr(v.to_owned()))
+    }
+
+    fn visit_string<E: de::Error>(self, v: String) -> Result<Scalar, E> {
+        Ok(Scalar::Expr(v))
+    }
+}
+
+impl<'de> Deserialize<'de> for Scalar {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Scalar, D::Error> {
+        d.deserialize_any(ScalarVisitor)
+    }
+}
+
+struct ParameterVisitor;
+
+impl<'de> Visitor<'de> for ParameterVisitor {
+    type Value = ParameterDef;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a number or a table `{ value = ..., runtime = ... }`")
+    }
+
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<ParameterDef, E> {
+        Ok(ParameterDef::Value(v))
+    }
+
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<ParameterDef, E> {
+        Ok(ParameterDef::Value(v as f64))
+    }
+
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<ParameterDef, E> {
+        Ok(ParameterDef::Value(v as f64))
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<ParameterDef, A::Error> {
+        ParameterTable::deserialize(de::value::MapAccessDeserializer::new(map))
+            .map(ParameterDef::Table)
+    }
+}
+
+impl<'de> Deserialize<'de> for ParameterDef {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<ParameterDef, D::Error> {
+        d.deserialize_any(ParameterVisitor)
+    }
 }
 
 /// A parameter with options.

@@ -1,9 +1,46 @@
 //! flexdyn runtime: solvers for the equations of motion that `flexdyn-codegen`
 //! generates. `#![no_std]`, allocation-free, panic-free on bad numbers.
+//!
+//! * [`Model`]: the interface generated code implements.
+//! * [`accelerations`]: constrained forward dynamics (KKT system by a Schur
+//!   complement on the stack, Baumgarte stabilisation).
+//! * [`project`]: coordinate projection onto the constraint manifold.
+//! * [`integrate`]: RK4 (fixed and adaptive), semi-implicit Euler,
+//!   generalized-α; all in place, state unchanged on error.
+//! * [`InverseDynamics`]: prescribed motion to actuator inputs and
+//!   constraint forces, one bounded call per control tick.
+//!
+//! Every fallible call returns [`Error`], a small `Copy` value saying what went
+//! wrong ([`ErrorKind`]) and at which time. Loops are bounded by iteration
+//! caps in the configuration structs; all storage is fixed-size on the stack.
 #![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+// `!(x <= limit)` is used deliberately so that NaN fails the check.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+mod dynamics;
+mod error;
+mod eval;
+mod input;
+pub mod integrate;
+mod inverse;
+mod linalg;
 pub mod math;
 mod model;
+mod projection;
+mod state;
 
+pub use dynamics::{accelerations, Accelerations, Baumgarte, DynamicsConfig};
+pub use error::{Error, ErrorKind, Quantity};
+pub use input::{FromFn, Input, Linear};
+pub use integrate::{
+    run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, Rk4,
+    RunSummary, SemiImplicitEuler, StepReport, StepSettings,
+};
+pub use inverse::{forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution};
 pub use model::Model;
 pub use nalgebra;
+pub use projection::{project, ProjectionConfig, ProjectionReport};
+pub use state::{constraint_drift, total_energy, Drift, State};

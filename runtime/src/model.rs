@@ -66,4 +66,22 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
 
     /// Potential energy `V(q, t)` (gravity and elastic).
     fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64;
+
+    /// Optional analytic Jacobians of the bias forces: writes `h_q = dh/dq`
+    /// and `h_qd = dh/dqd` (each `NQ x NQ`, entry `(i, j) = d h_i / d x_j`) and
+    /// returns `true`. The default returns `false`, meaning "not provided":
+    /// solvers then use finite differences of [`Model::bias`] (and of the mass
+    /// matrix and constraint Jacobian). Implicit integrators use these for
+    /// their Newton iteration matrix.
+    fn bias_jacobians(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        h_q: &mut SMatrix<f64, NQ, NQ>,
+        h_qd: &mut SMatrix<f64, NQ, NQ>,
+    ) -> bool {
+        let _ = (q, qd, t, h_q, h_qd);
+        false
+    }
 }
