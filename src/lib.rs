@@ -6,6 +6,7 @@
 //! a model struct implementing [`flexdyn_runtime::Model`].
 
 pub mod dynamic;
+pub mod eval;
 
 /// The generated scene modules (one per file in `scenes/`).
 #[allow(missing_docs)]

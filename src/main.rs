@@ -1,6 +1,6 @@
 //! The `flexdyn` command line.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -34,11 +34,38 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Export a scene's symbolic inputs (energies, constraints, actuators) as
+    /// JSON in the documented `flexdyn-scene-export/1` format.
+    Export {
+        /// Scene file.
+        #[arg(long)]
+        scene: PathBuf,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Evaluate every generated term of a compiled scene at states read from
+    /// JSON (`{"states": [{"q": [..], "qd": [..], "t": 0.0}]}`) and write
+    /// them as JSON.
+    Eval {
+        /// Scene file (its scene must be compiled in, i.e. live in `scenes/`).
+        #[arg(long)]
+        scene: PathBuf,
+        /// States file.
+        #[arg(long)]
+        states: PathBuf,
+        /// Output file (standard output when absent).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Test-only hook: add DELTA to entry INDEX of TERM, as TERM:INDEX:DELTA.
+        #[arg(long, hide = true)]
+        perturb: Option<flexdyn::eval::Perturbation>,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command {
+    let result = match cli.command {
         Command::Generate {
             scene,
             all,
@@ -65,13 +92,79 @@ fn main() -> ExitCode {
                             report.scenes.len().saturating_sub(report.written.len())
                         );
                     }
-                    ExitCode::SUCCESS
+                    Ok(())
                 }
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    ExitCode::FAILURE
-                }
+                Err(e) => Err(e.to_string()),
             }
+        }
+        Command::Export { scene, out } => export(&scene, &out),
+        Command::Eval {
+            scene,
+            states,
+            out,
+            perturb,
+        } => eval(&scene, &states, out.as_deref(), perturb.as_ref()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Write `text` to `path` through a temporary file, so that a failure never
+/// leaves a partial output behind.
+fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
+    let tmp = path.with_extension("partial");
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            format!("cannot write {}: {e}", path.display())
+        })
+}
+
+fn export(scene: &Path, out: &Path) -> Result<(), String> {
+    let model = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+    write_atomic(out, &flexdyn::codegen::export::export_json(&model))
+}
+
+fn eval(
+    scene: &Path,
+    states: &Path,
+    out: Option<&Path>,
+    perturb: Option<&flexdyn::eval::Perturbation>,
+) -> Result<(), String> {
+    use flexdyn::eval::{check_state, evaluate, States};
+    let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+    let model = flexdyn::scenes::model(&parsed.name).ok_or_else(|| {
+        format!(
+            "scene `{}` is not compiled into this binary: put its file in scenes/ and rebuild",
+            parsed.name
+        )
+    })?;
+    let text = std::fs::read_to_string(states)
+        .map_err(|e| format!("cannot read {}: {e}", states.display()))?;
+    let input: States =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", states.display()))?;
+    let mut results = Vec::with_capacity(input.states.len());
+    for (k, s) in input.states.iter().enumerate() {
+        check_state(model.as_ref(), s, k)?;
+        let mut terms = evaluate(model.as_ref(), s);
+        if let Some(p) = perturb {
+            terms.perturb(p)?;
+        }
+        results.push(terms);
+    }
+    let json = serde_json::json!({ "scene": parsed.name, "results": results });
+    let text = serde_json::to_string(&json).map_err(|e| e.to_string())?;
+    match out {
+        Some(path) => write_atomic(path, &text),
+        None => {
+            println!("{text}");
+            Ok(())
         }
     }
 }

@@ -89,7 +89,10 @@ fn cart_pole_matches_textbook() {
         let mut g = V2::zeros();
         model.potential_forces(&q, 0.0, &mut g);
         for k in 0..4 {
-            assert!(rel_close(m[k], m_ref[k], m_ref.abs().max()), "M {m} vs {m_ref}");
+            assert!(
+                rel_close(m[k], m_ref[k], m_ref.abs().max()),
+                "M {m} vs {m_ref}"
+            );
         }
         let scale = c_ref.abs().max() + g_ref.abs().max();
         for k in 0..2 {

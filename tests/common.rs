@@ -54,7 +54,10 @@ pub fn random_state(model: &Model, rng: &mut StdRng) -> (Vec<f64>, Vec<f64>, f64
 /// `max |a - b|` over two slices.
 pub fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
 }
 
 /// `max |a|` over a slice (at least `floor`).

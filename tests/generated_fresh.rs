@@ -30,7 +30,10 @@ fn checked_in_generated_code_is_fresh() {
         .collect();
     present.sort();
     expected.sort();
-    assert_eq!(present, expected, "generated/ has files for scenes that no longer exist");
+    assert_eq!(
+        present, expected,
+        "generated/ has files for scenes that no longer exist"
+    );
 }
 
 #[test]
@@ -39,9 +42,20 @@ fn generated_code_is_safe_and_allocation_free_by_construction() {
     for entry in std::fs::read_dir(root.join("generated")).expect("generated/ exists") {
         let path = entry.expect("entry").path();
         let text = std::fs::read_to_string(&path).expect("readable");
-        assert!(text.starts_with("// @generated"), "{}: no @generated header", path.display());
-        for banned in ["unsafe", "Vec<", "Box<", "vec!", "String", "unwrap", "expect(", "panic!", "loop", "while"] {
-            assert!(!text.contains(banned), "{}: contains `{banned}`", path.display());
+        assert!(
+            text.starts_with("// @generated"),
+            "{}: no @generated header",
+            path.display()
+        );
+        for banned in [
+            "unsafe", "Vec<", "Box<", "vec!", "String", "unwrap", "expect(", "panic!", "loop",
+            "while",
+        ] {
+            assert!(
+                !text.contains(banned),
+                "{}: contains `{banned}`",
+                path.display()
+            );
         }
     }
 }

@@ -27,7 +27,10 @@ fn along(
     let shift = |s: f64| -> Vec<f64> { q.iter().zip(dir).map(|(a, d)| a + s * d).collect() };
     let fp = f(&shift(h), t + h * dt);
     let fm = f(&shift(-h), t - h * dt);
-    fp.iter().zip(&fm).map(|(a, b)| (a - b) / (2.0 * h)).collect()
+    fp.iter()
+        .zip(&fm)
+        .map(|(a, b)| (a - b) / (2.0 * h))
+        .collect()
 }
 
 fn unit(n: usize, i: usize) -> Vec<f64> {
@@ -55,7 +58,11 @@ fn mass_matrix_is_symmetric_positive_definite() {
             let (q, _, t) = random_state(&scene, &mut rng);
             let mm = m.mass_matrix(&q, t);
             assert_eq!(mm, mm.transpose(), "{}: M not symmetric", scene.name);
-            assert!(mm.clone().cholesky().is_some(), "{}: M not positive definite at {q:?}: {mm}", scene.name);
+            assert!(
+                mm.clone().cholesky().is_some(),
+                "{}: M not positive definite at {q:?}: {mm}",
+                scene.name
+            );
         }
     }
 }
@@ -77,11 +84,19 @@ fn constraint_jacobian_and_time_derivative_match_differences() {
                 let fd = along(&phi, &q, &unit(n, j), t, 0.0, 1e-6);
                 let col: Vec<f64> = jac.column(j).iter().copied().collect();
                 let tol = 1e-6 * max_abs(&fd, 1.0);
-                assert!(max_diff(&col, &fd) < tol, "{}: Phi_q column {j}: {col:?} vs {fd:?}", scene.name);
+                assert!(
+                    max_diff(&col, &fd) < tol,
+                    "{}: Phi_q column {j}: {col:?} vs {fd:?}",
+                    scene.name
+                );
             }
             let fd_t = along(&phi, &q, &vec![0.0; n], t, 1.0, 1e-6);
             let pt = m.constraint_time_derivative(&q, t);
-            assert!(max_diff(pt.as_slice(), &fd_t) < 1e-6 * max_abs(&fd_t, 1.0), "{}: Phi_t", scene.name);
+            assert!(
+                max_diff(pt.as_slice(), &fd_t) < 1e-6 * max_abs(&fd_t, 1.0),
+                "{}: Phi_t",
+                scene.name
+            );
         }
     }
 }
@@ -102,7 +117,10 @@ fn gamma_matches_differences_of_velocity_residual() {
                 let r = m.constraint_jacobian(q, t) * &qdv + m.constraint_time_derivative(q, t);
                 r.as_slice().to_vec()
             };
-            let fd: Vec<f64> = along(&v, &q, &qd, t, 1.0, 1e-6).iter().map(|x| -x).collect();
+            let fd: Vec<f64> = along(&v, &q, &qd, t, 1.0, 1e-6)
+                .iter()
+                .map(|x| -x)
+                .collect();
             let gamma = m.constraint_rhs(&q, &qd, t);
             assert!(
                 max_diff(gamma.as_slice(), &fd) < 1e-6 * max_abs(&fd, 1.0),
@@ -146,11 +164,16 @@ fn mass_matrix_and_bias_follow_from_the_energies() {
                 };
                 let fd = along(&f, &qd, &unit(n, j), t, 0.0, 0.5);
                 let col: Vec<f64> = mm.column(j).iter().copied().collect();
-                assert!(max_diff(&col, &fd) < 1e-9 * max_abs(&fd, 1.0), "{}: M column {j}", scene.name);
+                assert!(
+                    max_diff(&col, &fd) < 1e-9 * max_abs(&fd, 1.0),
+                    "{}: M column {j}",
+                    scene.name
+                );
             }
             // Bias forces.
             let dp = along(&momenta, &q, &qd, t, 1.0, 1e-5);
-            let tq = |q: &[f64], t: f64| vec![m.kinetic_energy(q, &qd, t) - m.potential_energy(q, t)];
+            let tq =
+                |q: &[f64], t: f64| vec![m.kinetic_energy(q, &qd, t) - m.potential_energy(q, t)];
             let reference: Vec<f64> = (0..n)
                 .map(|i| dp[i] - along(&tq, &q, &unit(n, i), t, 0.0, 1e-6)[0])
                 .collect();

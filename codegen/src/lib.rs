@@ -10,6 +10,7 @@ mod builder;
 pub mod diff;
 pub mod emit;
 pub mod error;
+pub mod export;
 pub mod expr;
 pub mod lagrange;
 pub mod model;

@@ -157,13 +157,25 @@ const RUST_KEYWORDS: &[&str] = &[
     "override", "priv", "try", "typeof", "unsized", "virtual", "yield", "union",
 ];
 
-/// World-frame pose and body angular velocity of a frame.
+/// World-frame pose of a frame, with the velocity of its origin and its
+/// angular velocity both in the frame's own axes. Keeping velocities in local
+/// axes means constant rotations (a chain placed at 120 degrees) never enter
+/// the kinetic energy, which stays as simple as the mechanism.
 #[derive(Debug, Clone)]
 struct Frame {
     rotation: [[Id; 3]; 3],
     origin: [Id; 3],
+    /// Velocity of the origin in the frame's own axes.
+    velocity: [Id; 3],
     /// Angular velocity in the frame's own axes.
     omega: [Id; 3],
+}
+
+/// A material point: world position, and velocity in the axes of the frame
+/// it was given in (all points of one component share those axes).
+struct Point {
+    position: [Id; 3],
+    velocity: [Id; 3],
 }
 
 struct Builder<'a> {
@@ -359,16 +371,71 @@ impl<'a> Builder<'a> {
         Ok(runtime)
     }
 
-    /// Offset of an expression's text in the file.
-    fn content_offset(&self, span_start: usize) -> usize {
-        let rest = &self.source.text()[span_start.min(self.source.text().len())..];
-        if rest.starts_with("\"\"\"") || rest.starts_with("'''") {
-            span_start + 3
-        } else if rest.starts_with('"') || rest.starts_with('\'') {
-            span_start + 1
+    /// Offset in the file of byte `offset` of the (decoded) text of the
+    /// string whose token starts at `span_start`: skips the opening quotes,
+    /// the newline a multi-line string drops after them, and escapes.
+    fn expr_offset(&self, span_start: usize, offset: usize) -> usize {
+        let text = self.source.text();
+        let bytes = text.as_bytes();
+        let mut raw = span_start.min(text.len());
+        let rest = &bytes[raw..];
+        let (quote, basic, multi) = if rest.starts_with(b"\"\"\"") {
+            (3, true, true)
+        } else if rest.starts_with(b"'''") {
+            (3, false, true)
+        } else if rest.starts_with(b"\"") {
+            (1, true, false)
+        } else if rest.starts_with(b"'") {
+            (1, false, false)
         } else {
-            span_start
+            return (raw + offset).min(text.len());
+        };
+        raw += quote;
+        if multi {
+            if bytes[raw..].starts_with(b"\r\n") {
+                raw += 2;
+            } else if bytes[raw..].starts_with(b"\n") {
+                raw += 1;
+            }
         }
+        if !basic {
+            return (raw + offset).min(text.len());
+        }
+        let mut decoded = 0;
+        while decoded < offset && raw < bytes.len() {
+            if bytes[raw] != b'\\' {
+                // Advance by one character of the file.
+                let len = text.get(raw..).and_then(|r| r.chars().next());
+                let len = len.map_or(1, char::len_utf8);
+                raw += len;
+                decoded += len;
+                continue;
+            }
+            match bytes.get(raw + 1) {
+                Some(&(b'u' | b'U')) => {
+                    let digits = if bytes[raw + 1] == b'u' { 4 } else { 8 };
+                    let end = (raw + 2 + digits).min(bytes.len());
+                    let ch = text
+                        .get(raw + 2..end)
+                        .and_then(|h| u32::from_str_radix(h, 16).ok())
+                        .and_then(char::from_u32);
+                    raw = end;
+                    decoded += ch.map_or(1, char::len_utf8);
+                }
+                // A line-ending backslash drops the whitespace that follows.
+                Some(&(b' ' | b'\t' | b'\r' | b'\n')) if multi => {
+                    raw += 1;
+                    while matches!(bytes.get(raw), Some(b' ' | b'\t' | b'\r' | b'\n')) {
+                        raw += 1;
+                    }
+                }
+                _ => {
+                    raw += 2;
+                    decoded += 1;
+                }
+            }
+        }
+        raw.min(text.len())
     }
 
     fn scalar(&mut self, s: &SScalar, ctx: Option<&str>, velocity: bool) -> Result<Id, Error> {
@@ -378,9 +445,10 @@ impl<'a> Builder<'a> {
             }),
             Scalar::Expr(text) => {
                 self.scope.allow_velocity = velocity;
-                let base = self.content_offset(s.span().start);
-                parse_expr(&mut self.graph, text, &self.scope)
-                    .map_err(|e| self.err(base + e.offset, ctx, e.message))
+                parse_expr(&mut self.graph, text, &self.scope).map_err(|e| {
+                    let at = self.expr_offset(s.span().start, e.offset);
+                    self.err(at, ctx, e.message)
+                })
             }
         }
     }
@@ -456,6 +524,8 @@ impl<'a> Builder<'a> {
             let offset = self.rotate(&parent.rotation, translation);
             let origin: [Id; 3] =
                 std::array::from_fn(|k| self.graph.add(parent.origin[k], offset[k]));
+            // Origin velocity in parent axes: v_parent + w_parent x t + dt/dt.
+            let mut velocity = self.moving_point_velocity(&parent, translation);
             let mut rotation = parent.rotation;
             let mut omega = parent.omega;
             for r in &f.rotation {
@@ -465,6 +535,7 @@ impl<'a> Builder<'a> {
                 rotation = self.matmul(&rotation, &local);
                 // omega_child = R_local^T omega_parent + axis * angle_dot
                 let rate = self.graph.time_derivative_at_zero_acceleration(&[angle])[0];
+                velocity = self.rotate_transpose(&local, velocity);
                 let rotated = self.rotate_transpose(&local, omega);
                 omega = std::array::from_fn(|k| {
                     let a = self.graph.constant(axis[k]);
@@ -477,6 +548,7 @@ impl<'a> Builder<'a> {
                 Frame {
                     rotation,
                     origin,
+                    velocity,
                     omega,
                 },
             );
@@ -494,6 +566,7 @@ impl<'a> Builder<'a> {
         Frame {
             rotation,
             origin: [zero; 3],
+            velocity: [zero; 3],
             omega: [zero; 3],
         }
     }
@@ -590,27 +663,49 @@ impl<'a> Builder<'a> {
         self.graph.sum(&terms)
     }
 
-    /// World position of a point given in a component's frame.
+    /// A point given in a component's frame (the world when it has none).
     fn point(
         &mut self,
         c: &ComponentDef,
         v: &Spanned<Vec<SScalar>>,
         ctx: &str,
-    ) -> Result<[Id; 3], Error> {
+    ) -> Result<Point, Error> {
         let local = self.vector(v, Some(ctx), false)?;
-        match &c.frame {
-            None => Ok(local),
-            Some(name) => {
-                let f = self.lookup_frame(name, ctx)?;
-                let r = self.rotate(&f.rotation, local);
-                Ok(std::array::from_fn(|k| self.graph.add(f.origin[k], r[k])))
-            }
-        }
+        let frame = match &c.frame {
+            None => self.world(),
+            Some(name) => self.lookup_frame(name, ctx)?,
+        };
+        let r = self.rotate(&frame.rotation, local);
+        Ok(Point {
+            position: std::array::from_fn(|k| self.graph.add(frame.origin[k], r[k])),
+            velocity: self.moving_point_velocity(&frame, local),
+        })
     }
 
-    fn velocity(&mut self, p: [Id; 3]) -> [Id; 3] {
-        let v = self.graph.time_derivative_at_zero_acceleration(&p);
-        [v[0], v[1], v[2]]
+    /// Velocity, in `frame`'s axes, of a point at `local` (which may itself
+    /// move): `v_origin + w x local + d(local)/dt`.
+    fn moving_point_velocity(&mut self, frame: &Frame, local: [Id; 3]) -> [Id; 3] {
+        let rate = self.graph.time_derivative_at_zero_acceleration(&local);
+        let w = frame.omega;
+        let cross = [
+            (w[1], local[2], w[2], local[1]),
+            (w[2], local[0], w[0], local[2]),
+            (w[0], local[1], w[1], local[0]),
+        ];
+        std::array::from_fn(|k| {
+            let (a, b, c, d) = cross[k];
+            let ab = self.graph.mul(a, b);
+            let cd = self.graph.mul(c, d);
+            self.graph.linear(
+                &[
+                    (frame.velocity[k], 1.0),
+                    (ab, 1.0),
+                    (cd, -1.0),
+                    (rate[k], 1.0),
+                ],
+                0.0,
+            )
+        })
     }
 
     /// Gravitational potential of mass `m` at `p`: `-m g . p`.
@@ -690,17 +785,16 @@ impl<'a> Builder<'a> {
             "point_mass" => {
                 let m = self.positive(&mass.clone()?, &ctx, "mass", true)?;
                 let p = self.point(c, &position?, &ctx)?;
-                let v = self.velocity(p);
-                let v2 = self.dot(v, v);
+                let v2 = self.dot(p.velocity, p.velocity);
                 let mv2 = self.graph.mul(m, v2);
                 kinetic = self.graph.scale(mv2, 0.5);
-                potential = self.gravity_potential(m, p);
+                potential = self.gravity_potential(m, p.position);
             }
             "rod" => {
                 let m = self.positive(&mass.clone()?, &ctx, "mass", true)?;
                 let a = self.point(c, &from?, &ctx)?;
                 let b = self.point(c, &to?, &ctx)?;
-                let (va, vb) = (self.velocity(a), self.velocity(b));
+                let (va, vb) = (a.velocity, b.velocity);
                 // Uniform thin rod: T = m/6 (|va|^2 + va.vb + |vb|^2).
                 let aa = self.dot(va, va);
                 let ab = self.dot(va, vb);
@@ -709,7 +803,7 @@ impl<'a> Builder<'a> {
                 let ms = self.graph.mul(m, s);
                 kinetic = self.graph.scale(ms, 1.0 / 6.0);
                 let mid: [Id; 3] = std::array::from_fn(|k| {
-                    let ab = self.graph.add(a[k], b[k]);
+                    let ab = self.graph.add(a.position[k], b.position[k]);
                     self.graph.scale(ab, 0.5)
                 });
                 potential = self.gravity_potential(m, mid);
@@ -726,18 +820,20 @@ impl<'a> Builder<'a> {
                 let frame = self.lookup_frame(frame_name, &ctx)?;
                 let com = match &c.position {
                     Some(p) => self.point(c, p, &ctx)?,
-                    None => frame.origin,
+                    None => Point {
+                        position: frame.origin,
+                        velocity: frame.velocity,
+                    },
                 };
                 let inertia = self.inertia(c, &ctx)?;
-                let v = self.velocity(com);
-                let v2 = self.dot(v, v);
+                let v2 = self.dot(com.velocity, com.velocity);
                 let w = frame.omega;
                 let iw = self.rotate(&inertia, w);
                 let wiw = self.dot(w, iw);
                 let mv2 = self.graph.mul(m, v2);
                 let total = self.graph.add(mv2, wiw);
                 kinetic = self.graph.scale(total, 0.5);
-                potential = self.gravity_potential(m, com);
+                potential = self.gravity_potential(m, com.position);
             }
             "spring" => {
                 let k = self.positive(&stiffness?, &ctx, "stiffness", false)?;

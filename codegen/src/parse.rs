@@ -68,9 +68,24 @@ pub const RESERVED: &[&str] = &[
 /// Parse `text` into the graph.
 pub fn parse_expr(graph: &mut Graph, text: &str, scope: &Scope) -> Result<Id, ParseError> {
     precheck(text)?;
-    let expr: Expr = syn::parse_str(text).map_err(|e| ParseError {
-        offset: offset_of(text, e.span()),
-        message: format!("syntax error: {e}"),
+    let expr: Expr = syn::parse_str(text).map_err(|e| {
+        let mut what = e.to_string();
+        if what == "cannot parse string into token stream" {
+            // syn's wording for a failure to split the text into tokens.
+            what =
+                "unbalanced brackets, an unclosed quote or a character outside the grammar".into();
+        }
+        // At the end of the whole text syn reports no position (the call
+        // site); point just past the last token instead of at the start.
+        let offset = if e.span().byte_range() == (0..0) && what.starts_with("unexpected end") {
+            text.trim_end().len()
+        } else {
+            offset_of(text, e.span())
+        };
+        ParseError {
+            offset,
+            message: format!("syntax error: {what}"),
+        }
     })?;
     let mut conv = Converter { graph, text, scope };
     conv.convert(&expr)
@@ -143,6 +158,13 @@ fn offset_of(text: &str, span: Span) -> usize {
     text.len()
 }
 
+fn suffix_error<T>(at: usize, suffix: &str) -> Result<T, ParseError> {
+    err(
+        at,
+        format!("malformed number: `{suffix}` directly after the digits (write `*` to multiply)"),
+    )
+}
+
 struct Converter<'a> {
     graph: &'a mut Graph,
     text: &'a str,
@@ -176,6 +198,9 @@ impl Converter<'_> {
         let at = self.at(e);
         match e {
             Expr::Lit(l) => match &l.lit {
+                // Rust reads `2pi` or `1e` as a number with a suffix.
+                Lit::Float(f) if !f.suffix().is_empty() => suffix_error(at, f.suffix()),
+                Lit::Int(i) if !i.suffix().is_empty() => suffix_error(at, i.suffix()),
                 Lit::Float(f) => {
                     let v: f64 = f.base10_parse().or_else(|_| err(at, "malformed number"))?;
                     self.constant(v, at)
@@ -292,7 +317,7 @@ impl Converter<'_> {
         let i = match &*ix.index {
             Expr::Lit(syn::ExprLit {
                 lit: Lit::Int(n), ..
-            }) => n
+            }) if n.suffix().is_empty() => n
                 .base10_parse::<usize>()
                 .or_else(|_| err(idx_at, "bad index"))?,
             _ => return err(idx_at, "index must be an integer literal"),

@@ -6,7 +6,6 @@
 //! rejected.
 
 use std::collections::BTreeMap;
-
 use std::fmt;
 
 use serde::de::{self, Deserializer, MapAccess, Visitor};
@@ -276,7 +275,14 @@ pub fn parse_scene(source: &Source) -> Result<SceneDef, Error> {
     }
     toml::from_str::<SceneDef>(source.text()).map_err(|e| {
         let offset = e.span().map_or(0, |s| s.start);
-        let message = e.message().trim().to_owned();
+        let mut message = e.message().trim().to_owned();
+        if message.is_empty() {
+            // toml says nothing about, e.g., a control character in a comment.
+            message = match source.text().get(offset..).and_then(|r| r.chars().next()) {
+                Some(c) => format!("unexpected character {c:?}"),
+                None => "invalid TOML".into(),
+            };
+        }
         source.error_at(offset, None, message)
     })
 }

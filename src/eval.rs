@@ -1,0 +1,146 @@
+//! Evaluation of a compiled scene's generated terms at given states, with
+//! JSON input and output (`flexdyn eval`), used by the CasADi validation.
+
+use serde::{Deserialize, Serialize};
+
+use crate::dynamic::DynModel;
+
+/// One state to evaluate at.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct State {
+    /// Positions.
+    pub q: Vec<f64>,
+    /// Velocities.
+    pub qd: Vec<f64>,
+    /// Time.
+    #[serde(default)]
+    pub t: f64,
+}
+
+/// The input file of `flexdyn eval`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct States {
+    /// States to evaluate at.
+    pub states: Vec<State>,
+}
+
+/// Every generated term at one state. Matrices are lists of rows.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Terms {
+    /// Mass matrix.
+    pub mass_matrix: Vec<Vec<f64>>,
+    /// Bias forces.
+    pub bias: Vec<f64>,
+    /// Constraint residuals.
+    pub constraints: Vec<f64>,
+    /// Constraint Jacobian.
+    pub constraint_jacobian: Vec<Vec<f64>>,
+    /// Explicit time derivative of the constraints.
+    pub constraint_time_derivative: Vec<f64>,
+    /// Acceleration right-hand side.
+    pub constraint_rhs: Vec<f64>,
+    /// Actuator map.
+    pub actuator_map: Vec<Vec<f64>>,
+    /// Kinetic energy.
+    pub kinetic_energy: f64,
+    /// Potential energy.
+    pub potential_energy: f64,
+}
+
+/// A deliberate error added to one term (test-only hook used to prove that
+/// the validation catches a broken term): `term:index:delta`, where `index`
+/// counts entries row by row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Perturbation {
+    /// Term name as in [`Terms`].
+    pub term: String,
+    /// Entry index, row-major.
+    pub index: usize,
+    /// Amount added.
+    pub delta: f64,
+}
+
+impl std::str::FromStr for Perturbation {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let parts: Vec<&str> = s.split(':').collect();
+        let [term, index, delta] = parts.as_slice() else {
+            return Err(format!("expected term:index:delta, got `{s}`"));
+        };
+        Ok(Perturbation {
+            term: (*term).to_owned(),
+            index: index
+                .parse()
+                .map_err(|e| format!("bad index `{index}`: {e}"))?,
+            delta: delta
+                .parse()
+                .map_err(|e| format!("bad delta `{delta}`: {e}"))?,
+        })
+    }
+}
+
+fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
+    m.row_iter().map(|r| r.iter().copied().collect()).collect()
+}
+
+/// Check a state's dimensions and finiteness.
+pub fn check_state(model: &dyn DynModel, s: &State, k: usize) -> Result<(), String> {
+    let n = model.nq();
+    if s.q.len() != n || s.qd.len() != n {
+        return Err(format!(
+            "state {k}: scene `{}` has {n} coordinates, got {} positions and {} velocities",
+            model.name(),
+            s.q.len(),
+            s.qd.len()
+        ));
+    }
+    if !(s.q.iter().chain(&s.qd).all(|x| x.is_finite()) && s.t.is_finite()) {
+        return Err(format!("state {k}: non-finite value"));
+    }
+    Ok(())
+}
+
+/// Evaluate every term at one state.
+pub fn evaluate(model: &dyn DynModel, s: &State) -> Terms {
+    Terms {
+        mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
+        bias: model.bias(&s.q, &s.qd, s.t).as_slice().to_vec(),
+        constraints: model.constraints(&s.q, s.t).as_slice().to_vec(),
+        constraint_jacobian: rows(&model.constraint_jacobian(&s.q, s.t)),
+        constraint_time_derivative: model
+            .constraint_time_derivative(&s.q, s.t)
+            .as_slice()
+            .to_vec(),
+        constraint_rhs: model.constraint_rhs(&s.q, &s.qd, s.t).as_slice().to_vec(),
+        actuator_map: rows(&model.actuator_map()),
+        kinetic_energy: model.kinetic_energy(&s.q, &s.qd, s.t),
+        potential_energy: model.potential_energy(&s.q, s.t),
+    }
+}
+
+impl Terms {
+    /// Apply a perturbation; an error if the term or entry does not exist.
+    pub fn perturb(&mut self, p: &Perturbation) -> Result<(), String> {
+        let entry: Option<&mut f64> = match p.term.as_str() {
+            "mass_matrix" => self.mass_matrix.iter_mut().flatten().nth(p.index),
+            "bias" => self.bias.get_mut(p.index),
+            "constraints" => self.constraints.get_mut(p.index),
+            "constraint_jacobian" => self.constraint_jacobian.iter_mut().flatten().nth(p.index),
+            "constraint_time_derivative" => self.constraint_time_derivative.get_mut(p.index),
+            "constraint_rhs" => self.constraint_rhs.get_mut(p.index),
+            "actuator_map" => self.actuator_map.iter_mut().flatten().nth(p.index),
+            "kinetic_energy" => Some(&mut self.kinetic_energy),
+            "potential_energy" => Some(&mut self.potential_energy),
+            _ => None,
+        };
+        match entry {
+            Some(x) => {
+                *x += p.delta;
+                Ok(())
+            }
+            None => Err(format!("no entry {} in term `{}`", p.index, p.term)),
+        }
+    }
+}
