@@ -7,6 +7,10 @@
 
 pub mod dynamic;
 pub mod eval;
+pub mod plot;
+pub mod progress;
+pub mod robot;
+pub mod table;
 
 /// The generated scene modules (one per file in `scenes/`).
 #[allow(missing_docs)]

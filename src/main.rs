@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use flexdyn::table::write_atomic;
 
 /// Exact, allocation-free equations of motion for rigid and flexible
 /// multibody systems, generated from scene files.
@@ -61,6 +62,38 @@ enum Command {
         #[arg(long, hide = true)]
         perturb: Option<flexdyn::eval::Perturbation>,
     },
+    /// Inverse dynamics of the parallel robot along a circle of the platform
+    /// centre (the paper's Eq. 23 by default): the actuator torques, through
+    /// the runtime's real-time path.
+    Inverse {
+        /// Scene file of the robot (`scenes/parallel_robot_rigid.toml`).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Angular rate of the circle, rad/s.
+        #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
+        omega: f64,
+        /// Duration, s.
+        #[arg(long, default_value_t = 5.0, allow_negative_numbers = true)]
+        duration: f64,
+        /// Output step, s.
+        #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
+        dt: f64,
+        /// Radius of the circle, m.
+        #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
+        radius: f64,
+        /// Centre of the circle as x,y,z in m.
+        #[arg(long, default_value = "0,0,0.7", allow_negative_numbers = true)]
+        center: String,
+        /// CSV output: t, tau_1..3 (N m), px, py, pz (m), th11, th21, th31 (rad).
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Plot of the three torques against time (.png or .svg).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// No progress bar and no summary.
+        #[arg(long)]
+        quiet: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -104,6 +137,32 @@ fn main() -> ExitCode {
             out,
             perturb,
         } => eval(&scene, &states, out.as_deref(), perturb.as_ref()),
+        Command::Inverse {
+            scene,
+            omega,
+            duration,
+            dt,
+            radius,
+            center,
+            csv,
+            plot,
+            quiet,
+        } => parse_center(&center).and_then(|center| {
+            let circle = flexdyn::robot::Circle {
+                omega,
+                radius,
+                center,
+            };
+            inverse(
+                &scene,
+                &circle,
+                duration,
+                dt,
+                csv.as_deref(),
+                plot.as_deref(),
+                quiet,
+            )
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -112,18 +171,6 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
-}
-
-/// Write `text` to `path` through a temporary file, so that a failure never
-/// leaves a partial output behind.
-fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            format!("cannot write {}: {e}", path.display())
-        })
 }
 
 fn export(scene: &Path, out: &Path) -> Result<(), String> {
@@ -167,4 +214,85 @@ fn eval(
             Ok(())
         }
     }
+}
+
+fn parse_center(text: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().ok().filter(|x| x.is_finite()))
+        .collect::<Option<Vec<f64>>>()
+        .ok_or_else(|| format!("--center must be three numbers x,y,z, got `{text}`"))?;
+    <[f64; 3]>::try_from(v)
+        .map_err(|_| format!("--center must be three numbers x,y,z, got `{text}`"))
+}
+
+fn inverse(
+    scene: &Path,
+    circle: &flexdyn::robot::Circle,
+    duration: f64,
+    dt: f64,
+    csv: Option<&Path>,
+    plot: Option<&Path>,
+    quiet: bool,
+) -> Result<(), String> {
+    use flexdyn::robot::{inverse_along, output_times, Geometry};
+    let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+    if !(circle.omega.is_finite() && circle.radius.is_finite() && circle.radius >= 0.0) {
+        return Err("--omega must be finite and --radius finite and non-negative".into());
+    }
+    let times = output_times(duration, dt)?;
+    let geometry = Geometry::from_parameters(&parsed.parameters)?;
+    let mut progress =
+        flexdyn::progress::Progress::new(times.len() as u64, "inverse dynamics", quiet);
+    let solutions = match parsed.name.as_str() {
+        "parallel_robot_rigid" => {
+            let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
+            inverse_along(&model, &geometry, circle, &times, &mut || progress.inc())?
+        }
+        other => {
+            return Err(format!(
+                "`inverse` drives the parallel robot; scene `{other}` is not one (try scenes/parallel_robot_rigid.toml)"
+            ))
+        }
+    };
+    progress.finish();
+    let mut table = flexdyn::table::Table::new(&[
+        "t", "tau_1", "tau_2", "tau_3", "px", "py", "pz", "th11", "th21", "th31",
+    ]);
+    for s in &solutions {
+        table.push(vec![
+            s.t, s.tau[0], s.tau[1], s.tau[2], s.q[9], s.q[10], s.q[11], s.q[0], s.q[3], s.q[6],
+        ]);
+    }
+    if let Some(path) = csv {
+        table.write(path)?;
+    }
+    if let Some(path) = plot {
+        let series: Vec<flexdyn::plot::Series> = (1..=3)
+            .map(|i| flexdyn::plot::Series {
+                label: ["tau_1", "tau_2", "tau_3"][i - 1],
+                points: solutions.iter().map(|s| (s.t, s.tau[i - 1])).collect(),
+            })
+            .collect();
+        let title = format!(
+            "Driving torques, {} (omega = {} rad/s)",
+            parsed.name, circle.omega
+        );
+        flexdyn::plot::line_plot(
+            path,
+            &flexdyn::plot::Labels {
+                title: &title,
+                x: "t (s)",
+                y: "torque (N m)",
+            },
+            &series,
+        )?;
+    }
+    if !quiet {
+        for i in 0..3 {
+            let peak = solutions.iter().map(|s| s.tau[i].abs()).fold(0.0, f64::max);
+            println!("chain {}: max |tau_{}| = {:.4} N m", i + 1, i + 1, peak);
+        }
+    }
+    Ok(())
 }

@@ -89,6 +89,8 @@ pub struct Model {
     pub coordinates: Vec<Coordinate>,
     /// Runtime parameters, in the order of `Symbol::Param` indices.
     pub runtime_parameters: Vec<RuntimeParameter>,
+    /// Nominal value of every parameter, folded or runtime, by name.
+    pub parameters: BTreeMap<String, f64>,
     /// Components.
     pub components: Vec<Component>,
     /// Constraints.
@@ -185,6 +187,7 @@ struct Builder<'a> {
     frames: BTreeMap<String, Frame>,
     gravity: [Id; 3],
     nominal: Vec<f64>,
+    parameter_values: BTreeMap<String, f64>,
 }
 
 impl<'a> Builder<'a> {
@@ -198,6 +201,7 @@ impl<'a> Builder<'a> {
             frames: BTreeMap::new(),
             gravity: [zero; 3],
             nominal: Vec::new(),
+            parameter_values: BTreeMap::new(),
         }
     }
 
@@ -282,6 +286,7 @@ impl<'a> Builder<'a> {
             graph: self.graph,
             coordinates,
             runtime_parameters,
+            parameters: self.parameter_values,
             components,
             constraints,
             actuators,
@@ -367,6 +372,7 @@ impl<'a> Builder<'a> {
             self.scope
                 .parameters
                 .insert(name.get_ref().clone(), binding);
+            self.parameter_values.insert(name.get_ref().clone(), value);
         }
         Ok(runtime)
     }
