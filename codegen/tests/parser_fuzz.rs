@@ -4,7 +4,8 @@
 //! position that exists in its text.
 //!
 //! The seed is fixed, so a run is reproducible. `FLEXDYN_FUZZ_CASES` sets the
-//! number of cases per property (default 2000).
+//! number of cases per property (default 2000); `FLEXDYN_FUZZ_SEED` (a number)
+//! picks another fixed seed.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -27,8 +28,19 @@ fn cases() -> u32 {
     }
 }
 
-/// A runner with a fixed seed and no failure files.
-fn runner(seed: u8) -> TestRunner {
+/// A runner with a fixed seed (varied by `FLEXDYN_FUZZ_SEED`, a number) and
+/// no failure files.
+fn runner(property: u8) -> TestRunner {
+    let mut seed = [property; 32];
+    if let Ok(v) = std::env::var("FLEXDYN_FUZZ_SEED") {
+        let extra: u64 = v
+            .trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("FLEXDYN_FUZZ_SEED must be a number, not `{v}`"));
+        for (s, e) in seed.iter_mut().zip(extra.to_le_bytes()) {
+            *s ^= e;
+        }
+    }
     let config = Config {
         cases: cases(),
         failure_persistence: None,
@@ -36,10 +48,7 @@ fn runner(seed: u8) -> TestRunner {
         max_shrink_iters: 2000,
         ..Config::default()
     };
-    TestRunner::new_with_rng(
-        config,
-        TestRng::from_seed(RngAlgorithm::ChaCha, &[seed; 32]),
-    )
+    TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &seed))
 }
 
 fn scope(allow_velocity: bool) -> Scope {
@@ -289,6 +298,7 @@ const SCENES: &[&str] = &[
     include_str!("../../scenes/double_pendulum.toml"),
     include_str!("../../scenes/five_bar.toml"),
     include_str!("../../scenes/slider_crank.toml"),
+    include_str!("../../scenes/parallel_robot_rigid.toml"),
 ];
 
 fn load(text: &str) -> (Source, Result<Model, Error>) {

@@ -152,9 +152,11 @@ fn wrong_value_types_are_named() {
 fn toml_syntax_errors_are_located() {
     let text = "name = \"s\"\n[[coordinates]\nname = \"x\"\n";
     let e = fail(text);
-    assert_eq!(e.line, 2, "{e}");
-    assert!(e.column >= 1, "{e}");
-    assert!(e.message.contains("table header"), "{e}");
+    // At the lone `]`, which should have been `]]`.
+    check(&e, (2, 14), None, &["invalid table header", "`]]`"]);
+    // A control character in a comment: toml gives no message of its own.
+    let e = fail("# a\u{1}b\nname = \"s\"\n[[coordinates]]\nname = \"x\"\n");
+    check(&e, (1, 4), None, &["unexpected character '\\u{1}'"]);
 
     let e = fail("name = \"s\"\n[[coordinates]]\n");
     check(&e, (2, 1), None, &["missing field `name`"]);
@@ -799,26 +801,40 @@ fn unknown_output_name() {
 fn coriolis_matrix_needs_a_quadratic_kinetic_energy() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("linear.toml");
-    let text =
-        "name = \"linear\"\noutputs = [\"coriolis_matrix\"]\n[[coordinates]]\nname = \"x\"\n\
-                [[components]]\nname = \"odd\"\ntype = \"energy\"\n\
-                kinetic = \"0.5*qd[0]*qd[0] + qd[0]\"\npotential = \"x*x\"\n";
-    fs::write(&path, text).unwrap();
-    let e = generate_scene(&path).unwrap_err();
-    assert_eq!(e.file, path, "{e}");
-    assert_eq!(
-        e.context.as_deref(),
-        Some("output `coriolis_matrix`"),
-        "{e}"
-    );
-    assert!(e.message.contains("not a quadratic form"), "{e}");
-    assert!(
-        e.to_string().contains("in output `coriolis_matrix`: "),
-        "{e}"
-    );
-    // The same scene without the output generates.
-    fs::write(&path, text.replace("outputs = [\"coriolis_matrix\"]\n", "")).unwrap();
-    generate_scene(&path).unwrap();
+    let cases = [
+        ("qd[0]", "not a quadratic form in the velocities"),
+        (
+            "0.5*qd[0]*qd[0] + qd[0]",
+            "not a quadratic form in the velocities",
+        ),
+        ("0.5*(1 + t)*qd[0]*qd[0]", "depends explicitly on time"),
+    ];
+    for (kinetic, why) in cases {
+        let text = format!(
+            "name = \"linear\"\noutputs = [\"coriolis_matrix\"]\n\
+             [[coordinates]]\nname = \"x\"\n\
+             [[components]]\nname = \"cart\"\ntype = \"energy\"\nkinetic = \"0.5*qd[0]*qd[0]\"\n\
+             [[components]]\nname = \"odd\"\ntype = \"energy\"\n\
+             kinetic = \"{kinetic}\"\npotential = \"x*x\"\n"
+        );
+        fs::write(&path, &text).unwrap();
+        let e = generate_scene(&path).unwrap_err();
+        assert_eq!(e.file, path, "{e}");
+        assert_eq!(e.line, 0, "{e}");
+        assert_eq!(
+            e.context.as_deref(),
+            Some("output `coriolis_matrix`"),
+            "{e}"
+        );
+        assert!(e.message.contains(why), "{e}");
+        assert!(
+            e.to_string().contains("in output `coriolis_matrix`: "),
+            "{e}"
+        );
+        // The same scene without the output generates.
+        fs::write(&path, text.replace("outputs = [\"coriolis_matrix\"]\n", "")).unwrap();
+        generate_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+    }
 }
 
 // 12. All or nothing.
