@@ -84,12 +84,45 @@ enum Command {
         /// Centre of the circle as x,y,z in m.
         #[arg(long, default_value = "0,0,0.7", allow_negative_numbers = true)]
         center: String,
-        /// CSV output: t, tau_1..3 (N m), px, py, pz (m), th11, th21, th31 (rad).
+        /// CSV output: t, tau_1..3 (N m), px, py, pz (m), vx, vy, vz (m/s), th11, th21, th31 (rad).
         #[arg(long)]
         csv: Option<PathBuf>,
         /// Plot of the three torques against time (.png or .svg).
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// No progress bar and no summary.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Forward dynamics of the parallel robot under actuator torques read from
+    /// a CSV (columns t, tau_1, tau_2, tau_3, linearly interpolated), starting
+    /// from the consistent state at the first row's platform position px, py,
+    /// pz and velocity vx, vy, vz (zero when those columns are absent).
+    Simulate {
+        /// Scene file of the robot.
+        #[arg(long)]
+        scene: PathBuf,
+        /// Torques to apply (e.g. the CSV written by `flexdyn inverse`).
+        #[arg(long)]
+        torques: PathBuf,
+        /// Output CSV: t, px, py, pz (m), th11, th21, th31 (rad), phi_max (constraint residual).
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Plot of the platform position against time (.png or .svg).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Integration step, s.
+        #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
+        dt: f64,
+        /// Output step, s (a multiple of --dt).
+        #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
+        output_dt: f64,
+        /// Duration, s (default: up to the last torque sample).
+        #[arg(long, allow_negative_numbers = true)]
+        duration: Option<f64>,
+        /// Integrator: rk4, semi-implicit or gen-alpha.
+        #[arg(long, default_value = "rk4")]
+        integrator: flexdyn::robot::Scheme,
         /// No progress bar and no summary.
         #[arg(long)]
         quiet: bool,
@@ -162,6 +195,27 @@ fn main() -> ExitCode {
                 plot.as_deref(),
                 quiet,
             )
+        }),
+        Command::Simulate {
+            scene,
+            torques,
+            csv,
+            plot,
+            dt,
+            output_dt,
+            duration,
+            integrator,
+            quiet,
+        } => simulate(&SimulateArgs {
+            scene,
+            torques,
+            csv,
+            plot,
+            dt,
+            output_dt,
+            duration,
+            integrator,
+            quiet,
         }),
     };
     match result {
@@ -257,11 +311,12 @@ fn inverse(
     };
     progress.finish();
     let mut table = flexdyn::table::Table::new(&[
-        "t", "tau_1", "tau_2", "tau_3", "px", "py", "pz", "th11", "th21", "th31",
+        "t", "tau_1", "tau_2", "tau_3", "px", "py", "pz", "vx", "vy", "vz", "th11", "th21", "th31",
     ]);
     for s in &solutions {
         table.push(vec![
-            s.t, s.tau[0], s.tau[1], s.tau[2], s.q[9], s.q[10], s.q[11], s.q[0], s.q[3], s.q[6],
+            s.t, s.tau[0], s.tau[1], s.tau[2], s.q[9], s.q[10], s.q[11], s.qd[9], s.qd[10],
+            s.qd[11], s.q[0], s.q[3], s.q[6],
         ]);
     }
     if let Some(path) = csv {
@@ -293,6 +348,119 @@ fn inverse(
             let peak = solutions.iter().map(|s| s.tau[i].abs()).fold(0.0, f64::max);
             println!("chain {}: max |tau_{}| = {:.4} N m", i + 1, i + 1, peak);
         }
+    }
+    Ok(())
+}
+
+struct SimulateArgs {
+    scene: PathBuf,
+    torques: PathBuf,
+    csv: Option<PathBuf>,
+    plot: Option<PathBuf>,
+    dt: f64,
+    output_dt: f64,
+    duration: Option<f64>,
+    integrator: flexdyn::robot::Scheme,
+    quiet: bool,
+}
+
+fn simulate(a: &SimulateArgs) -> Result<(), String> {
+    use flexdyn::robot::{consistent_state, output_times, simulate, Geometry, TorqueTable};
+    let parsed = flexdyn::codegen::model::Model::load(&a.scene).map_err(|e| e.to_string())?;
+    let geometry = Geometry::from_parameters(&parsed.parameters)?;
+    let table = flexdyn::table::Table::read(&a.torques)?;
+    let torques =
+        TorqueTable::from_table(&table).map_err(|e| format!("{}: {e}", a.torques.display()))?;
+    let first = |name: &str, default: Option<f64>| -> Result<f64, String> {
+        match table.column(name) {
+            Ok(c) => Ok(c[0]),
+            Err(e) => default.ok_or_else(|| format!("{}: {e}", a.torques.display())),
+        }
+    };
+    let p = [first("px", None)?, first("py", None)?, first("pz", None)?];
+    let v = [
+        first("vx", Some(0.0))?,
+        first("vy", Some(0.0))?,
+        first("vz", Some(0.0))?,
+    ];
+    let (t0, t1) = torques.span();
+    let duration = a.duration.unwrap_or(t1 - t0);
+    if !(a.output_dt.is_finite() && a.output_dt > 0.0) {
+        return Err(format!(
+            "--output-dt must be a positive number of seconds, got {}",
+            a.output_dt
+        ));
+    }
+    let steps = output_times(duration, a.dt)?.len() - 1;
+    let ratio = a.output_dt / a.dt;
+    if (ratio - ratio.round()).abs() > 1e-9 * ratio || ratio.round() < 1.0 {
+        return Err(format!(
+            "--output-dt ({}) must be a whole multiple of --dt ({})",
+            a.output_dt, a.dt
+        ));
+    }
+    let every = ratio.round() as usize;
+    let mut progress = flexdyn::progress::Progress::new(steps as u64, "forward dynamics", a.quiet);
+    let states = match parsed.name.as_str() {
+        "parallel_robot_rigid" => {
+            let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
+            let start = consistent_state(&model, &geometry, t0, p, v)?;
+            simulate(&model, a.integrator, start, &torques, a.dt, steps, every, &mut || progress.inc())?
+        }
+        other => {
+            return Err(format!(
+                "`simulate` drives the parallel robot; scene `{other}` is not one (try scenes/parallel_robot_rigid.toml)"
+            ))
+        }
+    };
+    progress.finish();
+    let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
+    let mut out =
+        flexdyn::table::Table::new(&["t", "px", "py", "pz", "th11", "th21", "th31", "phi_max"]);
+    for s in &states {
+        let mut phi = nalgebra::SVector::<f64, 9>::zeros();
+        flexdyn::runtime::Model::constraints(&model, &s.q, s.t, &mut phi);
+        out.push(vec![
+            s.t,
+            s.q[9],
+            s.q[10],
+            s.q[11],
+            s.q[0],
+            s.q[3],
+            s.q[6],
+            phi.amax(),
+        ]);
+    }
+    if let Some(path) = &a.csv {
+        out.write(path)?;
+    }
+    if let Some(path) = &a.plot {
+        let series: Vec<flexdyn::plot::Series> = ["px", "py", "pz"]
+            .iter()
+            .enumerate()
+            .map(|(k, label)| flexdyn::plot::Series {
+                label,
+                points: states.iter().map(|s| (s.t, s.q[9 + k])).collect(),
+            })
+            .collect();
+        flexdyn::plot::line_plot(
+            path,
+            &flexdyn::plot::Labels {
+                title: "Platform position under the given torques",
+                x: "t (s)",
+                y: "position (m)",
+            },
+            &series,
+        )?;
+    }
+    if !a.quiet {
+        let last = states.last().map_or(0.0, |s| s.t);
+        println!(
+            "simulated {:.3} s in {} steps of {} s",
+            last - t0,
+            steps,
+            a.dt
+        );
     }
     Ok(())
 }

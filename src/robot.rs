@@ -285,6 +285,172 @@ where
     Ok(out)
 }
 
+/// Actuator torques sampled in time, linearly interpolated between samples
+/// and held constant outside them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TorqueTable {
+    times: Vec<f64>,
+    torques: Vec<[f64; 3]>,
+}
+
+impl TorqueTable {
+    /// From the columns `t, tau_1, tau_2, tau_3` of a table; times must
+    /// increase strictly.
+    pub fn from_table(table: &crate::table::Table) -> Result<TorqueTable, String> {
+        let times = table.column("t")?;
+        let taus = [
+            table.column("tau_1")?,
+            table.column("tau_2")?,
+            table.column("tau_3")?,
+        ];
+        if times.is_empty() {
+            return Err("the torque table has no rows".into());
+        }
+        if let Some(k) = times.windows(2).position(|w| !(w[1] > w[0])) {
+            return Err(format!(
+                "times must increase strictly: row {} has t = {} after t = {}",
+                k + 2,
+                times[k + 1],
+                times[k]
+            ));
+        }
+        let torques = (0..times.len())
+            .map(|k| [taus[0][k], taus[1][k], taus[2][k]])
+            .collect();
+        Ok(TorqueTable { times, torques })
+    }
+
+    /// First and last sample times.
+    pub fn span(&self) -> (f64, f64) {
+        (self.times[0], self.times[self.times.len() - 1])
+    }
+
+    /// The torques at `t`.
+    pub fn at(&self, t: f64) -> [f64; 3] {
+        let k = self.times.partition_point(|&x| x <= t);
+        if k == 0 {
+            return self.torques[0];
+        }
+        if k == self.times.len() {
+            return self.torques[k - 1];
+        }
+        let (t0, t1) = (self.times[k - 1], self.times[k]);
+        let s = (t - t0) / (t1 - t0);
+        let (a, b) = (self.torques[k - 1], self.torques[k]);
+        std::array::from_fn(|i| a[i] + s * (b[i] - a[i]))
+    }
+}
+
+/// Time integrators offered for forward dynamics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scheme {
+    /// Explicit fourth-order Runge-Kutta.
+    Rk4,
+    /// Symplectic (semi-implicit) Euler.
+    SemiImplicit,
+    /// Implicit generalized-alpha with Newton iterations (stiff models).
+    GeneralizedAlpha,
+}
+
+impl std::str::FromStr for Scheme {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Scheme, String> {
+        match s {
+            "rk4" => Ok(Scheme::Rk4),
+            "semi-implicit" => Ok(Scheme::SemiImplicit),
+            "gen-alpha" => Ok(Scheme::GeneralizedAlpha),
+            _ => Err(format!(
+                "unknown integrator `{s}` (rk4, semi-implicit, gen-alpha)"
+            )),
+        }
+    }
+}
+
+/// State of the rigid robot.
+pub type RigidState = flexdyn_runtime::State<12>;
+
+/// The consistent state of the robot with its platform at `p` moving at `v`.
+pub fn consistent_state<M>(
+    model: &M,
+    g: &Geometry,
+    t: f64,
+    p: [f64; 3],
+    v: [f64; 3],
+) -> Result<RigidState, String>
+where
+    M: flexdyn_runtime::Model<12, 9, 3>,
+{
+    use flexdyn_runtime::nalgebra::SVector;
+    let q0 = inverse_kinematics(g, p).map_err(|e| format!("initial state: {e}"))?;
+    let mut solver = flexdyn_runtime::InverseDynamics::<12, 9, 3, 3>::new(
+        [9, 10, 11],
+        SVector::from(q0),
+        flexdyn_runtime::InverseConfig::default(),
+    )
+    .map_err(|e| e.to_string())?;
+    let mut sol = RigidSolution::default();
+    solver
+        .solve(
+            model,
+            t,
+            &SVector::from(p),
+            &SVector::from(v),
+            &SVector::zeros(),
+            &mut sol,
+        )
+        .map_err(|e| format!("initial state: {e}"))?;
+    Ok(RigidState::new(sol.q, sol.qd, t))
+}
+
+/// Forward dynamics of the rigid robot from `state` under `torques`, with
+/// steps of `dt`, recording the state every `every` steps (and at the
+/// start), for `steps` steps. `tick` is called after each step.
+#[allow(clippy::too_many_arguments)]
+pub fn simulate<M>(
+    model: &M,
+    scheme: Scheme,
+    mut state: RigidState,
+    torques: &TorqueTable,
+    dt: f64,
+    steps: usize,
+    every: usize,
+    tick: &mut dyn FnMut(),
+) -> Result<Vec<RigidState>, String>
+where
+    M: flexdyn_runtime::Model<12, 9, 3>,
+{
+    use flexdyn_runtime::integrate::{GeneralizedAlpha, Rk4, SemiImplicitEuler, StepSettings};
+    use flexdyn_runtime::{FromFn, Integrator};
+    let input = FromFn(|t: f64| flexdyn_runtime::nalgebra::SVector::<f64, 3>::from(torques.at(t)));
+    let settings = StepSettings::default();
+    let mut out = vec![state];
+    let mut run = |integ: &mut dyn FnMut(&mut RigidState) -> Result<(), flexdyn_runtime::Error>| {
+        for k in 1..=steps {
+            integ(&mut state).map_err(|e| e.to_string())?;
+            if k % every.max(1) == 0 {
+                out.push(state);
+            }
+            tick();
+        }
+        Ok::<(), String>(())
+    };
+    match scheme {
+        Scheme::Rk4 => {
+            let mut g = Rk4::new(settings);
+            run(&mut |s| g.step(model, s, &input, dt).map(|_| ()))?;
+        }
+        Scheme::SemiImplicit => {
+            let mut g = SemiImplicitEuler::new(settings);
+            run(&mut |s| g.step(model, s, &input, dt).map(|_| ()))?;
+        }
+        Scheme::GeneralizedAlpha => {
+            let mut g = GeneralizedAlpha::<12, 9>::new(settings, Default::default());
+            run(&mut |s| g.step(model, s, &input, dt).map(|_| ()))?;
+        }
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
