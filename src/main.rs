@@ -289,13 +289,12 @@ fn inverse(
     plot: Option<&Path>,
     quiet: bool,
 ) -> Result<(), String> {
-    use flexdyn::robot::{inverse_along, output_times, Geometry};
-    let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+    use flexdyn::robot::{inverse_along, output_times};
+    let (parsed, geometry) = robot_scene(scene, "inverse")?;
     if !(circle.omega.is_finite() && circle.radius.is_finite() && circle.radius >= 0.0) {
         return Err("--omega must be finite and --radius finite and non-negative".into());
     }
     let times = output_times(duration, dt)?;
-    let geometry = Geometry::from_parameters(&parsed.parameters)?;
     let mut progress =
         flexdyn::progress::Progress::new(times.len() as u64, "inverse dynamics", quiet);
     let solutions = match parsed.name.as_str() {
@@ -303,11 +302,7 @@ fn inverse(
             let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
             inverse_along(&model, &geometry, circle, &times, &mut || progress.inc())?
         }
-        other => {
-            return Err(format!(
-                "`inverse` drives the parallel robot; scene `{other}` is not one (try scenes/parallel_robot_rigid.toml)"
-            ))
-        }
+        other => unreachable!("robot_scene accepted `{other}`"),
     };
     progress.finish();
     let mut table = flexdyn::table::Table::new(&[
@@ -365,9 +360,8 @@ struct SimulateArgs {
 }
 
 fn simulate(a: &SimulateArgs) -> Result<(), String> {
-    use flexdyn::robot::{consistent_state, output_times, simulate, Geometry, TorqueTable};
-    let parsed = flexdyn::codegen::model::Model::load(&a.scene).map_err(|e| e.to_string())?;
-    let geometry = Geometry::from_parameters(&parsed.parameters)?;
+    use flexdyn::robot::{consistent_state, output_times, simulate, TorqueTable};
+    let (parsed, geometry) = robot_scene(&a.scene, "simulate")?;
     let table = flexdyn::table::Table::read(&a.torques)?;
     let torques =
         TorqueTable::from_table(&table).map_err(|e| format!("{}: {e}", a.torques.display()))?;
@@ -405,13 +399,18 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
         "parallel_robot_rigid" => {
             let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
             let start = consistent_state(&model, &geometry, t0, p, v)?;
-            simulate(&model, a.integrator, start, &torques, a.dt, steps, every, &mut || progress.inc())?
+            simulate(
+                &model,
+                a.integrator,
+                start,
+                &torques,
+                a.dt,
+                steps,
+                every,
+                &mut || progress.inc(),
+            )?
         }
-        other => {
-            return Err(format!(
-                "`simulate` drives the parallel robot; scene `{other}` is not one (try scenes/parallel_robot_rigid.toml)"
-            ))
-        }
+        other => unreachable!("robot_scene accepted `{other}`"),
     };
     progress.finish();
     let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
@@ -463,4 +462,20 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// Load a robot scene the robot commands support, with its geometry.
+fn robot_scene(
+    scene: &Path,
+    command: &str,
+) -> Result<(flexdyn::codegen::model::Model, flexdyn::robot::Geometry), String> {
+    let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+    if parsed.name != "parallel_robot_rigid" {
+        return Err(format!(
+            "`{command}` drives the parallel robot; scene `{}` is not one (try scenes/parallel_robot_rigid.toml)",
+            parsed.name
+        ));
+    }
+    let geometry = flexdyn::robot::Geometry::from_parameters(&parsed.parameters)?;
+    Ok((parsed, geometry))
 }
