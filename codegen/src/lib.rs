@@ -12,6 +12,7 @@ pub mod emit;
 pub mod error;
 pub mod export;
 pub mod expr;
+pub mod fem;
 pub mod lagrange;
 pub mod model;
 pub mod parse;
