@@ -29,13 +29,19 @@ pub struct Baumgarte {
 
 impl Baumgarte {
     /// No stabilisation (`alpha = beta = 0`): pure index-1 formulation.
-    pub const NONE: Baumgarte = Baumgarte { alpha: 0.0, beta: 0.0 };
+    pub const NONE: Baumgarte = Baumgarte {
+        alpha: 0.0,
+        beta: 0.0,
+    };
 }
 
 impl Default for Baumgarte {
     /// `alpha = beta = 10 / s` (critically damped violation, time constant 0.1 s).
     fn default() -> Self {
-        Baumgarte { alpha: 10.0, beta: 10.0 }
+        Baumgarte {
+            alpha: 10.0,
+            beta: 10.0,
+        }
     }
 }
 
@@ -52,7 +58,10 @@ pub struct DynamicsConfig {
 
 impl Default for DynamicsConfig {
     fn default() -> Self {
-        DynamicsConfig { baumgarte: Baumgarte::default(), max_condition: 1e12 }
+        DynamicsConfig {
+            baumgarte: Baumgarte::default(),
+            max_condition: 1e12,
+        }
     }
 }
 
@@ -85,22 +94,37 @@ impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
         t: f64,
     ) -> Result<Self, Error> {
         if let Err((pivot, value)) = cholesky(&mut m) {
-            return Err(Error::new(ErrorKind::MassMatrixNotPositiveDefinite { pivot, value }, t));
+            return Err(Error::new(
+                ErrorKind::MassMatrixNotPositiveDefinite { pivot, value },
+                t,
+            ));
         }
         let mut y = phi_q.transpose();
         solve_lower(&m, &mut y);
         let s_mat = y.transpose() * y;
         match SpdSolver::factor(&s_mat, max_condition) {
-            Ok((s, condition)) => Ok(Kkt { l: m, y, s, condition }),
+            Ok((s, condition)) => Ok(Kkt {
+                l: m,
+                y,
+                s,
+                condition,
+            }),
             Err(condition) => Err(Error::new(
-                ErrorKind::SingularConstraintJacobian { condition, limit: max_condition },
+                ErrorKind::SingularConstraintJacobian {
+                    condition,
+                    limit: max_condition,
+                },
                 t,
             )),
         }
     }
 
     /// Solves `M x - Phi_q^T mu = f`, `Phi_q x = c`.
-    pub(crate) fn solve(&self, f: &SVector<f64, NQ>, c: &SVector<f64, NC>) -> (SVector<f64, NQ>, SVector<f64, NC>) {
+    pub(crate) fn solve(
+        &self,
+        f: &SVector<f64, NQ>,
+        c: &SVector<f64, NC>,
+    ) -> (SVector<f64, NQ>, SVector<f64, NC>) {
         let mut z = *f;
         solve_lower(&self.l, &mut z);
         let mut mu = c - self.y.transpose() * z;
@@ -139,7 +163,11 @@ where
     let (qdd, lambda) = kkt.solve(&f, &c);
     eval::check_result(&qdd, Quantity::Acceleration, t)?;
     eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
-    Ok(Accelerations { qdd, lambda, condition: kkt.condition })
+    Ok(Accelerations {
+        qdd,
+        lambda,
+        condition: kkt.condition,
+    })
 }
 
 /// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` (zero-sized when `NC == 0`).

@@ -130,8 +130,9 @@ pub enum ErrorKind {
         /// The limit it exceeded.
         limit: f64,
     },
-    /// A Newton iteration (implicit step, position projection, inverse
-    /// kinematics) did not reach its tolerance within its iteration cap.
+    /// A nonlinear iteration (Newton iteration of an implicit step, position
+    /// projection or inverse kinematics; fixed-point stage iteration of
+    /// Gauss–Legendre) did not reach its tolerance within its iteration cap.
     NewtonNotConverged {
         /// Iterations performed.
         iterations: u32,
@@ -194,8 +195,11 @@ pub enum ErrorKind {
 
 /// A solver error: what went wrong and at which simulation time.
 ///
-/// `t` is the time of the state the failed operation started from (for a
-/// step, the time *before* the step; the state is left unchanged).
+/// `t` is the time at which the failure was detected: the start of the step
+/// for checks of the state, the step size and the nonlinear iterations; the
+/// stage time inside the step for failures of a model evaluation or of an
+/// acceleration solve; the call's time for inverse dynamics. After a failed
+/// step the state still holds the start-of-step values.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Error {
     /// What went wrong.

@@ -8,7 +8,11 @@ use crate::model::Model;
 use nalgebra::{SMatrix, SVector};
 
 #[inline]
-fn check<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>, quantity: Quantity, t: f64) -> Result<(), Error> {
+fn check<const R: usize, const C: usize>(
+    m: &SMatrix<f64, R, C>,
+    quantity: Quantity,
+    t: f64,
+) -> Result<(), Error> {
     if all_finite(m) {
         Ok(())
     } else {
@@ -42,7 +46,12 @@ pub(crate) fn bias<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const
 }
 
 /// `B`.
-pub(crate) fn actuator_map<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn actuator_map<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     model: &M,
     t: f64,
 ) -> Result<SMatrix<f64, NQ, NU>, Error> {
@@ -53,7 +62,12 @@ pub(crate) fn actuator_map<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usiz
 }
 
 /// `Phi(q, t)`.
-pub(crate) fn constraints<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn constraints<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     model: &M,
     q: &SVector<f64, NQ>,
     t: f64,
@@ -67,7 +81,12 @@ pub(crate) fn constraints<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize
 }
 
 /// `Phi_q(q, t)`.
-pub(crate) fn constraint_jacobian<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn constraint_jacobian<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     model: &M,
     q: &SVector<f64, NQ>,
     t: f64,
@@ -81,7 +100,12 @@ pub(crate) fn constraint_jacobian<M: Model<NQ, NC, NU>, const NQ: usize, const N
 }
 
 /// `Phi_t(q, t)`.
-pub(crate) fn constraint_time_derivative<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn constraint_time_derivative<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     model: &M,
     q: &SVector<f64, NQ>,
     t: f64,
@@ -95,7 +119,12 @@ pub(crate) fn constraint_time_derivative<M: Model<NQ, NC, NU>, const NQ: usize, 
 }
 
 /// `gamma(q, qd, t)`.
-pub(crate) fn constraint_rhs<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn constraint_rhs<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     model: &M,
     q: &SVector<f64, NQ>,
     qd: &SVector<f64, NQ>,
@@ -113,7 +142,13 @@ pub(crate) fn constraint_rhs<M: Model<NQ, NC, NU>, const NQ: usize, const NC: us
 pub(crate) fn check_input<const NU: usize>(tau: &SVector<f64, NU>, t: f64) -> Result<(), Error> {
     match crate::linalg::first_non_finite(tau) {
         None => Ok(()),
-        Some(index) => Err(Error::new(ErrorKind::NonFiniteInput { quantity: Quantity::Input, index }, t)),
+        Some(index) => Err(Error::new(
+            ErrorKind::NonFiniteInput {
+                quantity: Quantity::Input,
+                index,
+            },
+            t,
+        )),
     }
 }
 

@@ -153,7 +153,10 @@ where
     let actuation_condition = b_svd.condition_of_leading(needed);
     if !(actuation_condition <= config.max_condition) {
         return Err(Error::new(
-            ErrorKind::SingularActuation { condition: actuation_condition, limit: config.max_condition },
+            ErrorKind::SingularActuation {
+                condition: actuation_condition,
+                limit: config.max_condition,
+            },
             t,
         ));
     }
@@ -164,11 +167,24 @@ where
     eval::check_result(&tau, Quantity::Input, t)?;
     eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
     let residual = inf_norm(&(phi_q.transpose() * lambda + b * tau - r));
-    Ok((tau, lambda, ForceReport { constraint_rank: rank_c, actuation_condition, residual }))
+    Ok((
+        tau,
+        lambda,
+        ForceReport {
+            constraint_rank: rank_c,
+            actuation_condition,
+            residual,
+        },
+    ))
 }
 
-fn svd<const R: usize, const C: usize>(a: &SMatrix<f64, R, C>, max_sweeps: u32, t: f64) -> Result<Svd<R, C>, Error> {
-    Svd::new(a, max_sweeps).map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))
+fn svd<const R: usize, const C: usize>(
+    a: &SMatrix<f64, R, C>,
+    max_sweeps: u32,
+    t: f64,
+) -> Result<Svd<R, C>, Error> {
+    Svd::new(a, max_sweeps)
+        .map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))
 }
 
 /// Inverse dynamics with `NP` prescribed coordinates; keeps the previous
@@ -181,7 +197,9 @@ pub struct InverseDynamics<const NQ: usize, const NC: usize, const NU: usize, co
     guess: SVector<f64, NQ>,
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> InverseDynamics<NQ, NC, NU, NP> {
+impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
+    InverseDynamics<NQ, NC, NU, NP>
+{
     /// Creates the solver for the coordinates `prescribed` (indices into `q`),
     /// starting the first position solve from `initial_guess`.
     ///
@@ -189,17 +207,25 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> Inverse
     /// range or repeated, or if there are fewer constraints than free
     /// coordinates (`NC < NQ - NP`, the motion would be under-determined);
     /// with [`ErrorKind::NonFiniteState`] if the guess is not finite.
-    pub fn new(prescribed: [usize; NP], initial_guess: SVector<f64, NQ>, config: InverseConfig) -> Result<Self, Error> {
+    pub fn new(
+        prescribed: [usize; NP],
+        initial_guess: SVector<f64, NQ>,
+        config: InverseConfig,
+    ) -> Result<Self, Error> {
         for (k, &i) in prescribed.iter().enumerate() {
             if i >= NQ {
                 return Err(Error::new(
-                    ErrorKind::InvalidConfiguration { reason: "prescribed coordinate index out of range" },
+                    ErrorKind::InvalidConfiguration {
+                        reason: "prescribed coordinate index out of range",
+                    },
                     0.0,
                 ));
             }
             if prescribed[..k].contains(&i) {
                 return Err(Error::new(
-                    ErrorKind::InvalidConfiguration { reason: "prescribed coordinate index repeated" },
+                    ErrorKind::InvalidConfiguration {
+                        reason: "prescribed coordinate index repeated",
+                    },
                     0.0,
                 ));
             }
@@ -213,9 +239,19 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> Inverse
             ));
         }
         if let Some(index) = first_non_finite(&initial_guess) {
-            return Err(Error::new(ErrorKind::NonFiniteState { quantity: Quantity::Position, index }, 0.0));
+            return Err(Error::new(
+                ErrorKind::NonFiniteState {
+                    quantity: Quantity::Position,
+                    index,
+                },
+                0.0,
+            ));
         }
-        Ok(InverseDynamics { config, prescribed, guess: initial_guess })
+        Ok(InverseDynamics {
+            config,
+            prescribed,
+            guess: initial_guess,
+        })
     }
 
     /// The prescribed coordinate indices.
@@ -274,7 +310,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> Inverse
         M: Model<NQ, NC, NU>,
     {
         if !t.is_finite() {
-            return Err(Error::new(ErrorKind::NonFiniteInput { quantity: Quantity::Time, index: 0 }, t));
+            return Err(Error::new(
+                ErrorKind::NonFiniteInput {
+                    quantity: Quantity::Time,
+                    index: 0,
+                },
+                t,
+            ));
         }
         for (x, quantity) in [
             (p, Quantity::PrescribedPosition),
@@ -300,7 +342,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> Inverse
                 break;
             }
             if iterations >= cfg.max_iterations {
-                return Err(Error::new(ErrorKind::NewtonNotConverged { iterations, residual: res }, t));
+                return Err(Error::new(
+                    ErrorKind::NewtonNotConverged {
+                        iterations,
+                        residual: res,
+                    },
+                    t,
+                ));
             }
             let phi_q = eval::constraint_jacobian(model, &q, t)?;
             let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
@@ -343,7 +391,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> Inverse
             forces: force_report,
         };
         self.guess = q;
-        *out = InverseSolution { t, q, qd, qdd, tau, lambda };
+        *out = InverseSolution {
+            t,
+            q,
+            qd,
+            qdd,
+            tau,
+            lambda,
+        };
         Ok(report)
     }
 }
@@ -359,6 +414,9 @@ fn check_condition<const R: usize, const C: usize>(
     if condition <= limit {
         Ok(condition)
     } else {
-        Err(Error::new(ErrorKind::SingularConstraintJacobian { condition, limit }, t))
+        Err(Error::new(
+            ErrorKind::SingularConstraintJacobian { condition, limit },
+            t,
+        ))
     }
 }

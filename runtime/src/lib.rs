@@ -6,7 +6,7 @@
 //!   complement on the stack, Baumgarte stabilisation).
 //! * [`project`]: coordinate projection onto the constraint manifold.
 //! * [`integrate`]: RK4 (fixed and adaptive), semi-implicit Euler,
-//!   generalized-α; all in place, state unchanged on error.
+//!   Gauss–Legendre (order 4), generalized-α; all in place, state unchanged on error.
 //! * [`InverseDynamics`]: prescribed motion to actuator inputs and
 //!   constraint forces, one bounded call per control tick.
 //!
@@ -18,7 +18,10 @@
 #![deny(missing_docs)]
 // `!(x <= limit)` is used deliberately so that NaN fails the check.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
-#![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
 
 mod dynamics;
 mod error;
@@ -36,10 +39,13 @@ pub use dynamics::{accelerations, Accelerations, Baumgarte, DynamicsConfig};
 pub use error::{Error, ErrorKind, Quantity};
 pub use input::{FromFn, Input, Linear};
 pub use integrate::{
-    run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, Rk4,
-    RunSummary, SemiImplicitEuler, StepReport, StepSettings,
+    run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GaussLegendre4, GeneralizedAlpha,
+    GeneralizedAlphaConfig, Integrator, Rk4, RunSummary, SemiImplicitEuler, StepReport,
+    StepSettings,
 };
-pub use inverse::{forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution};
+pub use inverse::{
+    forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution,
+};
 pub use model::Model;
 pub use nalgebra;
 pub use projection::{project, ProjectionConfig, ProjectionReport};

@@ -65,7 +65,10 @@ pub(crate) fn cholesky<const N: usize>(a: &mut SMatrix<f64, N, N>) -> Result<(),
 }
 
 /// Solves `L x = b` in place (forward substitution) for every column of `b`.
-pub(crate) fn solve_lower<const N: usize, const K: usize>(l: &SMatrix<f64, N, N>, b: &mut SMatrix<f64, N, K>) {
+pub(crate) fn solve_lower<const N: usize, const K: usize>(
+    l: &SMatrix<f64, N, N>,
+    b: &mut SMatrix<f64, N, K>,
+) {
     for c in 0..K {
         for i in 0..N {
             let mut s = b[(i, c)];
@@ -349,7 +352,12 @@ impl<const R: usize, const C: usize> Svd<R, C> {
                 k -= 1;
             }
         }
-        Ok(Svd { us: w, v, sigma, order })
+        Ok(Svd {
+            us: w,
+            v,
+            sigma,
+            order,
+        })
     }
 
     /// Largest singular value (0 for an empty matrix).
@@ -412,7 +420,12 @@ impl<const R: usize, const C: usize> Svd<R, C> {
 
     /// Least-squares minimum-norm solution of `A^T y = c` using the leading
     /// `rank` singular triplets.
-    pub(crate) fn solve_transpose(&self, c: &SVector<f64, C>, rank: usize, y: &mut SVector<f64, R>) {
+    pub(crate) fn solve_transpose(
+        &self,
+        c: &SVector<f64, C>,
+        rank: usize,
+        y: &mut SVector<f64, R>,
+    ) {
         y.fill(0.0);
         for k in 0..rank.min(C) {
             let j = self.order[k];
@@ -461,7 +474,9 @@ mod tests {
     fn spd_and_lu_solve_and_detect_singular() {
         let a = SMatrix::<f64, 3, 3>::new(4.0, 2.0, 0.4, 2.0, 3.0, 0.5, 0.4, 0.5, 2.0);
         let b = SVector::<f64, 3>::new(1.0, -2.0, 0.5);
-        let (s, _) = SpdSolver::factor(&a, 1e12).ok().unwrap_or_else(|| unreachable!());
+        let (s, _) = SpdSolver::factor(&a, 1e12)
+            .ok()
+            .unwrap_or_else(|| unreachable!());
         let mut x = b;
         s.solve(&mut x);
         assert!((a * x - b).norm() < 1e-14);

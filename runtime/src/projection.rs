@@ -64,6 +64,22 @@ pub fn project<M, const NQ: usize, const NC: usize, const NU: usize>(
 where
     M: Model<NQ, NC, NU>,
 {
+    project_with(model, state, config, 0.0)
+}
+
+/// [`project`], optionally (`velocity_from_position_dt > 0`) adding the
+/// position correction divided by that step to the velocities before the
+/// velocity projection (SHAKE-style consistency for schemes with
+/// `q_{n+1} = q_n + dt qd_{n+1}`).
+pub(crate) fn project_with<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    state: &mut State<NQ>,
+    config: &ProjectionConfig,
+    velocity_from_position_dt: f64,
+) -> Result<ProjectionReport, Error>
+where
+    M: Model<NQ, NC, NU>,
+{
     if NC == 0 {
         return Ok(ProjectionReport::default());
     }
@@ -74,14 +90,23 @@ where
     let zero_f = SVector::<f64, NQ>::zeros();
     let mut iterations = 0u32;
     let mut phi = eval::constraints(model, &q, t)?;
-    let mut before = Drift { position: inf_norm(&phi), velocity: 0.0 };
+    let mut before = Drift {
+        position: inf_norm(&phi),
+        velocity: 0.0,
+    };
     loop {
         let res = inf_norm(&phi);
         if res <= config.position_tolerance {
             break;
         }
         if iterations >= config.max_iterations {
-            return Err(Error::new(ErrorKind::NewtonNotConverged { iterations, residual: res }, t));
+            return Err(Error::new(
+                ErrorKind::NewtonNotConverged {
+                    iterations,
+                    residual: res,
+                },
+                t,
+            ));
         }
         let phi_q = eval::constraint_jacobian(model, &q, t)?;
         let kkt = Kkt::new(m0, &phi_q, config.max_condition, t)?;
@@ -99,6 +124,9 @@ where
         let phi_t0 = eval::constraint_time_derivative(model, &state.q, t)?;
         before.velocity = inf_norm(&(phi_q0 * state.qd + phi_t0));
     }
+    if velocity_from_position_dt > 0.0 {
+        qd += (q - state.q) / velocity_from_position_dt;
+    }
     let vres = phi_q * qd + phi_t;
     let mut velocity_projected = false;
     if inf_norm(&vres) > config.velocity_tolerance {
@@ -109,8 +137,16 @@ where
         eval::check_result(&qd, Quantity::Velocity, t)?;
         velocity_projected = true;
     }
-    let after = Drift { position: inf_norm(&phi), velocity: inf_norm(&(phi_q * qd + phi_t)) };
+    let after = Drift {
+        position: inf_norm(&phi),
+        velocity: inf_norm(&(phi_q * qd + phi_t)),
+    };
     state.q = q;
     state.qd = qd;
-    Ok(ProjectionReport { iterations, velocity_projected, before, after })
+    Ok(ProjectionReport {
+        iterations,
+        velocity_projected,
+        before,
+        after,
+    })
 }

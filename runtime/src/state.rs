@@ -26,19 +26,28 @@ impl<const NQ: usize> State<NQ> {
     pub fn check_finite(&self) -> Result<(), Error> {
         if !self.t.is_finite() {
             return Err(Error::new(
-                ErrorKind::NonFiniteState { quantity: Quantity::Time, index: 0 },
+                ErrorKind::NonFiniteState {
+                    quantity: Quantity::Time,
+                    index: 0,
+                },
                 self.t,
             ));
         }
         if let Some(index) = first_non_finite(&self.q) {
             return Err(Error::new(
-                ErrorKind::NonFiniteState { quantity: Quantity::Position, index },
+                ErrorKind::NonFiniteState {
+                    quantity: Quantity::Position,
+                    index,
+                },
                 self.t,
             ));
         }
         if let Some(index) = first_non_finite(&self.qd) {
             return Err(Error::new(
-                ErrorKind::NonFiniteState { quantity: Quantity::Velocity, index },
+                ErrorKind::NonFiniteState {
+                    quantity: Quantity::Velocity,
+                    index,
+                },
                 self.t,
             ));
         }
@@ -49,8 +58,16 @@ impl<const NQ: usize> State<NQ> {
     /// integrator memory).
     pub(crate) fn same_bits(&self, other: &Self) -> bool {
         self.t.to_bits() == other.t.to_bits()
-            && self.q.iter().zip(other.q.iter()).all(|(a, b)| a.to_bits() == b.to_bits())
-            && self.qd.iter().zip(other.qd.iter()).all(|(a, b)| a.to_bits() == b.to_bits())
+            && self
+                .q
+                .iter()
+                .zip(other.q.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+            && self
+                .qd
+                .iter()
+                .zip(other.qd.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
     }
 }
 
@@ -83,11 +100,17 @@ where
     model.constraint_jacobian(&state.q, state.t, &mut phi_q);
     model.constraint_time_derivative(&state.q, state.t, &mut phi_t);
     let vel = phi_q * state.qd + phi_t;
-    Drift { position: inf_norm(&phi), velocity: inf_norm(&vel) }
+    Drift {
+        position: inf_norm(&phi),
+        velocity: inf_norm(&vel),
+    }
 }
 
 /// Total mechanical energy `T + V` of `state`.
-pub fn total_energy<M, const NQ: usize, const NC: usize, const NU: usize>(model: &M, state: &State<NQ>) -> f64
+pub fn total_energy<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    state: &State<NQ>,
+) -> f64
 where
     M: Model<NQ, NC, NU>,
 {

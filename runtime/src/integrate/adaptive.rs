@@ -19,8 +19,11 @@ use crate::state::{Drift, State};
 /// `h * clamp(safety * err^(-1/5), min_factor, max_factor)`.
 ///
 /// A trial that fails the RK4 stability estimate or overflows is rejected
-/// and retried with `h * min_factor`. Work per call is bounded by
-/// `max_rejections + 1` trials (11 acceleration solves each).
+/// and retried with `h * min_factor`; if that keeps failing until the step
+/// falls below `min_step` or the rejections run out, that failure
+/// ([`ErrorKind::StepTooLarge`] / [`ErrorKind::NonFiniteResult`]) is
+/// returned. Work per call is bounded by `max_rejections + 1` trials (11
+/// acceleration solves each).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AdaptiveRk4 {
     /// Shared settings (`max_step` caps the step size here rather than failing).
@@ -96,13 +99,25 @@ pub struct AdvanceReport {
 impl AdaptiveRk4 {
     /// Adaptive RK4 with the given tolerances and default controller settings.
     pub fn new(rtol: f64, atol: f64) -> Self {
-        AdaptiveRk4 { rtol, atol, ..Self::default() }
+        AdaptiveRk4 {
+            rtol,
+            atol,
+            ..Self::default()
+        }
     }
 
-    fn error_norm<const NQ: usize>(&self, y0: &State<NQ>, coarse: &State<NQ>, fine: &State<NQ>) -> f64 {
+    fn error_norm<const NQ: usize>(
+        &self,
+        y0: &State<NQ>,
+        coarse: &State<NQ>,
+        fine: &State<NQ>,
+    ) -> f64 {
         let mut sum = 0.0;
         for i in 0..NQ {
-            for (a, c, f) in [(y0.q[i], coarse.q[i], fine.q[i]), (y0.qd[i], coarse.qd[i], fine.qd[i])] {
+            for (a, c, f) in [
+                (y0.q[i], coarse.q[i], fine.q[i]),
+                (y0.qd[i], coarse.qd[i], fine.qd[i]),
+            ] {
                 let sc = self.atol + self.rtol * a.abs().max(f.abs());
                 let e = (f - c) / 15.0 / sc;
                 sum += e * e;
@@ -135,7 +150,15 @@ impl AdaptiveRk4 {
         let err = self.error_norm(state, &coarse, &fine);
         let q = fine.q + (fine.q - coarse.q) / 15.0;
         let qd = fine.qd + (fine.qd - coarse.qd) / 15.0;
-        Ok((State { q, qd, t: state.t + h }, err, est))
+        Ok((
+            State {
+                q,
+                qd,
+                t: state.t + h,
+            },
+            err,
+            est,
+        ))
     }
 
     /// Takes one accepted step, trying `dt_try` first (capped by
@@ -154,9 +177,19 @@ impl AdaptiveRk4 {
         begin_step(state, dt_try, f64::INFINITY)?;
         let mut h = dt_try.min(self.settings.max_step);
         let mut rejections = 0u32;
+        // The last trial that failed outright (overflow or stability
+        // estimate): reported instead of a generic give-up if no smaller
+        // step helps.
+        let mut last_failure: Option<Error> = None;
         loop {
             if h < self.min_step {
-                return Err(Error::new(ErrorKind::StepSizeUnderflow { dt: h, min_step: self.min_step }, state.t));
+                return Err(last_failure.unwrap_or(Error::new(
+                    ErrorKind::StepSizeUnderflow {
+                        dt: h,
+                        min_step: self.min_step,
+                    },
+                    state.t,
+                )));
             }
             let trial = self.trial(model, state, input, h);
             let (next, err, est) = match trial {
@@ -165,17 +198,16 @@ impl AdaptiveRk4 {
                     ErrorKind::StepTooLarge { .. } | ErrorKind::NonFiniteResult { .. } => {
                         rejections += 1;
                         if rejections > self.max_rejections {
-                            return Err(Error::new(
-                                ErrorKind::TooManyRejections { rejections, error_norm: f64::INFINITY },
-                                state.t,
-                            ));
+                            return Err(e);
                         }
+                        last_failure = Some(e);
                         h *= self.min_factor;
                         continue;
                     }
                     _ => return Err(e),
                 },
             };
+            last_failure = None;
             let factor = if err > 0.0 && err.is_finite() {
                 (self.safety * exp(-0.2 * ln(err))).clamp(self.min_factor, self.max_factor)
             } else if err == 0.0 {
@@ -205,7 +237,13 @@ impl AdaptiveRk4 {
             }
             rejections += 1;
             if rejections > self.max_rejections {
-                return Err(Error::new(ErrorKind::TooManyRejections { rejections, error_norm: err }, state.t));
+                return Err(Error::new(
+                    ErrorKind::TooManyRejections {
+                        rejections,
+                        error_norm: err,
+                    },
+                    state.t,
+                ));
             }
             h *= factor.min(0.9);
         }
@@ -257,7 +295,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
     /// needed (at most `max_substeps`, otherwise [`ErrorKind::SubstepLimit`]).
     /// The report's `iterations` is the number of substeps. State and
     /// step-size memory are restored on error.
-    fn step<M, I>(&mut self, model: &M, state: &mut State<NQ>, input: &I, dt: f64) -> Result<StepReport, Error>
+    fn step<M, I>(
+        &mut self,
+        model: &M,
+        state: &mut State<NQ>,
+        input: &I,
+        dt: f64,
+    ) -> Result<StepReport, Error>
     where
         M: Model<NQ, NC, NU>,
         I: Input<NU> + ?Sized,
@@ -283,7 +327,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
                 let reached = state.t - saved.t;
                 *state = saved;
                 self.dt_next = saved_dt;
-                Err(Error::new(ErrorKind::SubstepLimit { substeps: r.steps, reached }, saved.t))
+                Err(Error::new(
+                    ErrorKind::SubstepLimit {
+                        substeps: r.steps,
+                        reached,
+                    },
+                    saved.t,
+                ))
             }
             Err(e) => {
                 *state = saved;

@@ -9,6 +9,9 @@
 //! * [`AdaptiveRk4`]: RK4 with step-doubling error control;
 //! * [`SemiImplicitEuler`]: symplectic (semi-implicit) Euler, first order,
 //!   one force evaluation per step;
+//! * [`GaussLegendre4`]: two-stage Gauss–Legendre collocation, implicit,
+//!   symplectic / symmetric, order 4, for accurate long runs of non-stiff
+//!   conservative scenes;
 //! * [`GeneralizedAlpha`]: implicit generalized-α (Chung–Hulbert, in the
 //!   Arnold–Brüls form) with bounded Newton iterations, for stiff flexible
 //!   models.
@@ -19,11 +22,13 @@
 //! constraint drift after it.
 
 mod adaptive;
+mod gauss_legendre;
 mod gen_alpha;
 mod rk4;
 mod semi_implicit;
 
 pub use adaptive::{AdaptiveReport, AdaptiveRk4, AdvanceReport};
+pub use gauss_legendre::GaussLegendre4;
 pub use gen_alpha::{GeneralizedAlpha, GeneralizedAlphaConfig};
 pub use rk4::Rk4;
 pub use semi_implicit::SemiImplicitEuler;
@@ -33,7 +38,7 @@ use crate::error::{Error, ErrorKind};
 use crate::eval;
 use crate::input::Input;
 use crate::model::Model;
-use crate::projection::{project, ProjectionConfig, ProjectionReport};
+use crate::projection::{project_with, ProjectionConfig, ProjectionReport};
 use crate::state::{constraint_drift, Drift, State};
 use nalgebra::SVector;
 
@@ -51,14 +56,21 @@ pub struct StepSettings {
 
 impl Default for StepSettings {
     fn default() -> Self {
-        StepSettings { dynamics: DynamicsConfig::default(), projection: None, max_step: f64::INFINITY }
+        StepSettings {
+            dynamics: DynamicsConfig::default(),
+            projection: None,
+            max_step: f64::INFINITY,
+        }
     }
 }
 
 impl StepSettings {
     /// Default settings with coordinate projection after every step.
     pub fn with_projection() -> Self {
-        StepSettings { projection: Some(ProjectionConfig::default()), ..Self::default() }
+        StepSettings {
+            projection: Some(ProjectionConfig::default()),
+            ..Self::default()
+        }
     }
 }
 
@@ -69,7 +81,10 @@ pub struct StepReport {
     pub t: f64,
     /// Step size taken.
     pub dt: f64,
-    /// Newton iterations (implicit schemes; 0 for explicit ones).
+    /// Iteration count: Newton iterations ([`GeneralizedAlpha`]), stage
+    /// fixed-point sweeps ([`GaussLegendre4`]), accepted substeps
+    /// ([`AdaptiveRk4`] used as an [`Integrator`]); 0 for the fixed-step
+    /// explicit schemes.
     pub iterations: u32,
     /// Explicit schemes: estimate of `dt * rho(J)` (spectral radius of the
     /// linearised dynamics) from the RK stages; 0 where not measured.
@@ -84,7 +99,13 @@ pub struct StepReport {
 pub trait Integrator<const NQ: usize, const NC: usize, const NU: usize> {
     /// Advances `state` by `dt`. On error the state (and any integrator
     /// memory) is left as it was before the call.
-    fn step<M, I>(&mut self, model: &M, state: &mut State<NQ>, input: &I, dt: f64) -> Result<StepReport, Error>
+    fn step<M, I>(
+        &mut self,
+        model: &M,
+        state: &mut State<NQ>,
+        input: &I,
+        dt: f64,
+    ) -> Result<StepReport, Error>
     where
         M: Model<NQ, NC, NU>,
         I: Input<NU> + ?Sized;
@@ -131,13 +152,24 @@ where
 }
 
 /// Validates the state and the step size at the start of a step.
-pub(crate) fn begin_step<const NQ: usize>(state: &State<NQ>, dt: f64, max_step: f64) -> Result<(), Error> {
+pub(crate) fn begin_step<const NQ: usize>(
+    state: &State<NQ>,
+    dt: f64,
+    max_step: f64,
+) -> Result<(), Error> {
     state.check_finite()?;
     if !(dt > 0.0) || !dt.is_finite() || !(state.t + dt).is_finite() {
         return Err(Error::new(ErrorKind::InvalidStepSize { dt }, state.t));
     }
     if dt > max_step {
-        return Err(Error::new(ErrorKind::StepTooLarge { dt, value: dt, limit: max_step }, state.t));
+        return Err(Error::new(
+            ErrorKind::StepTooLarge {
+                dt,
+                value: dt,
+                limit: max_step,
+            },
+            state.t,
+        ));
     }
     Ok(())
 }
@@ -169,8 +201,22 @@ pub(crate) fn finish_step<M, const NQ: usize, const NC: usize, const NU: usize>(
 where
     M: Model<NQ, NC, NU>,
 {
+    finish_step_with(model, next, settings, 0.0)
+}
+
+/// [`finish_step`] with the SHAKE-style velocity update of
+/// [`crate::projection::project_with`].
+pub(crate) fn finish_step_with<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    next: &mut State<NQ>,
+    settings: &StepSettings,
+    velocity_from_position_dt: f64,
+) -> Result<(Option<ProjectionReport>, Drift), Error>
+where
+    M: Model<NQ, NC, NU>,
+{
     let projection = match &settings.projection {
-        Some(cfg) if NC > 0 => Some(project(model, next, cfg)?),
+        Some(cfg) if NC > 0 => Some(project_with(model, next, cfg, velocity_from_position_dt)?),
         _ => None,
     };
     let drift = match projection {

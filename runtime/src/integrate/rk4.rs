@@ -29,14 +29,20 @@ pub struct Rk4 {
 
 impl Default for Rk4 {
     fn default() -> Self {
-        Rk4 { settings: StepSettings::default(), stability_limit: 2.8 }
+        Rk4 {
+            settings: StepSettings::default(),
+            stability_limit: 2.8,
+        }
     }
 }
 
 impl Rk4 {
     /// RK4 with the given settings and the default stability limit.
     pub fn new(settings: StepSettings) -> Self {
-        Rk4 { settings, ..Self::default() }
+        Rk4 {
+            settings,
+            ..Self::default()
+        }
     }
 }
 
@@ -68,9 +74,20 @@ where
     let k3v = qdd_at(model, dynamics, &q3, &v3, t + half, input)?;
     let den = k1q.norm_squared() + k1v.norm_squared();
     let num = (k3q - k2q).norm_squared() + (k3v - k2v).norm_squared();
-    let estimate = if den > 0.0 { 2.0 * sqrt(sqrt(num / den)) } else { 0.0 };
+    let estimate = if den > 0.0 {
+        2.0 * sqrt(sqrt(num / den))
+    } else {
+        0.0
+    };
     if estimate > limit {
-        return Err(Error::new(ErrorKind::StepTooLarge { dt: h, value: estimate, limit }, t));
+        return Err(Error::new(
+            ErrorKind::StepTooLarge {
+                dt: h,
+                value: estimate,
+                limit,
+            },
+            t,
+        ));
     }
     let q4 = s.q + k3q * h;
     let v4 = s.qd + k3v * h;
@@ -85,15 +102,35 @@ where
 }
 
 impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for Rk4 {
-    fn step<M, I>(&mut self, model: &M, state: &mut State<NQ>, input: &I, dt: f64) -> Result<StepReport, Error>
+    fn step<M, I>(
+        &mut self,
+        model: &M,
+        state: &mut State<NQ>,
+        input: &I,
+        dt: f64,
+    ) -> Result<StepReport, Error>
     where
         M: Model<NQ, NC, NU>,
         I: Input<NU> + ?Sized,
     {
         begin_step(state, dt, self.settings.max_step)?;
-        let (mut next, estimate) = rk4_raw(model, &self.settings.dynamics, state, input, dt, self.stability_limit)?;
+        let (mut next, estimate) = rk4_raw(
+            model,
+            &self.settings.dynamics,
+            state,
+            input,
+            dt,
+            self.stability_limit,
+        )?;
         let (projection, drift) = finish_step(model, &mut next, &self.settings)?;
         *state = next;
-        Ok(StepReport { t: next.t, dt, iterations: 0, stability_estimate: estimate, projection, drift })
+        Ok(StepReport {
+            t: next.t,
+            dt,
+            iterations: 0,
+            stability_estimate: estimate,
+            projection,
+            drift,
+        })
     }
 }

@@ -25,7 +25,12 @@ pub struct Pendulum {
 
 impl Default for Pendulum {
     fn default() -> Self {
-        Pendulum { m: 1.0, l: 1.0, g: 9.81, c: 0.0 }
+        Pendulum {
+            m: 1.0,
+            l: 1.0,
+            g: 9.81,
+            c: 0.0,
+        }
     }
 }
 
@@ -70,7 +75,13 @@ pub struct DoublePendulum {
 
 impl Default for DoublePendulum {
     fn default() -> Self {
-        DoublePendulum { m1: 1.0, m2: 0.7, l1: 1.0, l2: 0.8, g: 9.81 }
+        DoublePendulum {
+            m1: 1.0,
+            m2: 0.7,
+            l1: 1.0,
+            l2: 0.8,
+            g: 9.81,
+        }
     }
 }
 
@@ -104,7 +115,8 @@ impl Model<2, 0, 2> for DoublePendulum {
             + self.m2 * self.l1 * self.l2 * qd[0] * qd[1] * (q[0] - q[1]).cos()
     }
     fn potential_energy(&self, q: &V<2>, _t: f64) -> f64 {
-        -(self.m1 + self.m2) * self.g * self.l1 * q[0].cos() - self.m2 * self.g * self.l2 * q[1].cos()
+        -(self.m1 + self.m2) * self.g * self.l1 * q[0].cos()
+            - self.m2 * self.g * self.l2 * q[1].cos()
     }
 }
 
@@ -128,7 +140,15 @@ pub struct SliderCrank {
 
 impl Default for SliderCrank {
     fn default() -> Self {
-        SliderCrank { r: 0.1, l: 0.3, m1: 1.0, m2: 0.5, m3: 0.8, g: 9.81, slider_damping: 0.0 }
+        SliderCrank {
+            r: 0.1,
+            l: 0.3,
+            m1: 1.0,
+            m2: 0.5,
+            m3: 0.8,
+            g: 9.81,
+            slider_damping: 0.0,
+        }
     }
 }
 
@@ -140,7 +160,11 @@ impl SliderCrank {
         // r cos(th) thd - l cos(phi) phid = 0 ; xd = -r sin th thd - l sin phi phid
         let phid = self.r * theta.cos() * theta_dot / (self.l * phi.cos());
         let xd = -self.r * theta.sin() * theta_dot - self.l * phi.sin() * phid;
-        State::new(V::<3>::new(theta, phi, x), V::<3>::new(theta_dot, phid, xd), 0.0)
+        State::new(
+            V::<3>::new(theta, phi, x),
+            V::<3>::new(theta_dot, phid, xd),
+            0.0,
+        )
     }
 }
 
@@ -227,7 +251,15 @@ pub struct FiveBar<const NU: usize> {
 
 impl<const NU: usize> Default for FiveBar<NU> {
     fn default() -> Self {
-        FiveBar { d: 0.2, l1: 0.25, l2: 0.3, m1: 0.4, m2: 0.3, mp: 0.5, g: 9.81 }
+        FiveBar {
+            d: 0.2,
+            l1: 0.25,
+            l2: 0.3,
+            m1: 0.4,
+            m2: 0.3,
+            mp: 0.5,
+            g: 9.81,
+        }
     }
 }
 
@@ -339,7 +371,8 @@ impl<const NU: usize> Model<6, 4, NU> for FiveBar<NU> {
             t += 0.5 * (self.m1 * self.l1 * self.l1 / 3.0) * thd * thd;
             let vx = -self.l1 * th.sin() * thd - 0.5 * self.l2 * ph.sin() * phd;
             let vy = self.l1 * th.cos() * thd + 0.5 * self.l2 * ph.cos() * phd;
-            t += 0.5 * self.m2 * (vx * vx + vy * vy) + 0.5 * (self.m2 * self.l2 * self.l2 / 12.0) * phd * phd;
+            t += 0.5 * self.m2 * (vx * vx + vy * vy)
+                + 0.5 * (self.m2 * self.l2 * self.l2 / 12.0) * phd * phd;
         }
         t
     }
@@ -401,7 +434,12 @@ impl SpringChain<4> {
     /// One heavy mass on a soft spring (about 1 Hz) carrying three light
     /// masses on stiff springs: highest mode about 3 kHz.
     pub fn stiff() -> Self {
-        SpringChain { m: [1.0, 0.01, 0.01, 0.01], k: [40.0, 1e6, 1e6, 1e6], c: [0.0; 4], analytic: false }
+        SpringChain {
+            m: [1.0, 0.01, 0.01, 0.01],
+            k: [40.0, 1e6, 1e6, 1e6],
+            c: [0.0; 4],
+            analytic: false,
+        }
     }
 }
 
@@ -436,7 +474,14 @@ impl<const N: usize> Model<N, 0, 1> for SpringChain<N> {
             })
             .sum()
     }
-    fn bias_jacobians(&self, _q: &V<N>, _qd: &V<N>, _t: f64, h_q: &mut Mat<N, N>, h_qd: &mut Mat<N, N>) -> bool {
+    fn bias_jacobians(
+        &self,
+        _q: &V<N>,
+        _qd: &V<N>,
+        _t: f64,
+        h_q: &mut Mat<N, N>,
+        h_qd: &mut Mat<N, N>,
+    ) -> bool {
         if self.analytic {
             *h_q = self.stiffness();
             *h_qd = self.damping();
@@ -461,7 +506,12 @@ impl Default for ElasticPendulum {
     fn default() -> Self {
         let f = 2000.0; // Hz
         let w = 2.0 * core::f64::consts::PI * f;
-        ElasticPendulum { m: 1.0, k: w * w, l0: 1.0, g: 9.81 }
+        ElasticPendulum {
+            m: 1.0,
+            k: w * w,
+            l0: 1.0,
+            g: 9.81,
+        }
     }
 }
 
@@ -505,7 +555,11 @@ pub struct CartesianPendulum {
 
 impl Default for CartesianPendulum {
     fn default() -> Self {
-        CartesianPendulum { m: 1.0, l: 1.0, g: 9.81 }
+        CartesianPendulum {
+            m: 1.0,
+            l: 1.0,
+            g: 9.81,
+        }
     }
 }
 
@@ -560,11 +614,19 @@ pub struct Faulty<M> {
 
 impl<M> Faulty<M> {
     pub fn new(inner: M) -> Self {
-        Faulty { inner, mass_scale: 1.0, nan_bias: false, bias_scale: 1.0, zero_actuation: false }
+        Faulty {
+            inner,
+            mass_scale: 1.0,
+            nan_bias: false,
+            bias_scale: 1.0,
+            zero_actuation: false,
+        }
     }
 }
 
-impl<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU> for Faulty<M> {
+impl<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
+    for Faulty<M>
+{
     const NAME: &'static str = "faulty";
     const COORDINATES: [&'static str; NQ] = M::COORDINATES;
     const ACTUATORS: [&'static str; NU] = M::ACTUATORS;
@@ -613,7 +675,10 @@ impl<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize> Mo
 /// (or absolute if E0 is 0).
 pub fn relative_deviation(values: &[f64], e0: f64) -> f64 {
     let scale = if e0 != 0.0 { e0.abs() } else { 1.0 };
-    values.iter().map(|e| (e - e0).abs() / scale).fold(0.0, f64::max)
+    values
+        .iter()
+        .map(|e| (e - e0).abs() / scale)
+        .fold(0.0, f64::max)
 }
 
 /// Complete elliptic integral of the first kind K(k) by the arithmetic–

@@ -1,0 +1,144 @@
+//! Two-stage Gauss–Legendre collocation (implicit, symplectic, order 4).
+
+use super::{begin_step, finish_step, qdd_at, Integrator, StepReport, StepSettings};
+use crate::error::{Error, ErrorKind, Quantity};
+use crate::eval;
+use crate::input::Input;
+use crate::linalg::all_finite;
+use crate::model::Model;
+use crate::state::State;
+use nalgebra::SVector;
+
+const SQRT3_6: f64 = 0.288_675_134_594_812_9; // sqrt(3) / 6
+const C: [f64; 2] = [0.5 - SQRT3_6, 0.5 + SQRT3_6];
+const A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
+
+/// Two-stage Gauss–Legendre Runge–Kutta method (order 4) with a bounded
+/// fixed-point iteration on the stage accelerations.
+///
+/// Symplectic for separable Hamiltonian systems (constant mass matrix) and
+/// symmetric (time-reversible) in general, so on conservative models the
+/// energy error stays bounded at `O(dt^4)` without secular drift: the
+/// scheme for long, accurate runs of non-stiff conservative scenes. The
+/// fixed-point iteration contracts only for `dt` well below the period of the
+/// fastest mode; for stiff models use [`super::GeneralizedAlpha`].
+///
+/// Stage iteration: `V_i = qd + dt sum_j a_ij A_j`, `Q_i = q + dt sum_j a_ij V_j`,
+/// `A_i <- qdd(Q_i, V_i, t + c_i dt)` until the implied position and velocity
+/// changes `dt^2 |dA|`, `dt |dA|` are within `atol + rtol |x|`; at most
+/// `max_iterations` sweeps, else [`ErrorKind::NewtonNotConverged`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GaussLegendre4 {
+    /// Shared settings.
+    pub settings: StepSettings,
+    /// Cap on fixed-point sweeps per step.
+    pub max_iterations: u32,
+    /// Relative tolerance of the stage iteration.
+    pub rtol: f64,
+    /// Absolute tolerance of the stage iteration.
+    pub atol: f64,
+}
+
+impl Default for GaussLegendre4 {
+    fn default() -> Self {
+        GaussLegendre4 {
+            settings: StepSettings::default(),
+            max_iterations: 50,
+            rtol: 1e-13,
+            atol: 1e-15,
+        }
+    }
+}
+
+impl GaussLegendre4 {
+    /// Gauss–Legendre with the given settings and default iteration control.
+    pub fn new(settings: StepSettings) -> Self {
+        GaussLegendre4 {
+            settings,
+            ..Self::default()
+        }
+    }
+}
+
+impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for GaussLegendre4 {
+    fn step<M, I>(
+        &mut self,
+        model: &M,
+        state: &mut State<NQ>,
+        input: &I,
+        dt: f64,
+    ) -> Result<StepReport, Error>
+    where
+        M: Model<NQ, NC, NU>,
+        I: Input<NU> + ?Sized,
+    {
+        begin_step(state, dt, self.settings.max_step)?;
+        let (t, h) = (state.t, dt);
+        let dyn_cfg = &self.settings.dynamics;
+        let a0 = qdd_at(model, dyn_cfg, &state.q, &state.qd, t, input)?;
+        let mut acc = [a0, a0];
+        let mut vel = [state.qd; 2];
+        let mut iterations = 0u32;
+        let mut err = f64::INFINITY;
+        while iterations < self.max_iterations {
+            iterations += 1;
+            for i in 0..2 {
+                vel[i] = state.qd + (acc[0] * A[i][0] + acc[1] * A[i][1]) * h;
+            }
+            let mut new = [SVector::<f64, NQ>::zeros(); 2];
+            for i in 0..2 {
+                let qi = state.q + (vel[0] * A[i][0] + vel[1] * A[i][1]) * h;
+                new[i] = qdd_at(model, dyn_cfg, &qi, &vel[i], t + C[i] * h, input)?;
+            }
+            err = 0.0;
+            for i in 0..2 {
+                let d = new[i] - acc[i];
+                for k in 0..NQ {
+                    let eq = (h * h * d[k]).abs() / (self.atol + self.rtol * state.q[k].abs());
+                    let ev = (h * d[k]).abs() / (self.atol + self.rtol * state.qd[k].abs());
+                    err = err.max(eq).max(ev);
+                }
+            }
+            acc = new;
+            if !all_finite(&acc[0]) || !all_finite(&acc[1]) {
+                return Err(Error::new(
+                    ErrorKind::NewtonNotConverged {
+                        iterations,
+                        residual: f64::INFINITY,
+                    },
+                    t,
+                ));
+            }
+            if err <= 1.0 {
+                break;
+            }
+        }
+        if !(err <= 1.0) {
+            return Err(Error::new(
+                ErrorKind::NewtonNotConverged {
+                    iterations,
+                    residual: err,
+                },
+                t,
+            ));
+        }
+        for i in 0..2 {
+            vel[i] = state.qd + (acc[0] * A[i][0] + acc[1] * A[i][1]) * h;
+        }
+        let q = state.q + (vel[0] + vel[1]) * (0.5 * h);
+        let qd = state.qd + (acc[0] + acc[1]) * (0.5 * h);
+        eval::check_result(&q, Quantity::Position, t)?;
+        eval::check_result(&qd, Quantity::Velocity, t)?;
+        let mut next = State { q, qd, t: t + h };
+        let (projection, drift) = finish_step(model, &mut next, &self.settings)?;
+        *state = next;
+        Ok(StepReport {
+            t: next.t,
+            dt,
+            iterations,
+            stability_estimate: 0.0,
+            projection,
+            drift,
+        })
+    }
+}
