@@ -35,68 +35,6 @@ pub struct CartPole;
     clippy::suspicious_operation_groupings,
     unused_parens
 )]
-impl CartPole {
-    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
-    #[inline]
-    pub fn coriolis_forces(
-        &self,
-        q: &SVector<f64, 2>,
-        qd: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SVector<f64, 2>,
-    ) {
-        let v0 = math::sin(q[1]);
-        out[0] = -0.05 * v0 * qd[1] * qd[1];
-        out[1] = 0.0;
-    }
-    ///Gravity and elastic forces `dV/dq`.
-    #[inline]
-    pub fn potential_forces(
-        &self,
-        q: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SVector<f64, 2>,
-    ) {
-        let v0 = math::sin(q[1]);
-        out[0] = 0.0;
-        out[1] = -0.49050000000000005 * v0;
-    }
-    ///Damping forces `dD/dqd`.
-    #[inline]
-    pub fn damping_forces(
-        &self,
-        _q: &SVector<f64, 2>,
-        _qd: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SVector<f64, 2>,
-    ) {
-        out[0] = 0.0;
-        out[1] = 0.0;
-    }
-    ///Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.
-    #[inline]
-    pub fn coriolis_matrix(
-        &self,
-        q: &SVector<f64, 2>,
-        qd: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SMatrix<f64, 2, 2>,
-    ) {
-        let v0 = math::sin(q[1]);
-        out.fill(0.0);
-        out[(0, 1)] = -0.05 * v0 * qd[1];
-    }
-}
-#[allow(
-    clippy::approx_constant,
-    clippy::excessive_precision,
-    clippy::too_many_lines,
-    clippy::unreadable_literal,
-    clippy::neg_multiply,
-    clippy::identity_op,
-    clippy::suspicious_operation_groupings,
-    unused_parens
-)]
 impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
     const NAME: &'static str = "cart_pole";
     const COORDINATES: [&'static str; 2] = ["x", "theta"];
@@ -170,5 +108,59 @@ impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
     fn potential_energy(&self, q: &SVector<f64, 2>, _t: f64) -> f64 {
         let v0 = math::cos(q[1]);
         0.49050000000000005 * v0
+    }
+    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
+    #[inline]
+    fn coriolis_forces(
+        &self,
+        q: &SVector<f64, 2>,
+        qd: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SVector<f64, 2>,
+    ) -> bool {
+        let v0 = math::sin(q[1]);
+        out[0] = -0.05 * v0 * qd[1] * qd[1];
+        out[1] = 0.0;
+        true
+    }
+    ///Gravity and elastic forces `dV/dq`.
+    #[inline]
+    fn potential_forces(
+        &self,
+        q: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SVector<f64, 2>,
+    ) -> bool {
+        let v0 = math::sin(q[1]);
+        out[0] = 0.0;
+        out[1] = -0.49050000000000005 * v0;
+        true
+    }
+    ///Damping forces `dD/dqd`.
+    #[inline]
+    fn damping_forces(
+        &self,
+        _q: &SVector<f64, 2>,
+        _qd: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SVector<f64, 2>,
+    ) -> bool {
+        out[0] = 0.0;
+        out[1] = 0.0;
+        true
+    }
+    ///Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.
+    #[inline]
+    fn coriolis_matrix(
+        &self,
+        q: &SVector<f64, 2>,
+        qd: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SMatrix<f64, 2, 2>,
+    ) -> bool {
+        let v0 = math::sin(q[1]);
+        out.fill(0.0);
+        out[(0, 1)] = -0.05 * v0 * qd[1];
+        true
     }
 }

@@ -35,76 +35,6 @@ pub struct DoublePendulum;
     clippy::suspicious_operation_groupings,
     unused_parens
 )]
-impl DoublePendulum {
-    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
-    #[inline]
-    pub fn coriolis_forces(
-        &self,
-        q: &SVector<f64, 2>,
-        qd: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SVector<f64, 2>,
-    ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let v4 = -0.6 * v0 * qd[0] * qd[0] - 0.4 * v2 * qd[1] * qd[1];
-        let v5 = 0.6 * v1 * qd[0] * qd[0] + 0.4 * v3 * qd[1] * qd[1];
-        out[0] = 0.42 * v1 * v4 + 0.42 * v0 * v5;
-        out[1] = 0.27999999999999997 * v3 * v4 + 0.27999999999999997 * v2 * v5;
-    }
-    ///Gravity and elastic forces `dV/dq`.
-    #[inline]
-    pub fn potential_forces(
-        &self,
-        q: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SVector<f64, 2>,
-    ) {
-        let v0 = math::sin(q[0]);
-        let v1 = math::sin(q[1]);
-        out[0] = 10.0062 * v0;
-        out[1] = 2.7468 * v1;
-    }
-    ///Damping forces `dD/dqd`.
-    #[inline]
-    pub fn damping_forces(
-        &self,
-        _q: &SVector<f64, 2>,
-        _qd: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SVector<f64, 2>,
-    ) {
-        out[0] = 0.0;
-        out[1] = 0.0;
-    }
-    ///Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.
-    #[inline]
-    pub fn coriolis_matrix(
-        &self,
-        q: &SVector<f64, 2>,
-        qd: &SVector<f64, 2>,
-        _t: f64,
-        out: &mut SMatrix<f64, 2, 2>,
-    ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let v4 = v0 * v3;
-        let v5 = v1 * v2;
-        out.fill(0.0);
-        out[(0, 1)] = 0.5 * qd[1] * (0.336 * v4 - 0.336 * v5);
-        out[(1, 0)] = 0.5 * qd[0] * (0.336 * v5 - 0.336 * v4);
-    }
-}
-#[allow(
-    clippy::approx_constant,
-    clippy::excessive_precision,
-    clippy::too_many_lines,
-    clippy::unreadable_literal,
-    clippy::neg_multiply,
-    clippy::identity_op,
-    clippy::suspicious_operation_groupings,
-    unused_parens
-)]
 impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
     const NAME: &'static str = "double_pendulum";
     const COORDINATES: [&'static str; 2] = ["theta1", "theta2"];
@@ -185,5 +115,67 @@ impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
         let v0 = math::cos(q[0]);
         let v1 = math::cos(q[1]);
         -10.0062 * v0 - 2.7468 * v1
+    }
+    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
+    #[inline]
+    fn coriolis_forces(
+        &self,
+        q: &SVector<f64, 2>,
+        qd: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SVector<f64, 2>,
+    ) -> bool {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let v4 = -0.6 * v0 * qd[0] * qd[0] - 0.4 * v2 * qd[1] * qd[1];
+        let v5 = 0.6 * v1 * qd[0] * qd[0] + 0.4 * v3 * qd[1] * qd[1];
+        out[0] = 0.42 * v1 * v4 + 0.42 * v0 * v5;
+        out[1] = 0.27999999999999997 * v3 * v4 + 0.27999999999999997 * v2 * v5;
+        true
+    }
+    ///Gravity and elastic forces `dV/dq`.
+    #[inline]
+    fn potential_forces(
+        &self,
+        q: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SVector<f64, 2>,
+    ) -> bool {
+        let v0 = math::sin(q[0]);
+        let v1 = math::sin(q[1]);
+        out[0] = 10.0062 * v0;
+        out[1] = 2.7468 * v1;
+        true
+    }
+    ///Damping forces `dD/dqd`.
+    #[inline]
+    fn damping_forces(
+        &self,
+        _q: &SVector<f64, 2>,
+        _qd: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SVector<f64, 2>,
+    ) -> bool {
+        out[0] = 0.0;
+        out[1] = 0.0;
+        true
+    }
+    ///Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.
+    #[inline]
+    fn coriolis_matrix(
+        &self,
+        q: &SVector<f64, 2>,
+        qd: &SVector<f64, 2>,
+        _t: f64,
+        out: &mut SMatrix<f64, 2, 2>,
+    ) -> bool {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let v4 = v0 * v3;
+        let v5 = v1 * v2;
+        out.fill(0.0);
+        out[(0, 1)] = 0.5 * qd[1] * (0.336 * v4 - 0.336 * v5);
+        out[(1, 0)] = 0.5 * qd[0] * (0.336 * v5 - 0.336 * v4);
+        true
     }
 }

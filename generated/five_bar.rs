@@ -34,75 +34,6 @@ pub struct FiveBar;
     clippy::suspicious_operation_groupings,
     unused_parens
 )]
-impl FiveBar {
-    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
-    #[inline]
-    pub fn coriolis_forces(
-        &self,
-        q: &SVector<f64, 4>,
-        qd: &SVector<f64, 4>,
-        _t: f64,
-        out: &mut SVector<f64, 4>,
-    ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[2]);
-        let (v6, v7) = math::sin_cos(q[3]);
-        let v8 = -0.25 * v1 * qd[0] * qd[0] - 0.35 * v5 * qd[2] * qd[2];
-        let v9 = -0.25 * v0 * qd[0] * qd[0] - 0.35 * v4 * qd[2] * qd[2];
-        let v10 = -0.25 * v3 * qd[1] * qd[1] - 0.35 * v7 * qd[3] * qd[3];
-        let v11 = -0.25 * v2 * qd[1] * qd[1] - 0.35 * v6 * qd[3] * qd[3];
-        out[0] = 0.1625 * v1 * v9 - 0.1625 * v0 * v8;
-        out[1] = 0.0375 * v3 * v11 - 0.0375 * v2 * v10;
-        out[2] = 0.0043749999999999995 * v1 * qd[0] * qd[0] * v4 + 0.21 * v5 * v9
-            - 0.0043749999999999995 * v0 * qd[0] * qd[0] * v5 - 0.21 * v4 * v8;
-        out[3] = 0.0043749999999999995 * v3 * qd[1] * qd[1] * v6
-            + 0.034999999999999996 * v7 * v11
-            - 0.0043749999999999995 * v2 * qd[1] * qd[1] * v7
-            - 0.034999999999999996 * v6 * v10;
-    }
-    ///Gravity and elastic forces `dV/dq`.
-    #[inline]
-    pub fn potential_forces(
-        &self,
-        q: &SVector<f64, 4>,
-        _t: f64,
-        out: &mut SVector<f64, 4>,
-    ) {
-        let v0 = math::cos(q[0]);
-        let v1 = math::cos(q[1]);
-        let v2 = math::cos(q[2]);
-        let v3 = math::cos(q[3]);
-        out[0] = 2.4525 * v0;
-        out[1] = 1.22625 * v1;
-        out[2] = 2.231775 * v2;
-        out[3] = 0.515025 * v3;
-    }
-    ///Damping forces `dD/dqd`.
-    #[inline]
-    pub fn damping_forces(
-        &self,
-        _q: &SVector<f64, 4>,
-        _qd: &SVector<f64, 4>,
-        _t: f64,
-        out: &mut SVector<f64, 4>,
-    ) {
-        out[0] = 0.0;
-        out[1] = 0.0;
-        out[2] = 0.0;
-        out[3] = 0.0;
-    }
-}
-#[allow(
-    clippy::approx_constant,
-    clippy::excessive_precision,
-    clippy::too_many_lines,
-    clippy::unreadable_literal,
-    clippy::neg_multiply,
-    clippy::identity_op,
-    clippy::suspicious_operation_groupings,
-    unused_parens
-)]
 impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
     const NAME: &'static str = "five_bar";
     const COORDINATES: [&'static str; 4] = ["theta1", "theta2", "phi1", "phi2"];
@@ -242,5 +173,65 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
         let v2 = math::sin(q[2]);
         let v3 = math::sin(q[3]);
         2.4525 * v0 + 1.22625 * v1 + 2.231775 * v2 + 0.515025 * v3
+    }
+    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
+    #[inline]
+    fn coriolis_forces(
+        &self,
+        q: &SVector<f64, 4>,
+        qd: &SVector<f64, 4>,
+        _t: f64,
+        out: &mut SVector<f64, 4>,
+    ) -> bool {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let (v4, v5) = math::sin_cos(q[2]);
+        let (v6, v7) = math::sin_cos(q[3]);
+        let v8 = -0.25 * v1 * qd[0] * qd[0] - 0.35 * v5 * qd[2] * qd[2];
+        let v9 = -0.25 * v0 * qd[0] * qd[0] - 0.35 * v4 * qd[2] * qd[2];
+        let v10 = -0.25 * v3 * qd[1] * qd[1] - 0.35 * v7 * qd[3] * qd[3];
+        let v11 = -0.25 * v2 * qd[1] * qd[1] - 0.35 * v6 * qd[3] * qd[3];
+        out[0] = 0.1625 * v1 * v9 - 0.1625 * v0 * v8;
+        out[1] = 0.0375 * v3 * v11 - 0.0375 * v2 * v10;
+        out[2] = 0.0043749999999999995 * v1 * qd[0] * qd[0] * v4 + 0.21 * v5 * v9
+            - 0.0043749999999999995 * v0 * qd[0] * qd[0] * v5 - 0.21 * v4 * v8;
+        out[3] = 0.0043749999999999995 * v3 * qd[1] * qd[1] * v6
+            + 0.034999999999999996 * v7 * v11
+            - 0.0043749999999999995 * v2 * qd[1] * qd[1] * v7
+            - 0.034999999999999996 * v6 * v10;
+        true
+    }
+    ///Gravity and elastic forces `dV/dq`.
+    #[inline]
+    fn potential_forces(
+        &self,
+        q: &SVector<f64, 4>,
+        _t: f64,
+        out: &mut SVector<f64, 4>,
+    ) -> bool {
+        let v0 = math::cos(q[0]);
+        let v1 = math::cos(q[1]);
+        let v2 = math::cos(q[2]);
+        let v3 = math::cos(q[3]);
+        out[0] = 2.4525 * v0;
+        out[1] = 1.22625 * v1;
+        out[2] = 2.231775 * v2;
+        out[3] = 0.515025 * v3;
+        true
+    }
+    ///Damping forces `dD/dqd`.
+    #[inline]
+    fn damping_forces(
+        &self,
+        _q: &SVector<f64, 4>,
+        _qd: &SVector<f64, 4>,
+        _t: f64,
+        out: &mut SVector<f64, 4>,
+    ) -> bool {
+        out[0] = 0.0;
+        out[1] = 0.0;
+        out[2] = 0.0;
+        out[3] = 0.0;
+        true
     }
 }

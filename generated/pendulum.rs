@@ -8,7 +8,10 @@
 //   constraint_rhs                    0      0      0      0
 //   kinetic_energy                    0      5      0      0
 //   potential_energy                  1      3      0      1
-//   total                             2     14      0      2
+//   coriolis_forces                   0      0      0      0
+//   potential_forces                  0      3      0      1
+//   damping_forces                    0      1      0      0
+//   total                             2     18      0      3
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -112,5 +115,51 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
     fn potential_energy(&self, q: &SVector<f64, 1>, _t: f64) -> f64 {
         let v0 = math::cos(q[0]);
         -9.81 * self.m * self.l * v0
+    }
+    const PARAMETERS: &'static [&'static str] = &["c", "l", "m"];
+    fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+        match name {
+            "c" => self.c = value,
+            "l" => self.l = value,
+            "m" => self.m = value,
+            _ => return false,
+        }
+        true
+    }
+    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
+    #[inline]
+    fn coriolis_forces(
+        &self,
+        _q: &SVector<f64, 1>,
+        _qd: &SVector<f64, 1>,
+        _t: f64,
+        out: &mut SVector<f64, 1>,
+    ) -> bool {
+        out[0] = 0.0;
+        true
+    }
+    ///Gravity and elastic forces `dV/dq`.
+    #[inline]
+    fn potential_forces(
+        &self,
+        q: &SVector<f64, 1>,
+        _t: f64,
+        out: &mut SVector<f64, 1>,
+    ) -> bool {
+        let v0 = math::sin(q[0]);
+        out[0] = 9.81 * self.m * self.l * v0;
+        true
+    }
+    ///Damping forces `dD/dqd`.
+    #[inline]
+    fn damping_forces(
+        &self,
+        _q: &SVector<f64, 1>,
+        qd: &SVector<f64, 1>,
+        _t: f64,
+        out: &mut SVector<f64, 1>,
+    ) -> bool {
+        out[0] = qd[0] * self.c;
+        true
     }
 }

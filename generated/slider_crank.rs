@@ -34,64 +34,6 @@ pub struct SliderCrank;
     clippy::suspicious_operation_groupings,
     unused_parens
 )]
-impl SliderCrank {
-    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
-    #[inline]
-    pub fn coriolis_forces(
-        &self,
-        q: &SVector<f64, 3>,
-        qd: &SVector<f64, 3>,
-        _t: f64,
-        out: &mut SVector<f64, 3>,
-    ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let v4 = -0.1 * v1 * qd[0] * qd[0] - 0.3 * v3 * qd[1] * qd[1];
-        let v5 = 0.3 * v2 * qd[1] * qd[1] - 0.1 * v0 * qd[0] * qd[0];
-        out[0] = 0.04000000000000001 * v1 * v5 - 0.04000000000000001 * v0 * v4;
-        out[1] = 0.004000000000000001 * v1 * qd[0] * qd[0] * v2
-            + 0.004000000000000001 * v0 * qd[0] * qd[0] * v3 - 0.08 * v2 * v4
-            - 0.08 * v3 * v5;
-        out[2] = 0.0;
-    }
-    ///Gravity and elastic forces `dV/dq`.
-    #[inline]
-    pub fn potential_forces(
-        &self,
-        q: &SVector<f64, 3>,
-        _t: f64,
-        out: &mut SVector<f64, 3>,
-    ) {
-        let v0 = math::cos(q[0]);
-        let v1 = math::cos(q[1]);
-        out[0] = 1.0300500000000001 * v0;
-        out[1] = -1.1772 * v1;
-        out[2] = 0.0;
-    }
-    ///Damping forces `dD/dqd`.
-    #[inline]
-    pub fn damping_forces(
-        &self,
-        _q: &SVector<f64, 3>,
-        _qd: &SVector<f64, 3>,
-        _t: f64,
-        out: &mut SVector<f64, 3>,
-    ) {
-        out[0] = 0.0;
-        out[1] = 0.0;
-        out[2] = 0.0;
-    }
-}
-#[allow(
-    clippy::approx_constant,
-    clippy::excessive_precision,
-    clippy::too_many_lines,
-    clippy::unreadable_literal,
-    clippy::neg_multiply,
-    clippy::identity_op,
-    clippy::suspicious_operation_groupings,
-    unused_parens
-)]
 impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     const NAME: &'static str = "slider_crank";
     const COORDINATES: [&'static str; 3] = ["theta", "phi", "x"];
@@ -200,5 +142,54 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let v0 = math::sin(q[0]);
         let v1 = math::sin(q[1]);
         1.0300500000000001 * v0 - 1.1772 * v1
+    }
+    ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
+    #[inline]
+    fn coriolis_forces(
+        &self,
+        q: &SVector<f64, 3>,
+        qd: &SVector<f64, 3>,
+        _t: f64,
+        out: &mut SVector<f64, 3>,
+    ) -> bool {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let v4 = -0.1 * v1 * qd[0] * qd[0] - 0.3 * v3 * qd[1] * qd[1];
+        let v5 = 0.3 * v2 * qd[1] * qd[1] - 0.1 * v0 * qd[0] * qd[0];
+        out[0] = 0.04000000000000001 * v1 * v5 - 0.04000000000000001 * v0 * v4;
+        out[1] = 0.004000000000000001 * v1 * qd[0] * qd[0] * v2
+            + 0.004000000000000001 * v0 * qd[0] * qd[0] * v3 - 0.08 * v2 * v4
+            - 0.08 * v3 * v5;
+        out[2] = 0.0;
+        true
+    }
+    ///Gravity and elastic forces `dV/dq`.
+    #[inline]
+    fn potential_forces(
+        &self,
+        q: &SVector<f64, 3>,
+        _t: f64,
+        out: &mut SVector<f64, 3>,
+    ) -> bool {
+        let v0 = math::cos(q[0]);
+        let v1 = math::cos(q[1]);
+        out[0] = 1.0300500000000001 * v0;
+        out[1] = -1.1772 * v1;
+        out[2] = 0.0;
+        true
+    }
+    ///Damping forces `dD/dqd`.
+    #[inline]
+    fn damping_forces(
+        &self,
+        _q: &SVector<f64, 3>,
+        _qd: &SVector<f64, 3>,
+        _t: f64,
+        out: &mut SVector<f64, 3>,
+    ) -> bool {
+        out[0] = 0.0;
+        out[1] = 0.0;
+        out[2] = 0.0;
+        true
     }
 }

@@ -42,6 +42,18 @@ pub trait DynModel {
     fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64;
     /// Potential energy.
     fn potential_energy(&self, q: &[f64], t: f64) -> f64;
+    /// Names of the runtime parameters.
+    fn parameters(&self) -> &'static [&'static str];
+    /// Set a runtime parameter; `false` if there is none of that name.
+    fn set_parameter(&mut self, name: &str, value: f64) -> bool;
+    /// Coriolis forces, when generated.
+    fn coriolis_forces(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>>;
+    /// Gravity and elastic forces, when generated.
+    fn potential_forces(&self, q: &[f64], t: f64) -> Option<DVector<f64>>;
+    /// Damping forces, when generated.
+    fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>>;
+    /// Coriolis matrix, when generated.
+    fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DMatrix<f64>>;
 }
 
 /// A model with its dimensions as const parameters.
@@ -116,5 +128,35 @@ where
     }
     fn potential_energy(&self, q: &[f64], t: f64) -> f64 {
         self.0.potential_energy(&vector(q), t)
+    }
+    fn parameters(&self) -> &'static [&'static str] {
+        M::PARAMETERS
+    }
+    fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+        self.0.set_parameter(name, value)
+    }
+    fn coriolis_forces(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>> {
+        let mut out = SVector::<f64, NQ>::zeros();
+        self.0
+            .coriolis_forces(&vector(q), &vector(qd), t, &mut out)
+            .then(|| DVector::from_column_slice(out.as_slice()))
+    }
+    fn potential_forces(&self, q: &[f64], t: f64) -> Option<DVector<f64>> {
+        let mut out = SVector::<f64, NQ>::zeros();
+        self.0
+            .potential_forces(&vector(q), t, &mut out)
+            .then(|| DVector::from_column_slice(out.as_slice()))
+    }
+    fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>> {
+        let mut out = SVector::<f64, NQ>::zeros();
+        self.0
+            .damping_forces(&vector(q), &vector(qd), t, &mut out)
+            .then(|| DVector::from_column_slice(out.as_slice()))
+    }
+    fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DMatrix<f64>> {
+        let mut out = SMatrix::<f64, NQ, NQ>::zeros();
+        self.0
+            .coriolis_matrix(&vector(q), &vector(qd), t, &mut out)
+            .then(|| DMatrix::from_column_slice(NQ, NQ, out.as_slice()))
     }
 }

@@ -16,6 +16,9 @@ pub struct State {
     /// Time.
     #[serde(default)]
     pub t: f64,
+    /// Runtime parameter values by name (the scene's nominal values otherwise).
+    #[serde(default)]
+    pub params: std::collections::BTreeMap<String, f64>,
 }
 
 /// The input file of `flexdyn eval`.
@@ -47,6 +50,18 @@ pub struct Terms {
     pub kinetic_energy: f64,
     /// Potential energy.
     pub potential_energy: f64,
+    /// Coriolis forces, when the scene generates them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coriolis_forces: Option<Vec<f64>>,
+    /// Gravity and elastic forces, when generated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub potential_forces: Option<Vec<f64>>,
+    /// Damping forces, when generated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub damping_forces: Option<Vec<f64>>,
+    /// Coriolis matrix, when generated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coriolis_matrix: Option<Vec<Vec<f64>>>,
 }
 
 /// A deliberate error added to one term (test-only hook used to prove that
@@ -102,9 +117,23 @@ pub fn check_state(model: &dyn DynModel, s: &State, k: usize) -> Result<(), Stri
     Ok(())
 }
 
-/// Evaluate every term at one state.
-pub fn evaluate(model: &dyn DynModel, s: &State) -> Terms {
-    Terms {
+/// Evaluate every term at one state, with the state's runtime parameters
+/// (the model is left with them set).
+pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
+    for (name, &value) in &s.params {
+        if !value.is_finite() {
+            return Err(format!("parameter `{name}` is not finite"));
+        }
+        if !model.set_parameter(name, value) {
+            return Err(format!(
+                "scene `{}` has no runtime parameter `{name}` (it has: {})",
+                model.name(),
+                model.parameters().join(", ")
+            ));
+        }
+    }
+    let vec = |v: nalgebra::DVector<f64>| v.as_slice().to_vec();
+    Ok(Terms {
         mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
         bias: model.bias(&s.q, &s.qd, s.t).as_slice().to_vec(),
         constraints: model.constraints(&s.q, s.t).as_slice().to_vec(),
@@ -117,7 +146,11 @@ pub fn evaluate(model: &dyn DynModel, s: &State) -> Terms {
         actuator_map: rows(&model.actuator_map()),
         kinetic_energy: model.kinetic_energy(&s.q, &s.qd, s.t),
         potential_energy: model.potential_energy(&s.q, s.t),
-    }
+        coriolis_forces: model.coriolis_forces(&s.q, &s.qd, s.t).map(vec),
+        potential_forces: model.potential_forces(&s.q, s.t).map(vec),
+        damping_forces: model.damping_forces(&s.q, &s.qd, s.t).map(vec),
+        coriolis_matrix: model.coriolis_matrix(&s.q, &s.qd, s.t).map(|m| rows(&m)),
+    })
 }
 
 impl Terms {
@@ -132,6 +165,22 @@ impl Terms {
             "constraint_rhs" => self.constraint_rhs.get_mut(p.index),
             "actuator_map" => self.actuator_map.iter_mut().flatten().nth(p.index),
             "kinetic_energy" => Some(&mut self.kinetic_energy),
+            "coriolis_forces" => self
+                .coriolis_forces
+                .as_mut()
+                .and_then(|v| v.get_mut(p.index)),
+            "potential_forces" => self
+                .potential_forces
+                .as_mut()
+                .and_then(|v| v.get_mut(p.index)),
+            "damping_forces" => self
+                .damping_forces
+                .as_mut()
+                .and_then(|v| v.get_mut(p.index)),
+            "coriolis_matrix" => self
+                .coriolis_matrix
+                .as_mut()
+                .and_then(|m| m.iter_mut().flatten().nth(p.index)),
             "potential_energy" => Some(&mut self.potential_energy),
             _ => None,
         };

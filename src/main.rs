@@ -240,7 +240,7 @@ fn eval(
 ) -> Result<(), String> {
     use flexdyn::eval::{check_state, evaluate, States};
     let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
-    let model = flexdyn::scenes::model(&parsed.name).ok_or_else(|| {
+    let mut model = flexdyn::scenes::model(&parsed.name).ok_or_else(|| {
         format!(
             "scene `{}` is not compiled into this binary: put its file in scenes/ and rebuild",
             parsed.name
@@ -253,7 +253,11 @@ fn eval(
     let mut results = Vec::with_capacity(input.states.len());
     for (k, s) in input.states.iter().enumerate() {
         check_state(model.as_ref(), s, k)?;
-        let mut terms = evaluate(model.as_ref(), s);
+        if !s.params.is_empty() {
+            // Parameters apply to this state only: start from the defaults.
+            model = flexdyn::scenes::model(&parsed.name).ok_or("scene vanished")?;
+        }
+        let mut terms = evaluate(model.as_mut(), s).map_err(|e| format!("state {k}: {e}"))?;
         if let Some(p) = perturb {
             terms.perturb(p)?;
         }

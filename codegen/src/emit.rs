@@ -247,7 +247,7 @@ impl Emitter<'_> {
         ids: &[Id],
         with_qd: bool,
         out_name: &str,
-        vis: TokenStream,
+        optional: bool,
     ) -> TokenStream {
         let n = self.model.nq();
         let len = usize_lit(ids.len());
@@ -269,6 +269,7 @@ impl Emitter<'_> {
         };
         let (q, qd, t) = input_idents(used);
         let fname = format_ident!("{}", name);
+        let (ret, tail) = optional_output(optional);
         let qd_arg = if with_qd {
             quote!(#qd: &SVector<f64, #nq>,)
         } else {
@@ -277,9 +278,10 @@ impl Emitter<'_> {
         quote! {
             #[doc = #doc]
             #[inline]
-            #vis fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SVector<f64, #len>) {
+            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SVector<f64, #len>) #ret {
                 #body
                 #(#assigns)*
+                #tail
             }
         }
     }
@@ -293,7 +295,7 @@ impl Emitter<'_> {
         entries: &[Vec<Id>],
         with_qd: bool,
         symmetric: bool,
-        vis: TokenStream,
+        optional: bool,
     ) -> TokenStream {
         let rows = entries.len();
         let cols = self.model.nq();
@@ -336,6 +338,7 @@ impl Emitter<'_> {
         }
         let (q, qd, t) = input_idents(used);
         let fname = format_ident!("{}", name);
+        let (ret, tail) = optional_output(optional);
         let (r, c) = (usize_lit(rows), usize_lit(cols));
         let qd_arg = if with_qd {
             quote!(#qd: &SVector<f64, #nq>,)
@@ -350,9 +353,10 @@ impl Emitter<'_> {
         quote! {
             #[doc = #doc]
             #[inline]
-            #vis fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SMatrix<f64, #r, #c>) {
+            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SMatrix<f64, #r, #c>) #ret {
                 #body
                 #assigns
+                #tail
             }
         }
     }
@@ -395,6 +399,16 @@ fn join_mul(seed: TokenStream, factors: &[TokenStream]) -> TokenStream {
     out
 }
 
+/// Optional outputs override a trait method that returns whether the output
+/// was generated.
+fn optional_output(optional: bool) -> (TokenStream, TokenStream) {
+    if optional {
+        (quote!(-> bool), quote!(true))
+    } else {
+        (quote!(), quote!())
+    }
+}
+
 fn input_idents(used: Inputs) -> (proc_macro2::Ident, proc_macro2::Ident, proc_macro2::Ident) {
     let name = |used: bool, n: &str| {
         if used {
@@ -426,7 +440,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &eq.mass,
         false,
         true,
-        quote!(),
+        false,
     );
     let bias = e.vector_fn(
         "bias",
@@ -434,7 +448,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &eq.bias,
         true,
         "h",
-        quote!(),
+        false,
     );
     let phi = e.vector_fn(
         "constraints",
@@ -442,7 +456,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &eq.phi,
         false,
         "phi",
-        quote!(),
+        false,
     );
     let phi_q = e.matrix_fn(
         "constraint_jacobian",
@@ -450,7 +464,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &eq.phi_q,
         false,
         false,
-        quote!(),
+        false,
     );
     let phi_t = e.vector_fn(
         "constraint_time_derivative",
@@ -458,7 +472,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &eq.phi_t,
         false,
         "phi_t",
-        quote!(),
+        false,
     );
     let gamma = e.vector_fn(
         "constraint_rhs",
@@ -466,7 +480,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &eq.gamma,
         true,
         "gamma",
-        quote!(),
+        false,
     );
     let kinetic = e.scalar_fn(
         "kinetic_energy",
@@ -498,8 +512,8 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
     }
     let b_arg = if any_actuator { quote!(b) } else { quote!(_b) };
 
-    // Optional outputs as inherent methods.
-    let mut inherent = TokenStream::new();
+    // Optional outputs override the trait's default (not generated) methods.
+    let mut optional = TokenStream::new();
     if model.outputs.forces {
         for (name, doc, ids, qd) in [
             (
@@ -521,7 +535,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
                 true,
             ),
         ] {
-            inherent.extend(e.vector_fn(name, doc, ids, qd, "out", quote!(pub)));
+            optional.extend(e.vector_fn(name, doc, ids, qd, "out", true));
         }
     }
     if let Some(cm) = &eq.coriolis_matrix {
@@ -531,9 +545,9 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
             cm,
             true,
             false,
-            quote!(pub),
+            true,
         );
-        inherent.extend(f);
+        optional.extend(f);
     }
 
     let coords = model.coordinates.iter().map(|c| c.name.as_str());
@@ -551,6 +565,26 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
     let struct_doc = format!(
         "Equations of motion of scene `{scene}`: {n} coordinates, {nc} constraints, {nu} actuators. Fields are the runtime parameters."
     );
+    let parameters = if model.runtime_parameters.is_empty() {
+        quote!()
+    } else {
+        let names = model.runtime_parameters.iter().map(|p| p.name.as_str());
+        let arms = model.runtime_parameters.iter().map(|p| {
+            let id = format_ident!("{}", p.name);
+            let name = p.name.as_str();
+            quote!(#name => self.#id = value,)
+        });
+        quote! {
+            const PARAMETERS: &'static [&'static str] = &[#(#names),*];
+            fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+                match name {
+                    #(#arms)*
+                    _ => return false,
+                }
+                true
+            }
+        }
+    };
     let struct_def = if model.runtime_parameters.is_empty() {
         quote! {
             #[doc = #struct_doc]
@@ -582,14 +616,6 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
             unused_parens
         )]
     };
-    let inherent_block = if inherent.is_empty() {
-        quote!()
-    } else {
-        quote! {
-            #lints
-            impl #sname { #inherent }
-        }
-    };
     let tokens = quote! {
         use flexdyn_runtime::math;
         use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -602,8 +628,6 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         pub const NU: usize = #nu_l;
 
         #struct_def
-
-        #inherent_block
 
         #lints
         impl flexdyn_runtime::Model<#nq_l, #nc_l, #nu_l> for #sname {
@@ -622,6 +646,8 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
             }
             #kinetic
             #potential
+            #parameters
+            #optional
         }
     };
     let file: syn::File = syn::parse2(tokens).expect("emitted tokens form a valid Rust file");

@@ -84,4 +84,60 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
         let _ = (q, qd, t, h_q, h_qd);
         false
     }
+
+    /// Names of the runtime parameters (fields of the model struct), in order.
+    const PARAMETERS: &'static [&'static str] = &[];
+
+    /// Set a runtime parameter by name; `false` when the model has no such
+    /// parameter (nothing changes then).
+    fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+        let _ = (name, value);
+        false
+    }
+
+    /// Optional output (scene `outputs = ["forces"]`): Coriolis/centrifugal
+    /// forces `C(q, qd) qd`, the part of [`Model::bias`] from the kinetic
+    /// energy. Returns `false` (writing nothing) when not generated.
+    fn coriolis_forces(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        out: &mut SVector<f64, NQ>,
+    ) -> bool {
+        let _ = (q, qd, t, out);
+        false
+    }
+
+    /// Optional output (`forces`): gravity and elastic forces `dV/dq`.
+    fn potential_forces(&self, q: &SVector<f64, NQ>, t: f64, out: &mut SVector<f64, NQ>) -> bool {
+        let _ = (q, t, out);
+        false
+    }
+
+    /// Optional output (`forces`): damping forces `dD/dqd`.
+    fn damping_forces(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        out: &mut SVector<f64, NQ>,
+    ) -> bool {
+        let _ = (q, qd, t, out);
+        false
+    }
+
+    /// Optional output (`coriolis_matrix`): the Coriolis matrix from
+    /// Christoffel symbols, with `C qd` the Coriolis forces and
+    /// `dM/dt - 2 C` skew-symmetric.
+    fn coriolis_matrix(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        out: &mut SMatrix<f64, NQ, NQ>,
+    ) -> bool {
+        let _ = (q, qd, t, out);
+        false
+    }
 }

@@ -710,9 +710,12 @@ def print_scene(report: dict) -> None:
             print(f"  {r['term']:<28} {r['shape']:>7} {'-':>10} {'-':>10} {'-':>10}  {'-':<22} "
                   f"FAIL (missing from flexdyn eval output)")
             continue
-        where = describe_state(report, r["state"])
-        if r["entry"] is not None and r["state"] is not None:
-            where += f" [{r['entry']}]"
+        if r["state"] is None or r["max_abs_error"] == 0.0:
+            where = "-"  # no entries, or exact everywhere
+        else:
+            where = describe_state(report, r["state"])
+            if r["entry"] is not None:
+                where += f" [{r['entry']}]"
         verdict = "PASS" if r["passed"] else "FAIL"
         note = f" ({r['nonfinite']} non-finite entries agree)" if r["nonfinite"] else ""
         print(f"  {r['term']:<28} {r['shape']:>7} {r['max_abs_error']:>10.3e} {r['scale']:>10.3e} "
