@@ -144,7 +144,7 @@ pub fn chain_ik(g: &Geometry, i: usize, p: [f64; 3]) -> Result<[f64; 3], IkError
     } else {
         f64::INFINITY
     };
-    if !(condition < MAX_CONDITION) {
+    if condition.is_nan() || condition >= MAX_CONDITION {
         return Err(IkError::NearSingular {
             chain: i,
             condition,
@@ -306,7 +306,10 @@ impl TorqueTable {
         if times.is_empty() {
             return Err("the torque table has no rows".into());
         }
-        if let Some(k) = times.windows(2).position(|w| !(w[1] > w[0])) {
+        if let Some(k) = times
+            .windows(2)
+            .position(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+        {
             return Err(format!(
                 "times must increase strictly: row {} has t = {} after t = {}",
                 k + 2,

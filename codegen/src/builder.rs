@@ -304,6 +304,7 @@ fn index_source(scenes: &[Generated], index: &Index) -> Result<String, String> {
         pub const SCENES: &[&str] = &[#(#names),*];
 
         /// The default model of a scene, by name.
+        #[allow(clippy::default_constructed_unit_structs)]
         pub fn model(name: &str) -> Option<Box<dyn #trait_path>> {
             match name {
                 #(#arms)*
