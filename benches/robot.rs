@@ -12,8 +12,12 @@ fn robot(c: &mut Criterion) {
     let model = ParallelRobotRigid;
     let circle = Circle::paper(2.0);
     let q0 = inverse_kinematics(&Geometry::SPEC, circle.at(0.0)[0]).unwrap();
-    let mut solver =
-        InverseDynamics::<12, 9, 3, 3>::new([9, 10, 11], SVector::from(q0), InverseConfig::default()).unwrap();
+    let mut solver = InverseDynamics::<12, 9, 3, 3>::new(
+        [9, 10, 11],
+        SVector::from(q0),
+        InverseConfig::default(),
+    )
+    .unwrap();
     let mut sol = InverseSolution::<12, 9, 3>::default();
     let mut group = c.benchmark_group("parallel_robot_rigid");
     let mut t = 0.0;
@@ -23,7 +27,14 @@ fn robot(c: &mut Criterion) {
             t += 0.001;
             let [p, v, a] = circle.at(t);
             solver
-                .solve(&model, t, &SVector::from(p), &SVector::from(v), &SVector::from(a), &mut sol)
+                .solve(
+                    &model,
+                    t,
+                    &SVector::from(p),
+                    &SVector::from(v),
+                    &SVector::from(a),
+                    &mut sol,
+                )
                 .unwrap();
             black_box(&sol.tau);
         })

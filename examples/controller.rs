@@ -22,8 +22,12 @@ fn main() {
     // Set-up, outside the loop: the closed-form inverse kinematics gives the
     // first Newton starting point.
     let q0 = inverse_kinematics(&Geometry::SPEC, circle.at(0.0)[0]).expect("start reachable");
-    let mut solver = InverseDynamics::<12, 9, 3, 3>::new([9, 10, 11], SVector::from(q0), InverseConfig::default())
-        .expect("valid configuration");
+    let mut solver = InverseDynamics::<12, 9, 3, 3>::new(
+        [9, 10, 11],
+        SVector::from(q0),
+        InverseConfig::default(),
+    )
+    .expect("valid configuration");
     let mut solution = InverseSolution::<12, 9, 3>::default();
     let mut times = Vec::with_capacity(TICKS);
     let period = Duration::from_secs(1) / RATE_HZ;
