@@ -91,7 +91,7 @@ impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
     ) {}
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 2, 1>) {
-        b.fill(0.0);
+        *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
     }
     ///Kinetic energy `T`.
@@ -159,7 +159,7 @@ impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
         out: &mut SMatrix<f64, 2, 2>,
     ) -> bool {
         let v0 = math::sin(q[1]);
-        out.fill(0.0);
+        *out = SMatrix::zeros();
         out[(0, 1)] = -0.05 * v0 * qd[1];
         true
     }

@@ -96,7 +96,7 @@ impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
     ) {}
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 2, 2>) {
-        b.fill(0.0);
+        *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
         b[(1, 1)] = 1.0;
     }
@@ -173,7 +173,7 @@ impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
         let (v2, v3) = math::sin_cos(q[1]);
         let v4 = v0 * v3;
         let v5 = v1 * v2;
-        out.fill(0.0);
+        *out = SMatrix::zeros();
         out[(0, 1)] = 0.5 * qd[1] * (0.336 * v4 - 0.336 * v5);
         out[(1, 0)] = 0.5 * qd[0] * (0.336 * v5 - 0.336 * v4);
         true

@@ -45,7 +45,7 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
         let (v2, v3) = math::sin_cos(q[1]);
         let (v4, v5) = math::sin_cos(q[2]);
         let (v6, v7) = math::sin_cos(q[3]);
-        out.fill(0.0);
+        *out = SMatrix::zeros();
         out[(0, 0)] = 0.058333333333333334;
         out[(0, 2)] = 0.056874999999999995 * v0 * v4 + 0.056874999999999995 * v1 * v5;
         out[(2, 0)] = out[(0, 2)];
@@ -144,7 +144,7 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 4, 2>) {
-        b.fill(0.0);
+        *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
         b[(1, 1)] = 1.0;
     }

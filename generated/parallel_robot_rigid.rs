@@ -71,7 +71,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v21 = 0.1 * v7 + 0.8 * v7 * v15;
         let v22 = -0.1 * v10 - 0.8 * v10 * v17;
         let v23 = 0.1 * v11 + 0.8 * v11 * v17;
-        out.fill(0.0);
+        *out = SMatrix::zeros();
         out[(0, 0)] = 0.3946666666666667;
         out[(0, 1)] = 0.036000000000000004 * v0 * v2 + 0.036000000000000004 * v1 * v3
             + 0.30000000000000004 * v1 * v19 - 0.30000000000000004 * v0 * v18;
@@ -302,7 +302,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let (v12, v13) = math::sin_cos(q[2]);
         let (v14, v15) = math::sin_cos(q[5]);
         let (v16, v17) = math::sin_cos(q[8]);
-        out.fill(0.0);
+        *out = SMatrix::zeros();
         out[(0, 0)] = -0.4 * v0;
         out[(0, 1)] = -0.1 * v2 - 0.8 * v2 * v13;
         out[(0, 2)] = -0.8 * v3 * v12;
@@ -398,7 +398,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 12, 3>) {
-        b.fill(0.0);
+        *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
         b[(3, 1)] = 1.0;
         b[(6, 2)] = 1.0;

@@ -97,7 +97,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
     ) {}
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 1, 1>) {
-        b.fill(0.0);
+        *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
     }
     ///Kinetic energy `T`.

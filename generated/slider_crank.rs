@@ -43,7 +43,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     fn mass_matrix(&self, q: &SVector<f64, 3>, _t: f64, out: &mut SMatrix<f64, 3, 3>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
-        out.fill(0.0);
+        *out = SMatrix::zeros();
         out[(0, 0)] = 0.009666666666666669;
         out[(0, 1)] = 0.012000000000000002 * v0 * v2 - 0.012000000000000002 * v1 * v3;
         out[(1, 0)] = out[(0, 1)];
@@ -88,7 +88,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     ) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
-        out.fill(0.0);
+        *out = SMatrix::zeros();
         out[(0, 0)] = -0.1 * v0;
         out[(0, 1)] = -0.3 * v2;
         out[(0, 2)] = -1.0;
@@ -122,7 +122,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 3, 1>) {
-        b.fill(0.0);
+        *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
     }
     ///Kinetic energy `T`.

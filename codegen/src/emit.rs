@@ -326,7 +326,7 @@ impl Emitter<'_> {
                 rows * cols
             };
         if has_zeros {
-            assigns.extend(quote!(out.fill(0.0);));
+            assigns.extend(quote!(*out = SMatrix::zeros();));
         }
         for (c, &(i, j)) in p.outputs.iter().zip(&slots) {
             let (il, jl) = (usize_lit(i), usize_lit(j));
@@ -499,7 +499,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
     let mut b_assigns = TokenStream::new();
     let any_actuator = nu > 0;
     if any_actuator {
-        b_assigns.extend(quote!(b.fill(0.0);));
+        b_assigns.extend(quote!(*b = SMatrix::zeros();));
     }
     for (i, row) in eq.actuator_map.iter().enumerate() {
         for (j, &g) in row.iter().enumerate() {
