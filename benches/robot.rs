@@ -5,7 +5,10 @@
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use flexdyn::robot::{inverse_kinematics, Circle, Geometry};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
-use flexdyn::runtime::{InverseConfig, InverseDynamics, InverseSolution, Model};
+use flexdyn::runtime::{
+    accelerations, DynamicsConfig, Integrator, InverseConfig, InverseDynamics, InverseReport,
+    InverseSolution, Model, Rk4, State,
+};
 use flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
 
 fn robot(c: &mut Criterion) {
@@ -21,12 +24,13 @@ fn robot(c: &mut Criterion) {
     let mut sol = InverseSolution::<12, 9, 3>::default();
     let mut group = c.benchmark_group("parallel_robot_rigid");
     let mut t = 0.0;
+    let mut report = InverseReport::default();
     group.bench_function("inverse_dynamics_call", |b| {
         b.iter(|| {
             // Advance along the circle so every call warm-starts from the last one.
             t += 0.001;
             let [p, v, a] = circle.at(t);
-            solver
+            report = solver
                 .solve(
                     &model,
                     t,
@@ -40,6 +44,53 @@ fn robot(c: &mut Criterion) {
         })
     });
     let (q, qd) = (sol.q, sol.qd);
+    // The model evaluations one call makes (Newton: `iterations + 1` times
+    // Phi; then Phi_q, Phi_t, gamma, M, h, B once), timed alone: the rest
+    // of `inverse_dynamics_call` is the linear algebra.
+    let phi_evals = report.iterations + 1;
+    println!(
+        "inverse_dynamics_call: {} Newton iterations in the last call, {:?}",
+        report.iterations, report
+    );
+    group.bench_function("generated_terms_of_one_call", |b| {
+        let mut phi = SVector::<f64, 9>::zeros();
+        let mut j = SMatrix::<f64, 9, 12>::zeros();
+        let mut pt = SVector::<f64, 9>::zeros();
+        let mut g = SVector::<f64, 9>::zeros();
+        let mut m = SMatrix::<f64, 12, 12>::zeros();
+        let mut h = SVector::<f64, 12>::zeros();
+        let mut bm = SMatrix::<f64, 12, 3>::zeros();
+        b.iter(|| {
+            for _ in 0..phi_evals {
+                model.constraints(black_box(&q), 0.0, &mut phi);
+            }
+            model.constraint_jacobian(black_box(&q), 0.0, &mut j);
+            model.constraint_time_derivative(black_box(&q), 0.0, &mut pt);
+            model.constraint_rhs(black_box(&q), black_box(&qd), 0.0, &mut g);
+            model.mass_matrix(black_box(&q), 0.0, &mut m);
+            model.bias(black_box(&q), black_box(&qd), 0.0, &mut h);
+            model.actuator_map(&mut bm);
+            black_box((&phi, &j, &pt, &g, &m, &h, &bm));
+        })
+    });
+    let tau = sol.tau;
+    group.bench_function("forward_accelerations", |b| {
+        let cfg = DynamicsConfig::default();
+        b.iter(|| {
+            accelerations(&model, &cfg, black_box(&q), black_box(&qd), 0.0, &tau)
+                .unwrap()
+                .qdd
+        })
+    });
+    group.bench_function("rk4_step_1ms", |b| {
+        let mut rk4 = Rk4::default();
+        let start = State::new(q, qd, 0.0);
+        b.iter(|| {
+            let mut s = start;
+            rk4.step(&model, black_box(&mut s), &tau, 1e-3).unwrap();
+            s.q
+        })
+    });
     group.bench_function("mass_matrix", |b| {
         let mut m = SMatrix::<f64, 12, 12>::zeros();
         b.iter(|| model.mass_matrix(black_box(&q), 0.0, &mut m))

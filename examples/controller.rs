@@ -49,8 +49,8 @@ fn main() {
         if let Err(e) = result {
             eprintln!("tick {tick}: {e}; holding the previous torques");
         }
-        for i in 0..3 {
-            peak[i] = peak[i].max(solution.tau[i].abs());
+        for (p, tau) in peak.iter_mut().zip(solution.tau.iter()) {
+            *p = p.max(tau.abs());
         }
         // Sleep until the next tick, as a real-time loop would.
         let next = start + period * (tick as u32 + 1);

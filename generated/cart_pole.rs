@@ -6,13 +6,15 @@
 //   constraint_jacobian               0      0      0      0
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    0      0      0      0
+//   dynamics_terms                    2      5      0      1
 //   kinetic_energy                    4     11      0      1
 //   potential_energy                  0      1      0      1
 //   coriolis_forces                   1      3      0      1
 //   potential_forces                  1      1      0      1
 //   damping_forces                    0      0      0      0
 //   coriolis_matrix                   1      2      0      1
-//   total                             9     23      0      7
+//   total                            11     28      0      8
+// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -33,6 +35,7 @@ pub struct CartPole;
     clippy::neg_multiply,
     clippy::identity_op,
     clippy::suspicious_operation_groupings,
+    clippy::too_many_arguments,
     unused_parens
 )]
 impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
@@ -41,12 +44,12 @@ impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
     const ACTUATORS: [&'static str; 1] = ["force"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    fn mass_matrix(&self, q: &SVector<f64, 2>, _t: f64, out: &mut SMatrix<f64, 2, 2>) {
+    fn mass_matrix(&self, q: &SVector<f64, 2>, _t: f64, m: &mut SMatrix<f64, 2, 2>) {
         let v0 = math::cos(q[1]);
-        out[(0, 0)] = 1.1;
-        out[(0, 1)] = 0.05 * v0;
-        out[(1, 0)] = out[(0, 1)];
-        out[(1, 1)] = 0.03333333333333333;
+        m[(0, 0)] = 1.1;
+        m[(0, 1)] = 0.05 * v0;
+        m[(1, 0)] = m[(0, 1)];
+        m[(1, 1)] = 0.03333333333333333;
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
@@ -70,7 +73,7 @@ impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
         &self,
         _q: &SVector<f64, 2>,
         _t: f64,
-        _out: &mut SMatrix<f64, 0, 2>,
+        _phi_q: &mut SMatrix<f64, 0, 2>,
     ) {}
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
@@ -89,6 +92,26 @@ impl flexdyn_runtime::Model<2, 0, 1> for CartPole {
         _t: f64,
         _gamma: &mut SVector<f64, 0>,
     ) {}
+    ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
+    #[inline]
+    fn dynamics_terms(
+        &self,
+        q: &SVector<f64, 2>,
+        qd: &SVector<f64, 2>,
+        _t: f64,
+        m: &mut SMatrix<f64, 2, 2>,
+        h: &mut SVector<f64, 2>,
+        _phi_q: &mut SMatrix<f64, 0, 2>,
+        _gamma: &mut SVector<f64, 0>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[1]);
+        m[(0, 0)] = 1.1;
+        m[(0, 1)] = 0.05 * v1;
+        m[(1, 0)] = m[(0, 1)];
+        m[(1, 1)] = 0.03333333333333333;
+        h[0] = -0.05 * v0 * qd[1] * qd[1];
+        h[1] = -0.49050000000000005 * v0;
+    }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 2, 1>) {
         *b = SMatrix::zeros();

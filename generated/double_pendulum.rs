@@ -6,13 +6,15 @@
 //   constraint_jacobian               0      0      0      0
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    0      0      0      0
+//   dynamics_terms                    8     26      0      2
 //   kinetic_energy                    4     14      0      2
 //   potential_energy                  2      2      0      2
 //   coriolis_forces                   5     20      0      2
 //   potential_forces                  0      2      0      2
 //   damping_forces                    0      0      0      0
 //   coriolis_matrix                   2     10      0      2
-//   total                            21     74      0     14
+//   total                            29    100      0     16
+// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -33,6 +35,7 @@ pub struct DoublePendulum;
     clippy::neg_multiply,
     clippy::identity_op,
     clippy::suspicious_operation_groupings,
+    clippy::too_many_arguments,
     unused_parens
 )]
 impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
@@ -41,13 +44,13 @@ impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
     const ACTUATORS: [&'static str; 2] = ["tau1", "tau2"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    fn mass_matrix(&self, q: &SVector<f64, 2>, _t: f64, out: &mut SMatrix<f64, 2, 2>) {
+    fn mass_matrix(&self, q: &SVector<f64, 2>, _t: f64, m: &mut SMatrix<f64, 2, 2>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
-        out[(0, 0)] = 0.612;
-        out[(0, 1)] = 0.168 * v1 * v3 + 0.168 * v0 * v2;
-        out[(1, 0)] = out[(0, 1)];
-        out[(1, 1)] = 0.11199999999999999;
+        m[(0, 0)] = 0.612;
+        m[(0, 1)] = 0.168 * v1 * v3 + 0.168 * v0 * v2;
+        m[(1, 0)] = m[(0, 1)];
+        m[(1, 1)] = 0.11199999999999999;
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
@@ -75,7 +78,7 @@ impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
         &self,
         _q: &SVector<f64, 2>,
         _t: f64,
-        _out: &mut SMatrix<f64, 0, 2>,
+        _phi_q: &mut SMatrix<f64, 0, 2>,
     ) {}
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
@@ -94,6 +97,30 @@ impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
         _t: f64,
         _gamma: &mut SVector<f64, 0>,
     ) {}
+    ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
+    #[inline]
+    fn dynamics_terms(
+        &self,
+        q: &SVector<f64, 2>,
+        qd: &SVector<f64, 2>,
+        _t: f64,
+        m: &mut SMatrix<f64, 2, 2>,
+        h: &mut SVector<f64, 2>,
+        _phi_q: &mut SMatrix<f64, 0, 2>,
+        _gamma: &mut SVector<f64, 0>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let v4 = -0.6 * v0 * qd[0] * qd[0] - 0.4 * v2 * qd[1] * qd[1];
+        let v5 = 0.6 * v1 * qd[0] * qd[0] + 0.4 * v3 * qd[1] * qd[1];
+        m[(0, 0)] = 0.612;
+        m[(0, 1)] = 0.168 * v1 * v3 + 0.168 * v0 * v2;
+        m[(1, 0)] = m[(0, 1)];
+        m[(1, 1)] = 0.11199999999999999;
+        h[0] = 10.0062 * v0 + 0.42 * v1 * v4 + 0.42 * v0 * v5;
+        h[1] = 2.7468 * v2 + 0.27999999999999997 * v3 * v4
+            + 0.27999999999999997 * v2 * v5;
+    }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 2, 2>) {
         *b = SMatrix::zeros();

@@ -6,12 +6,14 @@
 //   constraint_jacobian               4      8      0      4
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    6     24      0      4
+//   dynamics_terms                   32     84      0      4
 //   kinetic_energy                   15     40      0      4
 //   potential_energy                  3      4      0      4
 //   coriolis_forces                  16     56      0      4
 //   potential_forces                  0      4      0      4
 //   damping_forces                    0      0      0      0
-//   total                            73    212      0     36
+//   total                           105    296      0     40
+// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -32,6 +34,7 @@ pub struct FiveBar;
     clippy::neg_multiply,
     clippy::identity_op,
     clippy::suspicious_operation_groupings,
+    clippy::too_many_arguments,
     unused_parens
 )]
 impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
@@ -40,20 +43,20 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
     const ACTUATORS: [&'static str; 2] = ["tau1", "tau2"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    fn mass_matrix(&self, q: &SVector<f64, 4>, _t: f64, out: &mut SMatrix<f64, 4, 4>) {
+    fn mass_matrix(&self, q: &SVector<f64, 4>, _t: f64, m: &mut SMatrix<f64, 4, 4>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
         let (v4, v5) = math::sin_cos(q[2]);
         let (v6, v7) = math::sin_cos(q[3]);
-        *out = SMatrix::zeros();
-        out[(0, 0)] = 0.058333333333333334;
-        out[(0, 2)] = 0.056874999999999995 * v0 * v4 + 0.056874999999999995 * v1 * v5;
-        out[(2, 0)] = out[(0, 2)];
-        out[(1, 1)] = 0.027083333333333334;
-        out[(1, 3)] = 0.013125 * v2 * v6 + 0.013125 * v3 * v7;
-        out[(3, 1)] = out[(1, 3)];
-        out[(2, 2)] = 0.0735;
-        out[(3, 3)] = 0.012249999999999999;
+        *m = SMatrix::zeros();
+        m[(0, 0)] = 0.058333333333333334;
+        m[(0, 2)] = 0.056874999999999995 * v0 * v4 + 0.056874999999999995 * v1 * v5;
+        m[(2, 0)] = m[(0, 2)];
+        m[(1, 1)] = 0.027083333333333334;
+        m[(1, 3)] = 0.013125 * v2 * v6 + 0.013125 * v3 * v7;
+        m[(3, 1)] = m[(1, 3)];
+        m[(2, 2)] = 0.0735;
+        m[(3, 3)] = 0.012249999999999999;
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
@@ -98,20 +101,20 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
         &self,
         q: &SVector<f64, 4>,
         _t: f64,
-        out: &mut SMatrix<f64, 2, 4>,
+        phi_q: &mut SMatrix<f64, 2, 4>,
     ) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
         let (v4, v5) = math::sin_cos(q[2]);
         let (v6, v7) = math::sin_cos(q[3]);
-        out[(0, 0)] = -0.25 * v0;
-        out[(0, 1)] = 0.25 * v2;
-        out[(0, 2)] = -0.35 * v4;
-        out[(0, 3)] = 0.35 * v6;
-        out[(1, 0)] = 0.25 * v1;
-        out[(1, 1)] = -0.25 * v3;
-        out[(1, 2)] = 0.35 * v5;
-        out[(1, 3)] = -0.35 * v7;
+        phi_q[(0, 0)] = -0.25 * v0;
+        phi_q[(0, 1)] = 0.25 * v2;
+        phi_q[(0, 2)] = -0.35 * v4;
+        phi_q[(0, 3)] = 0.35 * v6;
+        phi_q[(1, 0)] = 0.25 * v1;
+        phi_q[(1, 1)] = -0.25 * v3;
+        phi_q[(1, 2)] = 0.35 * v5;
+        phi_q[(1, 3)] = -0.35 * v7;
     }
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
@@ -141,6 +144,63 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
             - 0.25 * v3 * qd[1] * qd[1] - 0.35 * v7 * qd[3] * qd[3];
         gamma[1] = 0.25 * v0 * qd[0] * qd[0] + 0.35 * v4 * qd[2] * qd[2]
             - 0.25 * v2 * qd[1] * qd[1] - 0.35 * v6 * qd[3] * qd[3];
+    }
+    ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
+    #[inline]
+    fn dynamics_terms(
+        &self,
+        q: &SVector<f64, 4>,
+        qd: &SVector<f64, 4>,
+        _t: f64,
+        m: &mut SMatrix<f64, 4, 4>,
+        h: &mut SVector<f64, 4>,
+        phi_q: &mut SMatrix<f64, 2, 4>,
+        gamma: &mut SVector<f64, 2>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let (v4, v5) = math::sin_cos(q[2]);
+        let (v6, v7) = math::sin_cos(q[3]);
+        let v8 = v1 * qd[0] * qd[0];
+        let v9 = v0 * qd[0] * qd[0];
+        let v10 = v5 * qd[2] * qd[2];
+        let v11 = v4 * qd[2] * qd[2];
+        let v12 = -0.25 * v8 - 0.35 * v10;
+        let v13 = -0.25 * v9 - 0.35 * v11;
+        let v14 = v3 * qd[1] * qd[1];
+        let v15 = v2 * qd[1] * qd[1];
+        let v16 = v7 * qd[3] * qd[3];
+        let v17 = v6 * qd[3] * qd[3];
+        let v18 = -0.25 * v14 - 0.35 * v16;
+        let v19 = -0.25 * v15 - 0.35 * v17;
+        *m = SMatrix::zeros();
+        m[(0, 0)] = 0.058333333333333334;
+        m[(0, 2)] = 0.056874999999999995 * v0 * v4 + 0.056874999999999995 * v1 * v5;
+        m[(2, 0)] = m[(0, 2)];
+        m[(1, 1)] = 0.027083333333333334;
+        m[(1, 3)] = 0.013125 * v2 * v6 + 0.013125 * v3 * v7;
+        m[(3, 1)] = m[(1, 3)];
+        m[(2, 2)] = 0.0735;
+        m[(3, 3)] = 0.012249999999999999;
+        h[0] = 2.4525 * v1 + 0.1625 * v1 * v13 - 0.1625 * v0 * v12;
+        h[1] = 1.22625 * v3 + 0.0375 * v3 * v19 - 0.0375 * v2 * v18;
+        h[2] = 2.231775 * v5 + 0.0043749999999999995 * v1 * qd[0] * qd[0] * v4
+            + 0.21 * v5 * v13 - 0.0043749999999999995 * v0 * qd[0] * qd[0] * v5
+            - 0.21 * v4 * v12;
+        h[3] = 0.515025 * v7 + 0.0043749999999999995 * v3 * qd[1] * qd[1] * v6
+            + 0.034999999999999996 * v7 * v19
+            - 0.0043749999999999995 * v2 * qd[1] * qd[1] * v7
+            - 0.034999999999999996 * v6 * v18;
+        phi_q[(0, 0)] = -0.25 * v0;
+        phi_q[(0, 1)] = 0.25 * v2;
+        phi_q[(0, 2)] = -0.35 * v4;
+        phi_q[(0, 3)] = 0.35 * v6;
+        phi_q[(1, 0)] = 0.25 * v1;
+        phi_q[(1, 1)] = -0.25 * v3;
+        phi_q[(1, 2)] = 0.35 * v5;
+        phi_q[(1, 3)] = -0.35 * v7;
+        gamma[0] = 0.25 * v8 + 0.35 * v10 - 0.25 * v14 - 0.35 * v16;
+        gamma[1] = 0.25 * v9 + 0.35 * v11 - 0.25 * v15 - 0.35 * v17;
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 4, 2>) {

@@ -6,12 +6,14 @@
 //   constraint_jacobian               0      0      0      0
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    0      0      0      0
+//   dynamics_terms                    1      6      0      1
 //   kinetic_energy                    0      5      0      0
 //   potential_energy                  1      3      0      1
 //   coriolis_forces                   0      0      0      0
 //   potential_forces                  0      3      0      1
 //   damping_forces                    0      1      0      0
-//   total                             2     18      0      3
+//   total                             3     24      0      4
+// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -44,6 +46,7 @@ impl Default for Pendulum {
     clippy::neg_multiply,
     clippy::identity_op,
     clippy::suspicious_operation_groupings,
+    clippy::too_many_arguments,
     unused_parens
 )]
 impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
@@ -52,8 +55,8 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
     const ACTUATORS: [&'static str; 1] = ["tau"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    fn mass_matrix(&self, _q: &SVector<f64, 1>, _t: f64, out: &mut SMatrix<f64, 1, 1>) {
-        out[(0, 0)] = self.m * self.l * self.l;
+    fn mass_matrix(&self, _q: &SVector<f64, 1>, _t: f64, m: &mut SMatrix<f64, 1, 1>) {
+        m[(0, 0)] = self.m * self.l * self.l;
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
@@ -76,7 +79,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         &self,
         _q: &SVector<f64, 1>,
         _t: f64,
-        _out: &mut SMatrix<f64, 0, 1>,
+        _phi_q: &mut SMatrix<f64, 0, 1>,
     ) {}
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
@@ -95,6 +98,22 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         _t: f64,
         _gamma: &mut SVector<f64, 0>,
     ) {}
+    ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
+    #[inline]
+    fn dynamics_terms(
+        &self,
+        q: &SVector<f64, 1>,
+        qd: &SVector<f64, 1>,
+        _t: f64,
+        m: &mut SMatrix<f64, 1, 1>,
+        h: &mut SVector<f64, 1>,
+        _phi_q: &mut SMatrix<f64, 0, 1>,
+        _gamma: &mut SVector<f64, 0>,
+    ) {
+        let v0 = math::sin(q[0]);
+        m[(0, 0)] = self.m * self.l * self.l;
+        h[0] = 9.81 * self.m * self.l * v0 + qd[0] * self.c;
+    }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 1, 1>) {
         *b = SMatrix::zeros();

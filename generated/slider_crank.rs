@@ -6,12 +6,14 @@
 //   constraint_jacobian               3      4      0      2
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    2     12      0      2
+//   dynamics_terms                   15     42      0      2
 //   kinetic_energy                    8     22      0      2
 //   potential_energy                  1      2      0      2
 //   coriolis_forces                   7     28      0      2
 //   potential_forces                  1      2      0      2
 //   damping_forces                    0      0      0      0
-//   total                            35    108      0     18
+//   total                            50    150      0     20
+// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -32,6 +34,7 @@ pub struct SliderCrank;
     clippy::neg_multiply,
     clippy::identity_op,
     clippy::suspicious_operation_groupings,
+    clippy::too_many_arguments,
     unused_parens
 )]
 impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
@@ -40,15 +43,15 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     const ACTUATORS: [&'static str; 1] = ["tau"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    fn mass_matrix(&self, q: &SVector<f64, 3>, _t: f64, out: &mut SMatrix<f64, 3, 3>) {
+    fn mass_matrix(&self, q: &SVector<f64, 3>, _t: f64, m: &mut SMatrix<f64, 3, 3>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
-        *out = SMatrix::zeros();
-        out[(0, 0)] = 0.009666666666666669;
-        out[(0, 1)] = 0.012000000000000002 * v0 * v2 - 0.012000000000000002 * v1 * v3;
-        out[(1, 0)] = out[(0, 1)];
-        out[(1, 1)] = 0.024;
-        out[(2, 2)] = 1.2;
+        *m = SMatrix::zeros();
+        m[(0, 0)] = 0.009666666666666669;
+        m[(0, 1)] = 0.012000000000000002 * v0 * v2 - 0.012000000000000002 * v1 * v3;
+        m[(1, 0)] = m[(0, 1)];
+        m[(1, 1)] = 0.024;
+        m[(2, 2)] = 1.2;
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
@@ -84,16 +87,16 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         &self,
         q: &SVector<f64, 3>,
         _t: f64,
-        out: &mut SMatrix<f64, 2, 3>,
+        phi_q: &mut SMatrix<f64, 2, 3>,
     ) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
-        *out = SMatrix::zeros();
-        out[(0, 0)] = -0.1 * v0;
-        out[(0, 1)] = -0.3 * v2;
-        out[(0, 2)] = -1.0;
-        out[(1, 0)] = 0.1 * v1;
-        out[(1, 1)] = -0.3 * v3;
+        *phi_q = SMatrix::zeros();
+        phi_q[(0, 0)] = -0.1 * v0;
+        phi_q[(0, 1)] = -0.3 * v2;
+        phi_q[(0, 2)] = -1.0;
+        phi_q[(1, 0)] = 0.1 * v1;
+        phi_q[(1, 1)] = -0.3 * v3;
     }
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
@@ -119,6 +122,47 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let (v2, v3) = math::sin_cos(q[1]);
         gamma[0] = 0.1 * v1 * qd[0] * qd[0] + 0.3 * v3 * qd[1] * qd[1];
         gamma[1] = 0.1 * v0 * qd[0] * qd[0] - 0.3 * v2 * qd[1] * qd[1];
+    }
+    ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
+    #[inline]
+    fn dynamics_terms(
+        &self,
+        q: &SVector<f64, 3>,
+        qd: &SVector<f64, 3>,
+        _t: f64,
+        m: &mut SMatrix<f64, 3, 3>,
+        h: &mut SVector<f64, 3>,
+        phi_q: &mut SMatrix<f64, 2, 3>,
+        gamma: &mut SVector<f64, 2>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let v4 = v1 * qd[0] * qd[0];
+        let v5 = v0 * qd[0] * qd[0];
+        let v6 = v3 * qd[1] * qd[1];
+        let v7 = v2 * qd[1] * qd[1];
+        let v8 = -0.1 * v4 - 0.3 * v6;
+        let v9 = 0.3 * v7 - 0.1 * v5;
+        *m = SMatrix::zeros();
+        *phi_q = SMatrix::zeros();
+        m[(0, 0)] = 0.009666666666666669;
+        m[(0, 1)] = 0.012000000000000002 * v0 * v2 - 0.012000000000000002 * v1 * v3;
+        m[(1, 0)] = m[(0, 1)];
+        m[(1, 1)] = 0.024;
+        m[(2, 2)] = 1.2;
+        h[0] = 1.0300500000000001 * v1 + 0.04000000000000001 * v1 * v9
+            - 0.04000000000000001 * v0 * v8;
+        h[1] = 0.004000000000000001 * v1 * qd[0] * qd[0] * v2
+            + 0.004000000000000001 * v0 * qd[0] * qd[0] * v3 - 1.1772 * v3
+            - 0.08 * v2 * v8 - 0.08 * v3 * v9;
+        h[2] = 0.0;
+        phi_q[(0, 0)] = -0.1 * v0;
+        phi_q[(0, 1)] = -0.3 * v2;
+        phi_q[(0, 2)] = -1.0;
+        phi_q[(1, 0)] = 0.1 * v1;
+        phi_q[(1, 1)] = -0.3 * v3;
+        gamma[0] = 0.1 * v4 + 0.3 * v6;
+        gamma[1] = 0.1 * v5 - 0.3 * v7;
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 3, 1>) {

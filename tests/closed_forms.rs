@@ -25,7 +25,7 @@ const G: f64 = 9.81;
 
 #[test]
 fn double_pendulum_matches_textbook() {
-    let model = DoublePendulum::default();
+    let model = DoublePendulum;
     let mut rng = common::rng(2);
     for _ in 0..200 {
         let q = V2::new(rng.gen_range(-3.2..3.2), rng.gen_range(-3.2..3.2));
@@ -68,7 +68,7 @@ const GZ: f64 = 9.81;
 
 #[test]
 fn cart_pole_matches_textbook() {
-    let model = CartPole::default();
+    let model = CartPole;
     let mut rng = common::rng(3);
     for _ in 0..200 {
         let q = V2::new(rng.gen_range(-2.0..2.0), rng.gen_range(-3.2..3.2));
@@ -128,7 +128,7 @@ fn check_coriolis_matrix(
 
 #[test]
 fn coriolis_matrices_are_consistent_and_skew() {
-    let dp = DoublePendulum::default();
+    let dp = DoublePendulum;
     check_coriolis_matrix(
         |q| {
             let mut m = M2::zeros();
@@ -147,7 +147,7 @@ fn coriolis_matrices_are_consistent_and_skew() {
         },
         4,
     );
-    let cp = CartPole::default();
+    let cp = CartPole;
     check_coriolis_matrix(
         |q| {
             let mut m = M2::zeros();

@@ -82,6 +82,62 @@ fn usize_lit(i: usize) -> Literal {
     Literal::usize_unsuffixed(i)
 }
 
+/// What an emitted function is called and how.
+struct Signature {
+    name: &'static str,
+    doc: &'static str,
+    with_qd: bool,
+    optional: bool,
+}
+
+impl Signature {
+    fn new(name: &'static str, doc: &'static str, with_qd: bool) -> Signature {
+        Signature {
+            name,
+            doc,
+            with_qd,
+            optional: false,
+        }
+    }
+
+    fn optional(mut self) -> Signature {
+        self.optional = true;
+        self
+    }
+}
+
+/// Storage of an output.
+#[derive(Clone, Copy)]
+enum Shape {
+    Vector,
+    Matrix { symmetric: bool },
+}
+
+/// One output argument of an emitted function: a vector is one row of entries.
+struct Output<'a> {
+    name: &'static str,
+    shape: Shape,
+    entries: std::borrow::Cow<'a, [Vec<Id>]>,
+}
+
+impl<'a> Output<'a> {
+    fn vector(name: &'static str, entries: &[Id]) -> Output<'a> {
+        Output {
+            name,
+            shape: Shape::Vector,
+            entries: std::borrow::Cow::Owned(vec![entries.to_vec()]),
+        }
+    }
+
+    fn matrix(name: &'static str, entries: &'a [Vec<Id>], symmetric: bool) -> Output<'a> {
+        Output {
+            name,
+            shape: Shape::Matrix { symmetric },
+            entries: std::borrow::Cow::Borrowed(entries),
+        }
+    }
+}
+
 /// Precedence classes for parenthesising.
 const SUM: u8 = 1;
 const PRODUCT: u8 = 2;
@@ -239,121 +295,88 @@ impl Emitter<'_> {
         self.reports.push(FunctionReport { name, ops: p.ops });
     }
 
-    /// A function writing a vector output.
-    fn vector_fn(
-        &mut self,
-        name: &'static str,
-        doc: &str,
-        ids: &[Id],
-        with_qd: bool,
-        out_name: &str,
-        optional: bool,
-    ) -> TokenStream {
-        let n = self.model.nq();
-        let len = usize_lit(ids.len());
-        let nq = usize_lit(n);
-        let p = schedule(self.graph, ids);
-        self.record(name, &p);
-        let used = self.inputs(ids);
-        let body = self.stmts(&p);
-        let out = format_ident!("{}", out_name);
-        let assigns = p.outputs.iter().enumerate().map(|(i, c)| {
-            let i = usize_lit(i);
-            let e = self.code(c, SUM);
-            quote!(#out[#i] = #e;)
-        });
-        let out_arg = if ids.is_empty() {
-            format_ident!("_{}", out_name)
-        } else {
-            out.clone()
-        };
-        let (q, qd, t) = input_idents(used);
-        let fname = format_ident!("{}", name);
-        let (ret, tail) = optional_output(optional);
-        let qd_arg = if with_qd {
-            quote!(#qd: &SVector<f64, #nq>,)
-        } else {
-            quote!()
-        };
-        quote! {
-            #[doc = #doc]
-            #[inline]
-            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SVector<f64, #len>) #ret {
-                #body
-                #(#assigns)*
-                #tail
-            }
-        }
-    }
-
-    /// A function writing a matrix output from `rows x cols` entries (`None`
-    /// entries mirror another; zero entries are written as zeros).
-    fn matrix_fn(
-        &mut self,
-        name: &'static str,
-        doc: &str,
-        entries: &[Vec<Id>],
-        with_qd: bool,
-        symmetric: bool,
-        optional: bool,
-    ) -> TokenStream {
-        let rows = entries.len();
-        let cols = self.model.nq();
-        let nq = usize_lit(cols);
+    /// A function writing one or more outputs (vectors or matrices) from one
+    /// jointly optimised program, so that all outputs share their common
+    /// subexpressions. Matrix entries that are structurally zero are not
+    /// computed: the matrix is zeroed first. Symmetric matrices compute the
+    /// upper triangle and mirror it.
+    fn function(&mut self, sig: Signature, outputs: &[Output]) -> TokenStream {
+        let nq = usize_lit(self.model.nq());
         let zero = self.graph.find_constant(0.0);
         let mut ids = Vec::new();
-        let mut slots = Vec::new();
-        for (i, row) in entries.iter().enumerate() {
-            for (j, &e) in row.iter().enumerate() {
-                if symmetric && j < i {
-                    continue;
-                }
-                if Some(e) != zero {
-                    ids.push(e);
-                    slots.push((i, j));
+        let mut slots: Vec<(usize, usize, usize)> = Vec::new();
+        for (k, o) in outputs.iter().enumerate() {
+            for (i, row) in o.entries.iter().enumerate() {
+                for (j, &e) in row.iter().enumerate() {
+                    let skip = match o.shape {
+                        Shape::Vector => false,
+                        Shape::Matrix { symmetric } => (symmetric && j < i) || Some(e) == zero,
+                    };
+                    if !skip {
+                        ids.push(e);
+                        slots.push((k, i, j));
+                    }
                 }
             }
         }
         let p = schedule(self.graph, &ids);
-        self.record(name, &p);
+        self.record(sig.name, &p);
         let used = self.inputs(&ids);
         let body = self.stmts(&p);
         let mut assigns = TokenStream::new();
-        let has_zeros = slots.len()
-            < if symmetric {
-                rows * (rows + 1) / 2
+        let mut args = TokenStream::new();
+        for (k, o) in outputs.iter().enumerate() {
+            let name = format_ident!("{}", o.name);
+            let count = slots.iter().filter(|s| s.0 == k).count();
+            let arg = if count == 0 {
+                format_ident!("_{}", o.name)
             } else {
-                rows * cols
+                name.clone()
             };
-        if has_zeros {
-            assigns.extend(quote!(*out = SMatrix::zeros();));
+            match o.shape {
+                Shape::Vector => {
+                    let len = usize_lit(o.entries.first().map_or(0, Vec::len));
+                    args.extend(quote!(#arg: &mut SVector<f64, #len>,));
+                }
+                Shape::Matrix { symmetric } => {
+                    let rows = o.entries.len();
+                    let cols = self.model.nq();
+                    let (r, c) = (usize_lit(rows), usize_lit(cols));
+                    args.extend(quote!(#arg: &mut SMatrix<f64, #r, #c>,));
+                    let full = if symmetric { rows * (rows + 1) / 2 } else { rows * cols };
+                    if count > 0 && count < full {
+                        assigns.extend(quote!(*#name = SMatrix::zeros();));
+                    }
+                }
+            }
         }
-        for (c, &(i, j)) in p.outputs.iter().zip(&slots) {
-            let (il, jl) = (usize_lit(i), usize_lit(j));
+        for (c, &(k, i, j)) in p.outputs.iter().zip(&slots) {
+            let name = format_ident!("{}", outputs[k].name);
             let e = self.code(c, SUM);
-            assigns.extend(quote!(out[(#il, #jl)] = #e;));
-            if symmetric && i != j {
-                assigns.extend(quote!(out[(#jl, #il)] = out[(#il, #jl)];));
+            let (il, jl) = (usize_lit(i), usize_lit(j));
+            match outputs[k].shape {
+                Shape::Vector => assigns.extend(quote!(#name[#jl] = #e;)),
+                Shape::Matrix { symmetric } => {
+                    assigns.extend(quote!(#name[(#il, #jl)] = #e;));
+                    if symmetric && i != j {
+                        assigns.extend(quote!(#name[(#jl, #il)] = #name[(#il, #jl)];));
+                    }
+                }
             }
         }
         let (q, qd, t) = input_idents(used);
-        let fname = format_ident!("{}", name);
-        let (ret, tail) = optional_output(optional);
-        let (r, c) = (usize_lit(rows), usize_lit(cols));
-        let qd_arg = if with_qd {
+        let fname = format_ident!("{}", sig.name);
+        let doc = sig.doc;
+        let (ret, tail) = optional_output(sig.optional);
+        let qd_arg = if sig.with_qd {
             quote!(#qd: &SVector<f64, #nq>,)
         } else {
             quote!()
         };
-        let out_arg = if rows * cols == 0 {
-            quote!(_out)
-        } else {
-            quote!(out)
-        };
         quote! {
             #[doc = #doc]
             #[inline]
-            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #out_arg: &mut SMatrix<f64, #r, #c>) #ret {
+            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #args) #ret {
                 #body
                 #assigns
                 #tail
@@ -434,53 +457,54 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
     let sname = format_ident!("{}", struct_name(&model.name));
     let scene = model.name.as_str();
 
-    let mass = e.matrix_fn(
-        "mass_matrix",
-        "Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.",
-        &eq.mass,
-        false,
-        true,
-        false,
+    let mass = e.function(
+        Signature::new(
+            "mass_matrix",
+            "Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.",
+            false,
+        ),
+        &[Output::matrix("m", &eq.mass, true)],
     );
-    let bias = e.vector_fn(
-        "bias",
-        "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.",
-        &eq.bias,
-        true,
-        "h",
-        false,
+    let bias = e.function(
+        Signature::new("bias", "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.", true),
+        &[Output::vector("h", &eq.bias)],
     );
-    let phi = e.vector_fn(
-        "constraints",
-        "Constraint residuals `Phi(q, t)`.",
-        &eq.phi,
-        false,
-        "phi",
-        false,
+    let phi = e.function(
+        Signature::new("constraints", "Constraint residuals `Phi(q, t)`.", false),
+        &[Output::vector("phi", &eq.phi)],
     );
-    let phi_q = e.matrix_fn(
-        "constraint_jacobian",
-        "Constraint Jacobian `Phi_q(q, t)`.",
-        &eq.phi_q,
-        false,
-        false,
-        false,
+    let phi_q = e.function(
+        Signature::new("constraint_jacobian", "Constraint Jacobian `Phi_q(q, t)`.", false),
+        &[Output::matrix("phi_q", &eq.phi_q, false)],
     );
-    let phi_t = e.vector_fn(
-        "constraint_time_derivative",
-        "Explicit time derivative of the constraints `Phi_t(q, t)`.",
-        &eq.phi_t,
-        false,
-        "phi_t",
-        false,
+    let phi_t = e.function(
+        Signature::new(
+            "constraint_time_derivative",
+            "Explicit time derivative of the constraints `Phi_t(q, t)`.",
+            false,
+        ),
+        &[Output::vector("phi_t", &eq.phi_t)],
     );
-    let gamma = e.vector_fn(
-        "constraint_rhs",
-        "Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.",
-        &eq.gamma,
-        true,
-        "gamma",
-        false,
+    let gamma = e.function(
+        Signature::new(
+            "constraint_rhs",
+            "Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.",
+            true,
+        ),
+        &[Output::vector("gamma", &eq.gamma)],
+    );
+    let fused = e.function(
+        Signature::new(
+            "dynamics_terms",
+            "`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).",
+            true,
+        ),
+        &[
+            Output::matrix("m", &eq.mass, true),
+            Output::vector("h", &eq.bias),
+            Output::matrix("phi_q", &eq.phi_q, false),
+            Output::vector("gamma", &eq.gamma),
+        ],
     );
     let kinetic = e.scalar_fn(
         "kinetic_energy",
@@ -535,19 +559,22 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
                 true,
             ),
         ] {
-            optional.extend(e.vector_fn(name, doc, ids, qd, "out", true));
+            optional.extend(e.function(
+                Signature::new(name, doc, qd).optional(),
+                &[Output::vector("out", ids)],
+            ));
         }
     }
     if let Some(cm) = &eq.coriolis_matrix {
-        let f = e.matrix_fn(
-            "coriolis_matrix",
-            "Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.",
-            cm,
-            true,
-            false,
-            true,
-        );
-        optional.extend(f);
+        optional.extend(e.function(
+            Signature::new(
+                "coriolis_matrix",
+                "Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.",
+                true,
+            )
+            .optional(),
+            &[Output::matrix("out", cm, false)],
+        ));
     }
 
     let coords = model.coordinates.iter().map(|c| c.name.as_str());
@@ -613,6 +640,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
             clippy::neg_multiply,
             clippy::identity_op,
             clippy::suspicious_operation_groupings,
+            clippy::too_many_arguments,
             unused_parens
         )]
     };
@@ -640,6 +668,7 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
             #phi_q
             #phi_t
             #gamma
+            #fused
             #[inline]
             fn actuator_map(&self, #b_arg: &mut SMatrix<f64, #nq_l, #nu_l>) {
                 #b_assigns
@@ -666,7 +695,8 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         ));
     }
     header.push_str(&format!(
-        "//   {:<28} {:>6} {:>6} {:>6} {:>6}\n\n",
+        "//   {:<28} {:>6} {:>6} {:>6} {:>6}\n\
+         // (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)\n\n",
         "total", total.adds, total.muls, total.divs, total.calls
     ));
     Emitted {

@@ -140,4 +140,25 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
         let _ = (q, qd, t, out);
         false
     }
+
+    /// `M`, `h`, `Phi_q` and `gamma` at one state, in one call. Generated
+    /// models override it with a single program that shares the common
+    /// subexpressions of all four (the trigonometric functions of the
+    /// coordinates, above all); the default calls the four methods.
+    #[allow(clippy::too_many_arguments)]
+    fn dynamics_terms(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        m: &mut SMatrix<f64, NQ, NQ>,
+        h: &mut SVector<f64, NQ>,
+        phi_q: &mut SMatrix<f64, NC, NQ>,
+        gamma: &mut SVector<f64, NC>,
+    ) {
+        self.mass_matrix(q, t, m);
+        self.bias(q, qd, t, h);
+        self.constraint_jacobian(q, t, phi_q);
+        self.constraint_rhs(q, qd, t, gamma);
+    }
 }
