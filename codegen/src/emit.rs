@@ -343,7 +343,11 @@ impl Emitter<'_> {
                     let cols = self.model.nq();
                     let (r, c) = (usize_lit(rows), usize_lit(cols));
                     args.extend(quote!(#arg: &mut SMatrix<f64, #r, #c>,));
-                    let full = if symmetric { rows * (rows + 1) / 2 } else { rows * cols };
+                    let full = if symmetric {
+                        rows * (rows + 1) / 2
+                    } else {
+                        rows * cols
+                    };
                     if count > 0 && count < full {
                         assigns.extend(quote!(*#name = SMatrix::zeros();));
                     }
@@ -466,7 +470,11 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &[Output::matrix("m", &eq.mass, true)],
     );
     let bias = e.function(
-        Signature::new("bias", "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.", true),
+        Signature::new(
+            "bias",
+            "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.",
+            true,
+        ),
         &[Output::vector("h", &eq.bias)],
     );
     let phi = e.function(
@@ -474,7 +482,11 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         &[Output::vector("phi", &eq.phi)],
     );
     let phi_q = e.function(
-        Signature::new("constraint_jacobian", "Constraint Jacobian `Phi_q(q, t)`.", false),
+        Signature::new(
+            "constraint_jacobian",
+            "Constraint Jacobian `Phi_q(q, t)`.",
+            false,
+        ),
         &[Output::matrix("phi_q", &eq.phi_q, false)],
     );
     let phi_t = e.function(

@@ -1,17 +1,31 @@
 //! From a parsed scene to symbolic energies: checks names, parameters and
 //! physical data, builds kinematic frames, and turns every component into its
 //! kinetic energy `T`, potential energy `V` and dissipation function `D`.
+//!
+//! Order: coordinates, parameters and gravity; then every `flexible_link`
+//! component, whose finite-element model ([`crate::fem`]) is built
+//! numerically and whose modal coordinates `<name>_eta<j>` are appended to
+//! the declared ones; then the frames in file order (a frame with `station`
+//! follows a flexible link's deformed centre line); then the components'
+//! energies, the constraints (`expression`, or the vector constraints
+//! `coincident` and `perpendicular` between frames) and the actuators.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use nalgebra::DMatrix;
 use toml::Spanned;
 
 use crate::error::{Error, Source};
 use crate::expr::{Graph, Id, Symbol};
+use crate::fem::{
+    Beam, BoundaryConditions, FeModel, Invariants, Material, ModalBasis, ModeSelection, Section,
+    RY, RZ, UX,
+};
 use crate::parse::{parse_expr, Binding, Scope, RESERVED};
 use crate::scene::{
-    parse_scene, AxisDef, ComponentDef, FrameDef, ParameterDef, SScalar, Scalar, SceneDef,
+    parse_scene, AxisDef, ComponentDef, ConstraintDef, ConstraintEnd, EndStiffnessDef, FrameDef,
+    ParameterDef, SScalar, Scalar, ScalarList, SceneDef,
 };
 
 /// A generalized coordinate.
@@ -78,6 +92,37 @@ pub struct Outputs {
     pub forces: bool,
 }
 
+/// The finite-element data behind a `flexible_link` component, built
+/// numerically when the scene is read.
+#[derive(Debug, Clone)]
+pub struct FlexibleLink {
+    /// Component name.
+    pub name: String,
+    /// Name of its reference frame.
+    pub frame: String,
+    /// Index in [`Model::coordinates`] of its first modal coordinate; the
+    /// `k` modal coordinates follow in mode order.
+    pub first_coordinate: usize,
+    /// The constrained finite-element model.
+    pub fe: FeModel,
+    /// The kept modes.
+    pub basis: ModalBasis,
+    /// Their inertia invariants.
+    pub invariants: Invariants,
+    /// Modal damping ratio of each kept mode.
+    pub damping_ratio: Vec<f64>,
+    /// `Phi^T Kg1 Phi` for the centrifugal axial force per unit squared
+    /// transverse spin rate, when geometric stiffening is on.
+    pub geometric_stiffness: Option<DMatrix<f64>>,
+}
+
+impl FlexibleLink {
+    /// Number of kept modes.
+    pub fn modes(&self) -> usize {
+        self.basis.len()
+    }
+}
+
 /// A scene turned into symbolic energies.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -99,6 +144,8 @@ pub struct Model {
     pub actuators: Vec<Actuator>,
     /// Optional outputs.
     pub outputs: Outputs,
+    /// Finite-element data of the flexible links, in component order.
+    pub flexible_links: Vec<FlexibleLink>,
 }
 
 impl Model {
@@ -151,6 +198,26 @@ fn check_ident(source: &Source, name: &Spanned<String>, what: &str) -> Result<()
     Ok(())
 }
 
+/// Fields of a `flexible_link` component.
+const FLEXIBLE_LINK_FIELDS: &[&str] = &[
+    "frame",
+    "length",
+    "material",
+    "section",
+    "elements",
+    "modes",
+    "max_frequency",
+    "boundary",
+    "end_stiffness",
+    "damping_ratio",
+    "geometric_stiffening",
+];
+
+/// Most finite elements of one flexible link.
+pub const MAX_ELEMENTS: usize = 200;
+/// Most modes of one flexible link.
+pub const MAX_MODES: usize = 60;
+
 const RUST_KEYWORDS: &[&str] = &[
     "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum", "extern",
     "false", "fn", "for", "gen", "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut",
@@ -188,6 +255,8 @@ struct Builder<'a> {
     gravity: [Id; 3],
     nominal: Vec<f64>,
     parameter_values: BTreeMap<String, f64>,
+    /// Flexible links with the index of their component.
+    flexible: Vec<(usize, FlexibleLink)>,
 }
 
 impl<'a> Builder<'a> {
@@ -202,6 +271,7 @@ impl<'a> Builder<'a> {
             gravity: [zero; 3],
             nominal: Vec::new(),
             parameter_values: BTreeMap::new(),
+            flexible: Vec::new(),
         }
     }
 
@@ -218,7 +288,7 @@ impl<'a> Builder<'a> {
                 "scene name must be lower case (it names a Rust module)",
             ));
         }
-        let coordinates = self.coordinates(def)?;
+        let mut coordinates = self.coordinates(def)?;
         let runtime_parameters = self.parameters(def)?;
         self.gravity = match &def.gravity {
             Some(v) => self.vector(v, None, false)?,
@@ -228,6 +298,16 @@ impl<'a> Builder<'a> {
                 [zero, zero, g]
             }
         };
+        // Flexible links first: their finite-element models are built
+        // numerically and their modal coordinates appended to the declared
+        // ones, so that frames (stations), components and constraints below
+        // can use them.
+        for (i, c) in def.components.iter().enumerate() {
+            if c.kind.get_ref() == "flexible_link" {
+                let link = self.flexible_link(i, c, &mut coordinates)?;
+                self.flexible.push((i, link));
+            }
+        }
         self.frames(&def.frames)?;
         let mut components = Vec::new();
         for (i, c) in def.components.iter().enumerate() {
@@ -235,13 +315,7 @@ impl<'a> Builder<'a> {
         }
         let mut constraints = Vec::new();
         for (i, c) in def.constraints.iter().enumerate() {
-            let name = c
-                .name
-                .as_ref()
-                .map_or_else(|| format!("constraint{i}"), |n| n.get_ref().clone());
-            let ctx = format!("constraint `{name}`");
-            let residual = self.scalar(&c.expression, Some(&ctx), false)?;
-            constraints.push(Constraint { name, residual });
+            self.constraint(i, c, &mut constraints)?;
         }
         let mut actuators = Vec::new();
         for a in &def.actuators {
@@ -291,6 +365,7 @@ impl<'a> Builder<'a> {
             constraints,
             actuators,
             outputs,
+            flexible_links: self.flexible.into_iter().map(|(_, l)| l).collect(),
         })
     }
 
@@ -519,45 +594,895 @@ impl<'a> Builder<'a> {
             if f.name.get_ref() == "world" || self.frames.contains_key(f.name.get_ref()) {
                 return Err(self.err(f.name.span().start, Some(&ctx), "frame is defined twice"));
             }
-            let parent = match &f.parent {
+            let mut parent = match &f.parent {
                 Some(p) => self.lookup_frame(p, &ctx)?,
                 None => self.world(),
             };
+            if let Some(station) = &f.station {
+                parent = self.station_frame(f, station, &parent, &ctx)?;
+            }
             let translation = match &f.translation {
                 Some(t) => self.vector(t, Some(&ctx), false)?,
                 None => [self.graph.constant(0.0); 3],
             };
-            let offset = self.rotate(&parent.rotation, translation);
-            let origin: [Id; 3] =
-                std::array::from_fn(|k| self.graph.add(parent.origin[k], offset[k]));
-            // Origin velocity in parent axes: v_parent + w_parent x t + dt/dt.
-            let mut velocity = self.moving_point_velocity(&parent, translation);
-            let mut rotation = parent.rotation;
-            let mut omega = parent.omega;
+            let mut rotations = Vec::with_capacity(f.rotation.len());
             for r in &f.rotation {
                 let axis = self.axis(&r.axis, &ctx)?;
                 let angle = self.scalar(&r.angle, Some(&ctx), false)?;
-                let local = self.axis_rotation(axis, angle);
-                rotation = self.matmul(&rotation, &local);
-                // omega_child = R_local^T omega_parent + axis * angle_dot
-                let rate = self.graph.time_derivative_at_zero_acceleration(&[angle])[0];
-                velocity = self.rotate_transpose(&local, velocity);
-                let rotated = self.rotate_transpose(&local, omega);
-                omega = std::array::from_fn(|k| {
-                    let a = self.graph.constant(axis[k]);
-                    let term = self.graph.mul(a, rate);
-                    self.graph.add(rotated[k], term)
+                rotations.push((axis, angle));
+            }
+            let frame = self.child_frame(&parent, translation, &rotations);
+            self.frames.insert(f.name.get_ref().clone(), frame);
+        }
+        Ok(())
+    }
+
+    /// The frame at `translation` (in `parent`'s axes) from `parent`'s
+    /// origin, rotated from `parent` by `rotations` in turn (intrinsic).
+    fn child_frame(
+        &mut self,
+        parent: &Frame,
+        translation: [Id; 3],
+        rotations: &[([f64; 3], Id)],
+    ) -> Frame {
+        let offset = self.rotate(&parent.rotation, translation);
+        let origin: [Id; 3] = std::array::from_fn(|k| self.graph.add(parent.origin[k], offset[k]));
+        // Origin velocity in parent axes: v_parent + w_parent x t + dt/dt.
+        let mut velocity = self.moving_point_velocity(parent, translation);
+        let mut rotation = parent.rotation;
+        let mut omega = parent.omega;
+        for &(axis, angle) in rotations {
+            let local = self.axis_rotation(axis, angle);
+            rotation = self.matmul(&rotation, &local);
+            // omega_child = R_local^T omega_parent + axis * angle_dot
+            let rate = self.graph.time_derivative_at_zero_acceleration(&[angle])[0];
+            velocity = self.rotate_transpose(&local, velocity);
+            let rotated = self.rotate_transpose(&local, omega);
+            omega = std::array::from_fn(|k| {
+                let a = self.graph.constant(axis[k]);
+                let term = self.graph.mul(a, rate);
+                self.graph.add(rotated[k], term)
+            });
+        }
+        Frame {
+            rotation,
+            origin,
+            velocity,
+            omega,
+        }
+    }
+
+    /// The frame that follows a flexible link at a station: origin at the
+    /// deformed centre line `u0(x) + Phi_t(x) eta`, axes rotated by the small
+    /// elastic rotation `theta = Phi_r(x) eta` as elementary rotations about
+    /// x, y, z in turn (orthogonal; `I + skew(theta)` to first order).
+    fn station_frame(
+        &mut self,
+        f: &FrameDef,
+        station: &SScalar,
+        parent: &Frame,
+        ctx: &str,
+    ) -> Result<Frame, Error> {
+        let at = station.span().start;
+        let Some(parent_name) = &f.parent else {
+            return Err(self.err(
+                at,
+                Some(ctx),
+                "a `station` needs `parent`: the reference frame of a flexible link",
+            ));
+        };
+        let links: Vec<usize> = (0..self.flexible.len())
+            .filter(|&i| self.flexible[i].1.frame == *parent_name.get_ref())
+            .collect();
+        let link = match links.as_slice() {
+            [i] => *i,
+            [] => {
+                return Err(self.err(
+                    at,
+                    Some(ctx),
+                    format!(
+                        "frame `{}` is not the reference frame of a flexible link, so it has no stations",
+                        parent_name.get_ref()
+                    ),
+                ))
+            }
+            _ => {
+                let names: Vec<&str> = links
+                    .iter()
+                    .map(|&i| self.flexible[i].1.name.as_str())
+                    .collect();
+                return Err(self.err(
+                    at,
+                    Some(ctx),
+                    format!(
+                        "frame `{}` is the reference frame of several flexible links ({}); give each its own frame",
+                        parent_name.get_ref(),
+                        names.join(", ")
+                    ),
+                ));
+            }
+        };
+        let length = self.flexible[link].1.basis.beam.length;
+        let x = match station.get_ref() {
+            Scalar::Expr(e) if e.trim() == "start" => 0.0,
+            Scalar::Expr(e) if e.trim() == "end" => length,
+            _ => self.constant_value(station, ctx, "station")?,
+        };
+        if !(x >= 0.0 && x <= length * (1.0 + 1e-12)) {
+            return Err(self.err(
+                at,
+                Some(ctx),
+                format!(
+                    "station x = {x} is outside the link `{}` (0 to {length})",
+                    self.flexible[link].1.name
+                ),
+            ));
+        }
+        let link = &self.flexible[link].1;
+        let st = link
+            .basis
+            .station(x.min(length))
+            .map_err(|e| self.err(at, Some(ctx), e))?;
+        let first = link.first_coordinate;
+        let eta: Vec<Id> = (0..st.translation.ncols())
+            .map(|j| self.graph.q(first + j))
+            .collect();
+        let row = |m: &DMatrix<f64>, a: usize| -> Vec<f64> { m.row(a).iter().copied().collect() };
+        let (tr, rot) = (st.translation.clone(), st.rotation.clone());
+        let translation: [Id; 3] = std::array::from_fn(|a| {
+            let u0 = if a == 0 { x } else { 0.0 };
+            let coeffs = row(&tr, a);
+            self.modal_linear(u0, &coeffs, &eta)
+        });
+        let mut rotations = Vec::new();
+        for a in 0..3 {
+            let coeffs = row(&rot, a);
+            let angle = self.modal_linear(0.0, &coeffs, &eta);
+            if !self.graph.is_const(angle, 0.0) {
+                let mut axis = [0.0; 3];
+                axis[a] = 1.0;
+                rotations.push((axis, angle));
+            }
+        }
+        Ok(self.child_frame(parent, translation, &rotations))
+    }
+
+    /// `constant + sum_j coeffs[j] vars[j]`, dropping the coefficients below
+    /// `1e-14` of the largest (round-off of entries that are zero).
+    fn modal_linear(&mut self, constant: f64, coeffs: &[f64], vars: &[Id]) -> Id {
+        let scale = coeffs.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        let terms: Vec<(Id, f64)> = coeffs
+            .iter()
+            .zip(vars)
+            .filter(|(c, _)| c.abs() > 1e-14 * scale)
+            .map(|(&c, &v)| (v, c))
+            .collect();
+        self.graph.linear(&terms, constant)
+    }
+
+    /// A constant: numbers and folded parameters only (the finite-element
+    /// model of a flexible link is built when the code is generated).
+    fn constant_value(&mut self, s: &SScalar, ctx: &str, what: &str) -> Result<f64, Error> {
+        let id = self.scalar(s, Some(ctx), false)?;
+        if !self.graph.symbols(&[id]).is_empty() {
+            return Err(self.err(
+                s.span().start,
+                Some(ctx),
+                format!(
+                    "{what} must be a constant (numbers and parameters folded at generation time, \
+                     not runtime parameters, coordinates or time): the finite-element model is \
+                     built when the code is generated"
+                ),
+            ));
+        }
+        Ok(self.graph.eval(&[id], &|_| 0.0)[0])
+    }
+
+    fn constant_positive(&mut self, s: &SScalar, ctx: &str, what: &str) -> Result<f64, Error> {
+        let v = self.constant_value(s, ctx, what)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(
+                s.span().start,
+                Some(ctx),
+                format!("{what} must be positive, found {v}"),
+            ))
+        }
+    }
+
+    /// A whole number in `[min, max]`.
+    fn constant_count(
+        &mut self,
+        s: &SScalar,
+        ctx: &str,
+        what: &str,
+        min: usize,
+        max: usize,
+    ) -> Result<usize, Error> {
+        let v = self.constant_value(s, ctx, what)?;
+        if v.fract() != 0.0 || v < min as f64 || v > max as f64 {
+            return Err(self.err(
+                s.span().start,
+                Some(ctx),
+                format!("{what} must be a whole number from {min} to {max}, found {v}"),
+            ));
+        }
+        Ok(v as usize)
+    }
+
+    /// Reads a `flexible_link` component, builds its finite-element model
+    /// and modes, and appends its modal coordinates `<name>_eta<j>`.
+    fn flexible_link(
+        &mut self,
+        index: usize,
+        c: &ComponentDef,
+        coordinates: &mut Vec<Coordinate>,
+    ) -> Result<FlexibleLink, Error> {
+        let kind = "flexible_link";
+        let name = match &c.name {
+            Some(n) => {
+                check_ident(self.source, n, "component")?;
+                n.get_ref().clone()
+            }
+            None => format!("{kind}{index}"),
+        };
+        let ctx = format!("component `{name}`");
+        let ctx = ctx.as_str();
+        self.check_fields(c, FLEXIBLE_LINK_FIELDS, ctx)?;
+        let kind_at = c.kind.span().start;
+        let need = |b: &Self, field: &str| {
+            b.err(
+                kind_at,
+                Some(ctx),
+                format!("a `{kind}` component needs `{field}`"),
+            )
+        };
+        let Some(frame) = &c.frame else {
+            return Err(need(self, "frame"));
+        };
+        let length = match &c.length {
+            Some(l) => self.constant_positive(l, ctx, "length")?,
+            None => return Err(need(self, "length")),
+        };
+        let Some(material) = &c.material else {
+            return Err(need(self, "material"));
+        };
+        let Some(section) = &c.section else {
+            return Err(need(self, "section"));
+        };
+        let Some(boundary) = &c.boundary else {
+            return Err(need(self, "boundary"));
+        };
+
+        // Material.
+        let m = material.get_ref();
+        let e = self.constant_positive(&m.youngs_modulus, ctx, "Young's modulus")?;
+        let rho = self.constant_positive(&m.density, ctx, "density")?;
+        let material = match (&m.poisson, &m.shear_modulus) {
+            (Some(nu_s), None) => {
+                let nu = self.constant_value(nu_s, ctx, "Poisson's ratio")?;
+                if !(nu > -1.0 && nu < 0.5) {
+                    return Err(self.err(
+                        nu_s.span().start,
+                        Some(ctx),
+                        format!("Poisson's ratio must lie in (-1, 0.5), found {nu}"),
+                    ));
+                }
+                Material::new(e, nu, rho)
+            }
+            (None, Some(g_s)) => {
+                let g = self.constant_positive(g_s, ctx, "shear modulus")?;
+                Material::with_shear_modulus(e, g, rho)
+            }
+            (Some(_), Some(g_s)) => {
+                return Err(self.err(
+                    g_s.span().start,
+                    Some(ctx),
+                    "give either `poisson` or `shear_modulus`, not both",
+                ))
+            }
+            (None, None) => {
+                return Err(self.err(
+                    material.span().start,
+                    Some(ctx),
+                    "the material needs `poisson` or `shear_modulus`",
+                ))
+            }
+        }
+        .map_err(|e| self.err(material.span().start, Some(ctx), e))?;
+
+        // Section.
+        let sd = section.get_ref();
+        let section_at = section.span().start;
+        let section = match (&sd.radius, &sd.area, &sd.outer_radius, &sd.inner_radius) {
+            (Some(r), None, None, None) => {
+                Section::circle(self.constant_positive(r, ctx, "radius")?)
+            }
+            (None, Some(a), None, None) => {
+                Section::circle_with_area(self.constant_positive(a, ctx, "area")?)
+            }
+            (None, None, Some(ro), Some(ri)) => {
+                let ro_v = self.constant_positive(ro, ctx, "outer radius")?;
+                let ri_v = self.constant_positive(ri, ctx, "inner radius")?;
+                if ri_v >= ro_v {
+                    return Err(self.err(
+                        ri.span().start,
+                        Some(ctx),
+                        format!("inner radius {ri_v} must be smaller than the outer radius {ro_v}"),
+                    ));
+                }
+                Section::tube(ro_v, ri_v)
+            }
+            (None, None, Some(_), None) | (None, None, None, Some(_)) => {
+                return Err(self.err(
+                    section_at,
+                    Some(ctx),
+                    "a tube section needs both `outer_radius` and `inner_radius`",
+                ))
+            }
+            (None, None, None, None) => {
+                return Err(self.err(
+                    section_at,
+                    Some(ctx),
+                    "the section needs `radius`, `area`, or `outer_radius` and `inner_radius`",
+                ))
+            }
+            _ => {
+                return Err(self.err(
+                    section_at,
+                    Some(ctx),
+                    "give one of `radius`, `area`, or `outer_radius` with `inner_radius`",
+                ))
+            }
+        }
+        .map_err(|e| self.err(section_at, Some(ctx), e))?;
+
+        let elements = match &c.elements {
+            Some(n) => self.constant_count(n, ctx, "elements", 1, MAX_ELEMENTS)?,
+            None => 20,
+        };
+        let beam = Beam::new(length, material, section, elements)
+            .map_err(|e| self.err(kind_at, Some(ctx), e))?;
+
+        // Boundary conditions.
+        let b_at = boundary.span().start;
+        let mut bc = match boundary.get_ref().as_str() {
+            "pinned_pinned" | "pinned_pinned_elastic" => BoundaryConditions::pinned_pinned(),
+            "clamped_free" => BoundaryConditions::clamped_free(),
+            "clamped_clamped" => BoundaryConditions::clamped_clamped(),
+            "free_free" => BoundaryConditions::free_free(),
+            other => {
+                return Err(self.err(
+                    b_at,
+                    Some(ctx),
+                    format!(
+                        "unknown boundary `{other}` (known: pinned_pinned, clamped_free, \
+                         clamped_clamped, free_free, pinned_pinned_elastic)"
+                    ),
+                ))
+            }
+        };
+        let elastic = boundary.get_ref() == "pinned_pinned_elastic";
+        match (&c.end_stiffness, elastic) {
+            (Some(k), false) => {
+                return Err(self.err(
+                    k.span().start,
+                    Some(ctx),
+                    "`end_stiffness` applies only to `boundary = \"pinned_pinned_elastic\"`",
+                ))
+            }
+            (None, true) => {
+                return Err(self.err(
+                    b_at,
+                    Some(ctx),
+                    "`pinned_pinned_elastic` needs `end_stiffness = [k_y, k_z]`",
+                ))
+            }
+            (Some(k), true) => {
+                let pair = |b: &mut Self, v: &Spanned<Vec<SScalar>>| -> Result<[f64; 2], Error> {
+                    if v.get_ref().len() != 2 {
+                        return Err(b.err(
+                            v.span().start,
+                            Some(ctx),
+                            format!(
+                                "end stiffness must be two numbers [k_y, k_z], found {}",
+                                v.get_ref().len()
+                            ),
+                        ));
+                    }
+                    let mut out = [0.0; 2];
+                    for (o, s) in out.iter_mut().zip(v.get_ref()) {
+                        *o = b.constant_value(s, ctx, "end stiffness")?;
+                        if o.is_nan() || *o < 0.0 {
+                            return Err(b.err(
+                                s.span().start,
+                                Some(ctx),
+                                format!("end stiffness must be non-negative, found {o}"),
+                            ));
+                        }
+                    }
+                    Ok(out)
+                };
+                let (start, end) = match k.get_ref() {
+                    EndStiffnessDef::Both(v) => {
+                        let both = pair(self, &Spanned::new(k.span(), v.clone()))?;
+                        (Some(both), Some(both))
+                    }
+                    EndStiffnessDef::PerEnd(t) => {
+                        let start = t.start.as_ref().map(|v| pair(self, v)).transpose()?;
+                        let end = t.end.as_ref().map(|v| pair(self, v)).transpose()?;
+                        (start, end)
+                    }
+                };
+                if let Some([ky, kz]) = start {
+                    bc.start = bc.start.with_spring(RY, ky).with_spring(RZ, kz);
+                }
+                if let Some([ky, kz]) = end {
+                    bc.end = bc.end.with_spring(RY, ky).with_spring(RZ, kz);
+                }
+            }
+            (None, false) => {}
+        }
+        let fe = FeModel::new(&beam, &bc).map_err(|e| self.err(b_at, Some(ctx), e))?;
+        let all = fe.modes().map_err(|e| self.err(b_at, Some(ctx), e))?;
+
+        // Modes kept.
+        let selection = match (&c.modes, &c.max_frequency) {
+            (Some(_), Some(f)) => {
+                return Err(self.err(
+                    f.span().start,
+                    Some(ctx),
+                    "give either `modes` or `max_frequency`, not both",
+                ))
+            }
+            (Some(k), None) => {
+                let n = self.constant_count(k, ctx, "modes", 0, MAX_MODES)?;
+                if n > all.len() {
+                    return Err(self.err(
+                        k.span().start,
+                        Some(ctx),
+                        format!(
+                            "{n} modes asked for, but the mesh of {elements} elements has only {} \
+                             elastic modes",
+                            all.len()
+                        ),
+                    ));
+                }
+                ModeSelection::First(n)
+            }
+            (None, Some(f)) => {
+                ModeSelection::BelowHz(self.constant_positive(f, ctx, "max_frequency")?)
+            }
+            (None, None) => ModeSelection::First(6.min(all.len())),
+        };
+        let basis = all.select(selection);
+        if basis.len() > MAX_MODES {
+            let at = c.max_frequency.as_ref().map_or(kind_at, |f| f.span().start);
+            return Err(self.err(
+                at,
+                Some(ctx),
+                format!(
+                    "{} modes lie below max_frequency; at most {MAX_MODES} are supported",
+                    basis.len()
+                ),
+            ));
+        }
+        let k = basis.len();
+        let invariants = Invariants::new(&fe, &basis);
+
+        // Damping.
+        let damping_ratio = match &c.damping_ratio {
+            None => vec![0.0; k],
+            Some(d) => {
+                let at = d.span().start;
+                let values: Vec<(f64, usize)> = match d.get_ref() {
+                    ScalarList::One(v) => {
+                        let s = Spanned::new(d.span(), v.clone());
+                        let z = self.constant_value(&s, ctx, "damping ratio")?;
+                        vec![(z, at); k]
+                    }
+                    ScalarList::Many(list) => {
+                        if list.len() != k {
+                            return Err(self.err(
+                                at,
+                                Some(ctx),
+                                format!(
+                                    "damping_ratio has {} values but {k} modes are kept \
+                                     (give one value for all modes, or one per mode)",
+                                    list.len()
+                                ),
+                            ));
+                        }
+                        let mut out = Vec::with_capacity(k);
+                        for s in list {
+                            let z = self.constant_value(s, ctx, "damping ratio")?;
+                            out.push((z, s.span().start));
+                        }
+                        out
+                    }
+                };
+                let mut out = Vec::with_capacity(k);
+                for (z, at) in values {
+                    if z.is_nan() || z < 0.0 {
+                        return Err(self.err(
+                            at,
+                            Some(ctx),
+                            format!("damping ratio must be non-negative, found {z}"),
+                        ));
+                    }
+                    out.push(z);
+                }
+                out
+            }
+        };
+
+        // Centrifugal stiffening.
+        let geometric_stiffness = match &c.geometric_stiffening {
+            Some(g) if *g.get_ref() => {
+                if !bc.start.fixed[UX] || bc.end.fixed[UX] {
+                    return Err(self.err(
+                        g.span().start,
+                        Some(ctx),
+                        format!(
+                            "geometric_stiffening is supported only for links held axially at \
+                             the start and free axially at the end (clamped_free, pinned_pinned, \
+                             pinned_pinned_elastic), not `{}`",
+                            boundary.get_ref()
+                        ),
+                    ));
+                }
+                let rho_a = beam.mass_per_length();
+                let kg = fe.geometric_stiffness(|x| 0.5 * rho_a * (length * length - x * x));
+                Some(basis.project(&kg))
+            }
+            _ => None,
+        };
+
+        // Modal coordinates.
+        let name_at = c.name.as_ref().map_or(kind_at, |n| n.span().start);
+        let first_coordinate = coordinates.len();
+        let g0 = 9.81;
+        for j in 0..k {
+            let cname = format!("{name}_eta{}", j + 1);
+            if coordinates.iter().any(|o| o.name == cname)
+                || self.scope.parameters.contains_key(&cname)
+            {
+                return Err(self.err(
+                    name_at,
+                    Some(ctx),
+                    format!(
+                        "the modal coordinate `{cname}` of this link has the name of a \
+                         coordinate or parameter declared already"
+                    ),
+                ));
+            }
+            let w = basis.omega[j];
+            let amplitude = 10.0 * g0 * invariants.mass.sqrt() / (w * w);
+            coordinates.push(Coordinate {
+                name: cname.clone(),
+                range: Some([-amplitude, amplitude]),
+                velocity_range: Some([-w * amplitude, w * amplitude]),
+            });
+            self.scope.coordinates.push(cname);
+        }
+        Ok(FlexibleLink {
+            name,
+            frame: frame.get_ref().clone(),
+            first_coordinate,
+            fe,
+            basis,
+            invariants,
+            damping_ratio,
+            geometric_stiffness,
+        })
+    }
+
+    /// `sum_ij q[i][j] a_i b_j`, dropping entries below `1e-14 * scale`.
+    fn modal_bilinear(&mut self, q: &DMatrix<f64>, a: &[Id], b: &[Id], scale: f64) -> Id {
+        let mut terms = Vec::new();
+        for i in 0..q.nrows() {
+            for j in 0..q.ncols() {
+                let v = q[(i, j)];
+                if v.abs() > 1e-14 * scale {
+                    terms.push((self.graph.mul(a[i], b[j]), v));
+                }
+            }
+        }
+        self.graph.linear(&terms, 0.0)
+    }
+
+    /// `sum_ij q[i][j] a_i a_j`, dropping the entries below `1e-14` of
+    /// `bound[i][j]`.
+    fn modal_projected(&mut self, q: &DMatrix<f64>, bound: &DMatrix<f64>, a: &[Id]) -> Id {
+        let mut terms = Vec::new();
+        for i in 0..q.nrows() {
+            for j in 0..q.ncols() {
+                let v = q[(i, j)];
+                if v.abs() > 1e-14 * bound[(i, j)] {
+                    terms.push((self.graph.mul(a[i], a[j]), v));
+                }
+            }
+        }
+        self.graph.linear(&terms, 0.0)
+    }
+
+    /// `T`, `V` and `D` of a flexible link in the floating frame of
+    /// reference (see the [`crate::fem`] module docs for the formulas).
+    #[allow(clippy::needless_range_loop)]
+    fn flexible_energies(&mut self, link: &FlexibleLink, frame: &Frame) -> (Id, Id, Id) {
+        let inv = &link.invariants;
+        let k = link.modes();
+        let eta: Vec<Id> = (0..k)
+            .map(|j| self.graph.q(link.first_coordinate + j))
+            .collect();
+        let etad: Vec<Id> = (0..k)
+            .map(|j| self.graph.qd(link.first_coordinate + j))
+            .collect();
+        let amax = |m: &DMatrix<f64>| m.amax();
+        let s1_scale = amax(&inv.s1);
+        let i1_scale = inv.i1.iter().flatten().fold(0.0f64, |m, v| m.max(v.amax()));
+        let i2_scale = inv.i2.iter().flatten().fold(0.0f64, |m, v| m.max(v.amax()));
+        let drop = |v: f64, scale: f64| if v.abs() > 1e-14 * scale { v } else { 0.0 };
+        // First moment c(eta) = S0 + S1 eta.
+        let c: [Id; 3] = std::array::from_fn(|a| {
+            let coeffs: Vec<f64> = (0..k).map(|j| drop(inv.s1[(a, j)], s1_scale)).collect();
+            self.modal_linear(inv.s0[a], &coeffs, &eta)
+        });
+        // Second moments J_ab(eta).
+        let i0_scale = inv.i0.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut j = [[self.graph.constant(0.0); 3]; 3];
+        for a in 0..3 {
+            for b in a..3 {
+                let coeffs: Vec<f64> = (0..k)
+                    .map(|m| drop(inv.i1[a][b][m] + inv.i1[b][a][m], i1_scale))
+                    .collect();
+                let lin = self.modal_linear(drop(inv.i0[a][b], i0_scale), &coeffs, &eta);
+                let quad = self.modal_bilinear(&inv.i2[a][b], &eta, &eta, i2_scale);
+                j[a][b] = self.graph.add(lin, quad);
+                j[b][a] = j[a][b];
+            }
+        }
+        let trace = self.graph.sum(&[j[0][0], j[1][1], j[2][2]]);
+        let theta: [[Id; 3]; 3] = std::array::from_fn(|a| {
+            std::array::from_fn(|b| {
+                if a == b {
+                    self.graph.sub(trace, j[a][a])
+                } else {
+                    self.graph.neg(j[a][b])
+                }
+            })
+        });
+        // h = sum eps_abc (I1[b][c].eta_dot + eta^T I2[b][c] eta_dot).
+        let mut g = [[self.graph.constant(0.0); 3]; 3];
+        for b in 0..3 {
+            for cc in 0..3 {
+                if b == cc {
+                    continue;
+                }
+                let coeffs: Vec<f64> = (0..k).map(|m| drop(inv.i1[b][cc][m], i1_scale)).collect();
+                let lin = self.modal_linear(0.0, &coeffs, &etad);
+                let quad = self.modal_bilinear(&inv.i2[b][cc], &eta, &etad, i2_scale);
+                g[b][cc] = self.graph.add(lin, quad);
+            }
+        }
+        let h = [
+            self.graph.sub(g[1][2], g[2][1]),
+            self.graph.sub(g[2][0], g[0][2]),
+            self.graph.sub(g[0][1], g[1][0]),
+        ];
+        let (v, w) = (frame.velocity, frame.omega);
+        let m = self.graph.constant(inv.mass);
+        let vv = self.dot(v, v);
+        let t_trans = self.graph.mul(m, vv);
+        let wc = self.cross(w, c);
+        let t_coupling = self.dot(v, wc);
+        let mut rot_terms = Vec::new();
+        for a in 0..3 {
+            for b in 0..3 {
+                let ww = self.graph.mul(w[a], w[b]);
+                rot_terms.push((self.graph.mul(ww, theta[a][b]), 0.5));
+            }
+        }
+        let t_rot = self.graph.linear(&rot_terms, 0.0);
+        let s1_ed: [Id; 3] = std::array::from_fn(|a| {
+            let coeffs: Vec<f64> = (0..k).map(|j| drop(inv.s1[(a, j)], s1_scale)).collect();
+            self.modal_linear(0.0, &coeffs, &etad)
+        });
+        let t_vf = self.dot(v, s1_ed);
+        let t_wh = self.dot(w, h);
+        // Mff and Kff are projections Phi^T A Phi of the whole mesh's
+        // matrices: an entry is round-off of zero when it is below 1e-14 of
+        // the sum of the absolute values of its products,
+        // (|Phi|^T |A| |Phi|)_ij (the off-diagonal entries of the
+        // orthogonal modes, mathematically zero).
+        let abs_phi = link.basis.shapes.abs();
+        let bound = |a: &DMatrix<f64>| abs_phi.transpose() * a.abs() * &abs_phi;
+        let mff_bound = bound(&link.fe.mass);
+        let kff_bound = bound(&link.fe.stiffness);
+        let t_ff = self.modal_projected(&inv.mff, &mff_bound, &etad);
+        let mut kinetic = self.graph.linear(
+            &[
+                (t_trans, 0.5),
+                (t_coupling, 1.0),
+                (t_rot, 1.0),
+                (t_vf, 1.0),
+                (t_wh, 1.0),
+                (t_ff, 0.5),
+            ],
+            0.0,
+        );
+        if let Some(kg) = &link.geometric_stiffness {
+            // Centrifugal stiffening, a velocity-dependent potential
+            // 1/2 (w_y^2 + w_z^2) eta^T Kg1 eta, enters the Lagrangian T - V
+            // as part of T with a minus sign.
+            let stiff = self.modal_bilinear(kg, &eta, &eta, kg.amax());
+            let wy2 = self.graph.powi(w[1], 2);
+            let wz2 = self.graph.powi(w[2], 2);
+            let spin = self.graph.add(wy2, wz2);
+            let u = self.graph.mul(spin, stiff);
+            kinetic = self.graph.linear(&[(kinetic, 1.0), (u, -0.5)], 0.0);
+        }
+        // Strain and gravity: 1/2 eta^T Kff eta - g.(m R + A c(eta)).
+        let strain = self.modal_projected(&inv.kff, &kff_bound, &eta);
+        let ac = self.rotate(&frame.rotation, c);
+        let mr: [Id; 3] = std::array::from_fn(|a| {
+            let mo = self.graph.mul(m, frame.origin[a]);
+            self.graph.add(mo, ac[a])
+        });
+        let gp = self.dot(self.gravity, mr);
+        let potential = self.graph.linear(&[(strain, 0.5), (gp, -1.0)], 0.0);
+        // Modal damping: D = sum zeta_j w_j eta_dot_j^2.
+        let mut d_terms = Vec::new();
+        for (jj, &z) in link.damping_ratio.iter().enumerate() {
+            if z > 0.0 {
+                let e2 = self.graph.powi(etad[jj], 2);
+                d_terms.push((e2, z * link.basis.omega[jj]));
+            }
+        }
+        let dissipation = self.graph.linear(&d_terms, 0.0);
+        (kinetic, potential, dissipation)
+    }
+
+    fn cross(&mut self, a: [Id; 3], b: [Id; 3]) -> [Id; 3] {
+        std::array::from_fn(|k| {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            let p = self.graph.mul(a[i], b[j]);
+            let q = self.graph.mul(a[j], b[i]);
+            self.graph.sub(p, q)
+        })
+    }
+
+    /// A point or direction of a vector constraint in world axes.
+    fn constraint_end(
+        &mut self,
+        end: &Spanned<ConstraintEnd>,
+        ctx: &str,
+        point: bool,
+    ) -> Result<[Id; 3], Error> {
+        let e = end.get_ref();
+        let frame = match &e.frame {
+            Some(f) => self.lookup_frame(f, ctx)?,
+            None => self.world(),
+        };
+        if point {
+            if let Some(a) = &e.axis {
+                return Err(self.err(
+                    a.span().start,
+                    Some(ctx),
+                    "a `coincident` constraint joins points: give `position`, not `axis`",
+                ));
+            }
+            let local = match &e.position {
+                Some(p) => self.vector(p, Some(ctx), false)?,
+                None => [self.graph.constant(0.0); 3],
+            };
+            let r = self.rotate(&frame.rotation, local);
+            Ok(std::array::from_fn(|k| {
+                self.graph.add(frame.origin[k], r[k])
+            }))
+        } else {
+            if let Some(p) = &e.position {
+                return Err(self.err(
+                    p.span().start,
+                    Some(ctx),
+                    "a `perpendicular` constraint relates directions: give `axis`, not `position`",
+                ));
+            }
+            let Some(axis) = &e.axis else {
+                return Err(self.err(
+                    end.span().start,
+                    Some(ctx),
+                    "a `perpendicular` constraint needs `axis` at both ends",
+                ));
+            };
+            let u = self.axis(axis, ctx)?;
+            let local = u.map(|x| self.graph.constant(x));
+            Ok(self.rotate(&frame.rotation, local))
+        }
+    }
+
+    fn constraint(
+        &mut self,
+        index: usize,
+        c: &ConstraintDef,
+        out: &mut Vec<Constraint>,
+    ) -> Result<(), Error> {
+        let name = c
+            .name
+            .as_ref()
+            .map_or_else(|| format!("constraint{index}"), |n| n.get_ref().clone());
+        let ctx = format!("constraint `{name}`");
+        let Some(kind) = &c.kind else {
+            let Some(expression) = &c.expression else {
+                let message = "a constraint needs `expression`, or `type` (coincident, \
+                               perpendicular) with `a` and `b`";
+                return Err(match &c.name {
+                    Some(n) => self.err(n.span().start, Some(&ctx), message),
+                    None => Error {
+                        context: Some(ctx.clone()),
+                        ..self.source.error(message)
+                    },
+                });
+            };
+            for (field, at) in [
+                ("a", c.a.as_ref().map(|x| x.span().start)),
+                ("b", c.b.as_ref().map(|x| x.span().start)),
+            ] {
+                if let Some(at) = at {
+                    return Err(self.err(
+                        at,
+                        Some(&ctx),
+                        format!("field `{field}` needs `type` (coincident, perpendicular); an `expression` constraint has no ends"),
+                    ));
+                }
+            }
+            let residual = self.scalar(expression, Some(&ctx), false)?;
+            out.push(Constraint { name, residual });
+            return Ok(());
+        };
+        if let Some(e) = &c.expression {
+            return Err(self.err(
+                e.span().start,
+                Some(&ctx),
+                format!(
+                    "a `{}` constraint is given by `a` and `b`, not `expression`",
+                    kind.get_ref()
+                ),
+            ));
+        }
+        let point = match kind.get_ref().as_str() {
+            "coincident" => true,
+            "perpendicular" => false,
+            other => {
+                return Err(self.err(
+                    kind.span().start,
+                    Some(&ctx),
+                    format!("unknown constraint type `{other}` (known: coincident, perpendicular)"),
+                ))
+            }
+        };
+        let (Some(a), Some(b)) = (&c.a, &c.b) else {
+            let missing = if c.a.is_none() { "a" } else { "b" };
+            return Err(self.err(
+                kind.span().start,
+                Some(&ctx),
+                format!("a `{}` constraint needs `{missing}`", kind.get_ref()),
+            ));
+        };
+        let pa = self.constraint_end(a, &ctx, point)?;
+        let pb = self.constraint_end(b, &ctx, point)?;
+        if point {
+            for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                let residual = self.graph.sub(pa[k], pb[k]);
+                out.push(Constraint {
+                    name: format!("{name}_{axis}"),
+                    residual,
                 });
             }
-            self.frames.insert(
-                f.name.get_ref().clone(),
-                Frame {
-                    rotation,
-                    origin,
-                    velocity,
-                    omega,
-                },
-            );
+        } else {
+            let residual = self.dot(pa, pb);
+            out.push(Constraint { name, residual });
         }
         Ok(())
     }
@@ -738,12 +1663,13 @@ impl<'a> Builder<'a> {
             "rigid_body" => &["mass", "position", "frame", "inertia"],
             "spring" => &["stiffness", "expression", "rest"],
             "damper" => &["damping", "expression"],
+            "flexible_link" => FLEXIBLE_LINK_FIELDS,
             _ => {
                 return Err(self.err(
                     c.kind.span().start,
                     Some(&ctx),
                     format!(
-                        "unknown component type `{kind}` (known: energy, point_mass, rod, rigid_body, spring, damper)"
+                        "unknown component type `{kind}` (known: energy, point_mass, rod, rigid_body, spring, damper, flexible_link)"
                     ),
                 ))
             }
@@ -853,6 +1779,18 @@ impl<'a> Builder<'a> {
                 let ks2 = self.graph.mul(k, s2);
                 potential = self.graph.scale(ks2, 0.5);
             }
+            "flexible_link" => {
+                // Read and checked before the frames (`flexible_link`).
+                let pos = self
+                    .flexible
+                    .iter()
+                    .position(|(i, _)| *i == index)
+                    .expect("flexible links are prepared first");
+                let link = self.flexible[pos].1.clone();
+                let frame_name = c.frame.as_ref().expect("checked when prepared");
+                let frame = self.lookup_frame(frame_name, &ctx)?;
+                (kinetic, potential, dissipation) = self.flexible_energies(&link, &frame);
+            }
             "damper" => {
                 let d = self.positive(&damping?, &ctx, "damping", false)?;
                 let e = self.scalar(&expression.clone()?, Some(&ctx), false)?;
@@ -873,7 +1811,8 @@ impl<'a> Builder<'a> {
     }
 
     fn check_fields(&self, c: &ComponentDef, allowed: &[&str], ctx: &str) -> Result<(), Error> {
-        let present: [(&str, Option<usize>); 13] = [
+        let span = |s: &Option<SScalar>| s.as_ref().map(|s| s.span().start);
+        let present: [(&str, Option<usize>); 23] = [
             ("kinetic", c.kinetic.as_ref().map(|s| s.span().start)),
             ("potential", c.potential.as_ref().map(|s| s.span().start)),
             (
@@ -890,6 +1829,25 @@ impl<'a> Builder<'a> {
             ("damping", c.damping.as_ref().map(|s| s.span().start)),
             ("expression", c.expression.as_ref().map(|s| s.span().start)),
             ("rest", c.rest.as_ref().map(|s| s.span().start)),
+            ("length", span(&c.length)),
+            ("material", c.material.as_ref().map(|s| s.span().start)),
+            ("section", c.section.as_ref().map(|s| s.span().start)),
+            ("elements", span(&c.elements)),
+            ("modes", span(&c.modes)),
+            ("max_frequency", span(&c.max_frequency)),
+            ("boundary", c.boundary.as_ref().map(|s| s.span().start)),
+            (
+                "end_stiffness",
+                c.end_stiffness.as_ref().map(|s| s.span().start),
+            ),
+            (
+                "damping_ratio",
+                c.damping_ratio.as_ref().map(|s| s.span().start),
+            ),
+            (
+                "geometric_stiffening",
+                c.geometric_stiffening.as_ref().map(|s| s.span().start),
+            ),
         ];
         for (field, at) in present {
             if let Some(at) = at {

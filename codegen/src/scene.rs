@@ -8,7 +8,7 @@
 use std::collections::BTreeMap;
 use std::fmt;
 
-use serde::de::{self, Deserializer, MapAccess, Visitor};
+use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -166,6 +166,11 @@ pub struct FrameDef {
     /// frame produced by the previous ones.
     #[serde(default)]
     pub rotation: Vec<RotationDef>,
+    /// A point of the flexible link whose reference frame is `parent`:
+    /// `"start"`, `"end"`, or the distance from the start (m). The frame
+    /// follows the deformed link there; `translation` and `rotation` apply
+    /// after it.
+    pub station: Option<SScalar>,
 }
 
 /// A component of the mechanism. Which fields apply depends on `type`;
@@ -175,7 +180,8 @@ pub struct FrameDef {
 pub struct ComponentDef {
     /// Name for messages and reports.
     pub name: Option<Spanned<String>>,
-    /// `energy`, `point_mass`, `rod`, `rigid_body`, `spring`, `damper`.
+    /// `energy`, `point_mass`, `rod`, `rigid_body`, `spring`, `damper`,
+    /// `flexible_link`.
     #[serde(rename = "type")]
     pub kind: Spanned<String>,
     /// Kinetic energy (`energy`).
@@ -205,16 +211,179 @@ pub struct ComponentDef {
     pub expression: Option<SScalar>,
     /// Rest value of a spring's expression.
     pub rest: Option<SScalar>,
+    /// Length of a flexible link (m).
+    pub length: Option<SScalar>,
+    /// Material of a flexible link.
+    pub material: Option<Spanned<MaterialDef>>,
+    /// Cross-section of a flexible link.
+    pub section: Option<Spanned<SectionDef>>,
+    /// Number of finite elements of a flexible link (default 20).
+    pub elements: Option<SScalar>,
+    /// Number of kept modes of a flexible link (default 6).
+    pub modes: Option<SScalar>,
+    /// Keep the modes below this frequency (Hz) instead of a fixed number.
+    pub max_frequency: Option<SScalar>,
+    /// Boundary conditions of a flexible link's modes.
+    pub boundary: Option<Spanned<String>>,
+    /// Rotational end springs `[k_y, k_z]` of `pinned_pinned_elastic`.
+    pub end_stiffness: Option<Spanned<EndStiffnessDef>>,
+    /// Modal damping ratio: one value for all modes or one per mode.
+    pub damping_ratio: Option<Spanned<ScalarList>>,
+    /// Centrifugal (geometric) stiffening of a flexible link.
+    pub geometric_stiffening: Option<Spanned<bool>>,
 }
 
-/// A holonomic constraint `expression(q, t) = 0`.
+/// Material of a flexible link.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDef {
+    /// Young's modulus `E` (Pa).
+    pub youngs_modulus: SScalar,
+    /// Poisson's ratio (gives `G = E / (2 (1 + nu))`).
+    pub poisson: Option<SScalar>,
+    /// Shear modulus `G` (Pa), instead of `poisson`.
+    pub shear_modulus: Option<SScalar>,
+    /// Density (kg/m^3).
+    pub density: SScalar,
+}
+
+/// Circular cross-section of a flexible link: `radius` (solid), `area`
+/// (solid circle of that area) or `outer_radius` with `inner_radius` (tube).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionDef {
+    /// Radius of a solid circle.
+    pub radius: Option<SScalar>,
+    /// Area of a solid circle.
+    pub area: Option<SScalar>,
+    /// Outer radius of a tube.
+    pub outer_radius: Option<SScalar>,
+    /// Inner radius of a tube.
+    pub inner_radius: Option<SScalar>,
+}
+
+/// Rotational end springs: `[k_y, k_z]` at both ends, or a table
+/// `{ start = [k_y, k_z], end = [k_y, k_z] }` (either may be left out).
+#[derive(Debug, Clone)]
+pub enum EndStiffnessDef {
+    /// The same springs at both ends.
+    Both(Vec<SScalar>),
+    /// Springs per end.
+    PerEnd(EndStiffnessTable),
+}
+
+/// Springs per end, see [`EndStiffnessDef`].
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EndStiffnessTable {
+    /// Springs `[k_y, k_z]` at `x = 0`.
+    pub start: Option<Spanned<Vec<SScalar>>>,
+    /// Springs `[k_y, k_z]` at `x = L`.
+    pub end: Option<Spanned<Vec<SScalar>>>,
+}
+
+struct EndStiffnessVisitor;
+
+impl<'de> Visitor<'de> for EndStiffnessVisitor {
+    type Value = EndStiffnessDef;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("an array `[k_y, k_z]` or a table `{ start = [k_y, k_z], end = [k_y, k_z] }`")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<EndStiffnessDef, A::Error> {
+        Vec::<SScalar>::deserialize(de::value::SeqAccessDeserializer::new(seq))
+            .map(EndStiffnessDef::Both)
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<EndStiffnessDef, A::Error> {
+        EndStiffnessTable::deserialize(de::value::MapAccessDeserializer::new(map))
+            .map(EndStiffnessDef::PerEnd)
+    }
+}
+
+impl<'de> Deserialize<'de> for EndStiffnessDef {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<EndStiffnessDef, D::Error> {
+        d.deserialize_any(EndStiffnessVisitor)
+    }
+}
+
+/// One scalar or an array of scalars.
+#[derive(Debug, Clone)]
+pub enum ScalarList {
+    /// A single value.
+    One(Scalar),
+    /// One value per item.
+    Many(Vec<SScalar>),
+}
+
+struct ScalarListVisitor;
+
+impl<'de> Visitor<'de> for ScalarListVisitor {
+    type Value = ScalarList;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a number, an expression string or an array of them")
+    }
+
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<ScalarList, E> {
+        ScalarVisitor.visit_f64(v).map(ScalarList::One)
+    }
+
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<ScalarList, E> {
+        ScalarVisitor.visit_i64(v).map(ScalarList::One)
+    }
+
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<ScalarList, E> {
+        ScalarVisitor.visit_u64(v).map(ScalarList::One)
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<ScalarList, E> {
+        ScalarVisitor.visit_str(v).map(ScalarList::One)
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<ScalarList, A::Error> {
+        Vec::<SScalar>::deserialize(de::value::SeqAccessDeserializer::new(seq))
+            .map(ScalarList::Many)
+    }
+}
+
+impl<'de> Deserialize<'de> for ScalarList {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<ScalarList, D::Error> {
+        d.deserialize_any(ScalarListVisitor)
+    }
+}
+
+/// A holonomic constraint: `expression(q, t) = 0`, or a vector constraint
+/// between two frames given by `type` (`coincident`, `perpendicular`) with
+/// its ends `a` and `b`.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ConstraintDef {
     /// Name for messages.
     pub name: Option<Spanned<String>>,
     /// The residual.
-    pub expression: SScalar,
+    pub expression: Option<SScalar>,
+    /// `coincident` or `perpendicular` (absent for `expression` constraints).
+    #[serde(rename = "type")]
+    pub kind: Option<Spanned<String>>,
+    /// First end of a vector constraint.
+    pub a: Option<Spanned<ConstraintEnd>>,
+    /// Second end of a vector constraint.
+    pub b: Option<Spanned<ConstraintEnd>>,
+}
+
+/// One end of a vector constraint: a point (`position`) or a direction
+/// (`axis`) given in a frame.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintEnd {
+    /// The frame (world when absent).
+    pub frame: Option<Spanned<String>>,
+    /// A point in the frame (`coincident`, default the origin).
+    pub position: Option<Spanned<Vec<SScalar>>>,
+    /// A direction in the frame (`perpendicular`).
+    pub axis: Option<Spanned<AxisDef>>,
 }
 
 /// An actuator input driving one generalized coordinate.

@@ -529,6 +529,38 @@ fn field_that_does_not_apply_to_the_type() {
 }
 
 #[test]
+fn flexible_link_fields_that_do_not_apply() {
+    let text = scene(
+        "[[components]]\nname = \"beam\"\ntype = \"flexible_link\"\nframe = \"world\"\nlength = 1\n\
+         material = { youngs_modulus = 1e9, poisson = 0.3, density = 1000 }\n\
+         section = { radius = 0.01 }\nboundary = \"clamped_free\"\nfrom = [0, 0, 0]\n",
+    );
+    let e = fail(&text);
+    let at = locate(&text, "from", "[");
+    check(
+        &e,
+        at,
+        Some("component `beam`"),
+        &[
+            "field `from` does not apply to a `flexible_link` component",
+            "allowed: frame, length, material, section",
+        ],
+    );
+    // And the flexible-link fields do not apply to the other types.
+    let text = scene(
+        "[[components]]\nname = \"p\"\ntype = \"point_mass\"\nmass = 1\nposition = [0, 0, 0]\nmodes = 3\n",
+    );
+    let e = fail(&text);
+    let at = locate(&text, "modes", "3");
+    check(
+        &e,
+        at,
+        Some("component `p`"),
+        &["field `modes` does not apply to a `point_mass` component"],
+    );
+}
+
+#[test]
 fn missing_required_fields() {
     let cases = [
         ("rod", "mass = 1\nfrom = [0, 0, 0]\n", "needs `to`"),
@@ -549,6 +581,24 @@ fn missing_required_fields() {
             "rigid_body",
             "mass = 1\nframe = \"world\"\n",
             "needs `inertia`",
+        ),
+        (
+            "flexible_link",
+            "length = 1\nmaterial = { youngs_modulus = 1e9, poisson = 0.3, density = 1000 }\n\
+             section = { radius = 0.01 }\nboundary = \"clamped_free\"\n",
+            "needs `frame`",
+        ),
+        (
+            "flexible_link",
+            "frame = \"world\"\nlength = 1\nsection = { radius = 0.01 }\nboundary = \"clamped_free\"\n",
+            "needs `material`",
+        ),
+        (
+            "flexible_link",
+            "frame = \"world\"\nlength = 1\n\
+             material = { youngs_modulus = 1e9, poisson = 0.3, density = 1000 }\n\
+             boundary = \"clamped_free\"\n",
+            "needs `section`",
         ),
     ];
     for (kind, fields, words) in cases {
