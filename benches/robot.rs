@@ -44,6 +44,30 @@ fn robot(c: &mut Criterion) {
         })
     });
     let (q, qd) = (sol.q, sol.qd);
+    {
+        // Newton iterations and Jacobian factorisations per call along the
+        // benchmarked motion (1 ms ticks).
+        let mut s = solver;
+        let mut out = sol;
+        let (mut iterations, mut factorizations) = ([0u32; 8], [0u32; 8]);
+        for k in 1..=2000 {
+            let tk = t + 1e-3 * k as f64;
+            let [p, v, a] = circle.at(tk);
+            let r = s
+                .solve(
+                    &model,
+                    tk,
+                    &SVector::from(p),
+                    &SVector::from(v),
+                    &SVector::from(a),
+                    &mut out,
+                )
+                .unwrap();
+            iterations[(r.iterations as usize).min(7)] += 1;
+            factorizations[(r.factorizations as usize).min(7)] += 1;
+        }
+        println!("2000 calls: Newton iterations histogram {iterations:?}, factorisations {factorizations:?}");
+    }
     // The model evaluations one call makes (Newton: `iterations + 1` times
     // Phi; then Phi_q, Phi_t, gamma, M, h, B once), timed alone: the rest
     // of `inverse_dynamics_call` is the linear algebra.

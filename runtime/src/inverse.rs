@@ -11,15 +11,46 @@
 //! 3. solves `Phi_q^T lambda + B tau = M qdd + h` for the actuator inputs and
 //!    constraint forces ([`forces`]).
 //!
-//! All decompositions are one-sided Jacobi SVDs on the stack with capped
-//! sweep counts, so redundancy is handled by minimum-norm least squares:
-//! redundant constraints give the minimum-norm `lambda`, redundant actuation
-//! the minimum-norm `tau`; an under-actuated system gets the least-squares
-//! `tau` and a non-zero `force_residual` in the report.
+//! **Fast path** (the common, well-posed case, e.g. a non-redundant parallel
+//! robot): when the Jacobian of the free coordinates `J_f` (the columns of
+//! `Phi_q` of the coordinates that are not prescribed) is square, it is
+//! inverted once per call by Gauss–Jordan elimination with partial pivoting
+//! (`N^3` multiply-adds on the stack), and everything reuses that inverse:
+//!
+//! * Newton runs as a chord (simplified Newton) iteration with the inverse
+//!   from the previous call, i.e. at the previous solution; it re-factors at
+//!   the current iterate whenever the residual does not shrink by a factor 4
+//!   per step (the residual test keeps it exact);
+//! * with `X = J_f^-1 J_p` (`J_p`: the prescribed columns),
+//!   `qd_f = -J_f^-1 Phi_t - X v` and `qdd_f = J_f^-1 gamma - X a`;
+//! * the forces: the null space of `Phi_q` is spanned by the columns of
+//!   `N = [-X; I]` (free rows; prescribed rows), and `N^T Phi_q^T = 0`, so
+//!   `G tau = r_p - X^T r_f` with `G = N^T B = B_p - X^T B_f` (`NP x NU`,
+//!   square when `NU = NP`) and `r = M qdd + h`; then
+//!   `lambda = J_f^-T (r_f - B_f tau)` exactly.
+//!
+//! The fast path is taken only where it is known to give what the SVD path
+//! gives. Its conditioning checks are upper bounds of the SVD quantities
+//! (from explicit inverses, so rigorous up to rounding):
+//! `cond_2(J_f) <= |J_f|_F |J_f^-1|_F`; `Phi_q` has full row rank when
+//! `|Phi_q|_F |J_f^-1|_F < 1 / rank_tolerance`; and the condition of `B`
+//! projected onto the null space is at most
+//! `min(|G|_F, |B|_F) |G^-1|_F sqrt(1 + |X|_F^2)`. Whenever an assumption
+//! fails (not square, zero pivot, a bound above its limit) the call falls
+//! back to the SVD path below, which decides (and reports errors) exactly as
+//! before. [`InverseReport::kinematics`] and [`ForceReport::path`] say which
+//! path was taken.
+//!
+//! **SVD path**: one-sided Jacobi SVDs on the stack with capped sweep counts,
+//! so redundancy is handled by minimum-norm least squares: redundant
+//! constraints give the minimum-norm `lambda`, redundant actuation the
+//! minimum-norm `tau`; an under-actuated system gets the least-squares `tau`
+//! and a non-zero `force_residual` in the report.
 
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
-use crate::linalg::{first_non_finite, Svd};
+use crate::linalg::{all_finite, first_non_finite, invert_in_place, norm_squared, Svd};
+use crate::math::sqrt;
 use crate::model::Model;
 use crate::state::inf_norm;
 use nalgebra::{SMatrix, SVector};
@@ -39,6 +70,10 @@ pub struct InverseConfig {
     pub max_condition: f64,
     /// Cap on Jacobi SVD sweeps.
     pub max_sweeps: u32,
+    /// Try the fast path (square systems inverted by Gauss–Jordan elimination,
+    /// see the module docs) before the SVDs. `false` forces the SVD path
+    /// everywhere (reference results, diagnostics).
+    pub fast_path: bool,
 }
 
 impl Default for InverseConfig {
@@ -49,6 +84,7 @@ impl Default for InverseConfig {
             rank_tolerance: 1e-10,
             max_condition: 1e8,
             max_sweeps: 40,
+            fast_path: true,
         }
     }
 }
@@ -83,19 +119,41 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Default for InverseSolut
     }
 }
 
+/// Which method solved a linear system (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SolvePath {
+    /// Fast path: a square system inverted by Gauss–Jordan elimination with
+    /// partial pivoting; the reported conditions are upper bounds of the
+    /// 2-norm conditions the SVD path would report.
+    #[default]
+    Elimination,
+    /// Jacobi SVD, minimum-norm least squares (redundant or not well-posed
+    /// systems, or [`InverseConfig::fast_path`] off); conditions are exact
+    /// 2-norm ratios of singular values.
+    Svd,
+}
+
 /// Diagnostics of one inverse-dynamics call.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct InverseReport {
     /// Newton iterations of the position solve.
     pub iterations: u32,
+    /// Jacobians evaluated and factored in this call (inverses of `J_f` or
+    /// SVDs), the one at the solution included: 1 when the chord iteration
+    /// with the previous call's inverse converged.
+    pub factorizations: u32,
     /// `max |Phi|` at the solution.
     pub position_residual: f64,
     /// `max |Phi_q qd + Phi_t|` at the solution.
     pub velocity_residual: f64,
     /// `max |Phi_q qdd - gamma|` at the solution.
     pub acceleration_residual: f64,
-    /// Condition (`sigma_max / sigma_min`) of the Jacobian of the free coordinates.
+    /// Condition of the Jacobian of the free coordinates at the solution:
+    /// `sigma_max / sigma_min` on the SVD path, its upper bound
+    /// `|J_f|_F |J_f^-1|_F` (at most `NC` times larger) on the fast path.
     pub jacobian_condition: f64,
+    /// How the velocity and acceleration systems were solved.
+    pub kinematics: SolvePath,
     /// Diagnostics of the force solve.
     pub forces: ForceReport,
 }
@@ -106,16 +164,28 @@ pub struct ForceReport {
     /// Numerical rank of `Phi_q`.
     pub constraint_rank: usize,
     /// Condition of `B` projected onto the null space of `Phi_q`, over the
-    /// singular values that must be non-zero (`min(NU, NQ - rank Phi_q)`).
+    /// singular values that must be non-zero (`min(NU, NQ - rank Phi_q)`);
+    /// an upper bound of it on the fast path.
     pub actuation_condition: f64,
     /// `max |Phi_q^T lambda + B tau - (M qdd + h)|`: zero (to rounding) unless
     /// the system is under-actuated for this motion.
     pub residual: f64,
+    /// How the system was solved.
+    pub path: SolvePath,
 }
 
 /// Solves `Phi_q^T lambda + B tau = M qdd + h` at a known `(q, qd, qdd, t)`
 /// (minimum-norm least squares, see the module docs). Returns
 /// `(tau, lambda, report)`.
+///
+/// When [`InverseConfig::fast_path`] is set and `[Phi_q^T B]` is square
+/// (`NC + NU = NQ`), it is inverted by Gauss–Jordan elimination and the
+/// result is used if `Phi_q` has full rank and the actuation is well
+/// conditioned by the bounds of the module docs (here: `|Phi_q|_F |S|_F <
+/// 1 / rank_tolerance` and `|B|_F |T|_F <= max_condition`, with `S` and `T`
+/// the `lambda` and `tau` rows of the inverse, `|T|_2` being exactly the
+/// norm of the inverse of the projected actuation matrix); otherwise the SVDs
+/// decide.
 ///
 /// Errors: non-finite model outputs, [`ErrorKind::DecompositionNotConverged`],
 /// [`ErrorKind::SingularActuation`], [`ErrorKind::NonFiniteResult`].
@@ -136,13 +206,138 @@ where
     let b = eval::actuator_map(model, t)?;
     let phi_q = eval::constraint_jacobian(model, q, t)?;
     let r = m * qdd + h;
+    forces_from(config, &phi_q, &b, &r, t)
+}
+
+type ForceSolution<const NC: usize, const NU: usize> =
+    (SVector<f64, NU>, SVector<f64, NC>, ForceReport);
+
+/// [`forces`] from evaluated `Phi_q`, `B` and `r = M qdd + h`.
+fn forces_from<const NQ: usize, const NC: usize, const NU: usize>(
+    config: &InverseConfig,
+    phi_q: &SMatrix<f64, NC, NQ>,
+    b: &SMatrix<f64, NQ, NU>,
+    r: &SVector<f64, NQ>,
+    t: f64,
+) -> Result<ForceSolution<NC, NU>, Error> {
+    if config.fast_path && NC + NU == NQ {
+        if let Some(solution) = forces_square(config, phi_q, b, r, t)? {
+            return Ok(solution);
+        }
+    }
+    forces_svd(config, phi_q, b, r, t)
+}
+
+/// Fast path of [`forces`] for `NC + NU = NQ`; `Ok(None)` when its
+/// assumptions do not hold.
+fn forces_square<const NQ: usize, const NC: usize, const NU: usize>(
+    config: &InverseConfig,
+    phi_q: &SMatrix<f64, NC, NQ>,
+    b: &SMatrix<f64, NQ, NU>,
+    r: &SVector<f64, NQ>,
+    t: f64,
+) -> Result<Option<ForceSolution<NC, NU>>, Error> {
+    // [Phi_q^T B], inverted in place.
+    let mut inv = SMatrix::<f64, NQ, NQ>::zeros();
+    for j in 0..NC {
+        for i in 0..NQ {
+            inv[(i, j)] = phi_q[(j, i)];
+        }
+    }
+    for j in 0..NU {
+        for i in 0..NQ {
+            inv[(i, NC + j)] = b[(i, j)];
+        }
+    }
+    if !invert_in_place(&mut inv) {
+        return Ok(None);
+    }
+    let (mut s2, mut t2) = (0.0, 0.0);
+    for j in 0..NQ {
+        for i in 0..NQ {
+            let x = inv[(i, j)] * inv[(i, j)];
+            if i < NC {
+                s2 += x;
+            } else {
+                t2 += x;
+            }
+        }
+    }
+    let full_rank = sqrt(norm_squared(phi_q) * s2) * config.rank_tolerance < 1.0;
+    let actuation_condition = if NU == 0 {
+        1.0
+    } else {
+        sqrt(norm_squared(b) * t2)
+    };
+    if !full_rank || !(actuation_condition <= config.max_condition) {
+        return Ok(None);
+    }
+    let x = inv * r;
+    let mut lambda = SVector::<f64, NC>::zeros();
+    let mut tau = SVector::<f64, NU>::zeros();
+    for i in 0..NC {
+        lambda[i] = x[i];
+    }
+    for j in 0..NU {
+        tau[j] = x[NC + j];
+    }
+    finish_forces(
+        phi_q,
+        b,
+        r,
+        tau,
+        lambda,
+        NC,
+        actuation_condition,
+        SolvePath::Elimination,
+        t,
+    )
+    .map(Some)
+}
+
+/// Checks the results and computes the residual of a force solve.
+#[allow(clippy::too_many_arguments)]
+fn finish_forces<const NQ: usize, const NC: usize, const NU: usize>(
+    phi_q: &SMatrix<f64, NC, NQ>,
+    b: &SMatrix<f64, NQ, NU>,
+    r: &SVector<f64, NQ>,
+    tau: SVector<f64, NU>,
+    lambda: SVector<f64, NC>,
+    constraint_rank: usize,
+    actuation_condition: f64,
+    path: SolvePath,
+    t: f64,
+) -> Result<ForceSolution<NC, NU>, Error> {
+    eval::check_result(&tau, Quantity::Input, t)?;
+    eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
+    let residual = inf_norm(&(phi_q.tr_mul(&lambda) + b * tau - r));
+    Ok((
+        tau,
+        lambda,
+        ForceReport {
+            constraint_rank,
+            actuation_condition,
+            residual,
+            path,
+        },
+    ))
+}
+
+/// SVD path of [`forces`].
+fn forces_svd<const NQ: usize, const NC: usize, const NU: usize>(
+    config: &InverseConfig,
+    phi_q: &SMatrix<f64, NC, NQ>,
+    b: &SMatrix<f64, NQ, NU>,
+    r: &SVector<f64, NQ>,
+    t: f64,
+) -> Result<ForceSolution<NC, NU>, Error> {
     let p_svd = svd(&phi_q.transpose(), config.max_sweeps, t)?;
     let rank_c = p_svd.rank(config.rank_tolerance);
     // Components of r and B outside the range of Phi_q^T, i.e. along the
     // free motion directions.
-    let mut r_free = r;
+    let mut r_free = *r;
     p_svd.remove_range(&mut r_free, rank_c);
-    let mut b_free = b;
+    let mut b_free = *b;
     for j in 0..NU {
         let mut col: SVector<f64, NQ> = b.column(j).into_owned();
         p_svd.remove_range(&mut col, rank_c);
@@ -164,18 +359,17 @@ where
     b_svd.solve(&r_free, needed, &mut tau);
     let mut lambda = SVector::<f64, NC>::zeros();
     p_svd.solve(&(r - b * tau), rank_c, &mut lambda);
-    eval::check_result(&tau, Quantity::Input, t)?;
-    eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
-    let residual = inf_norm(&(phi_q.transpose() * lambda + b * tau - r));
-    Ok((
+    finish_forces(
+        phi_q,
+        b,
+        r,
         tau,
         lambda,
-        ForceReport {
-            constraint_rank: rank_c,
-            actuation_condition,
-            residual,
-        },
-    ))
+        rank_c,
+        actuation_condition,
+        SolvePath::Svd,
+        t,
+    )
 }
 
 fn svd<const R: usize, const C: usize>(
@@ -187,14 +381,38 @@ fn svd<const R: usize, const C: usize>(
         .map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))
 }
 
+/// Which inverse of `J_f` the chord steps use.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Chord {
+    /// None: the next step is a full Newton step.
+    None,
+    /// The previous call's, at the guess.
+    Cached,
+    /// One computed at an earlier iterate of this call.
+    Local,
+}
+
+/// A chord (simplified Newton) step with an old inverse of the free Jacobian
+/// must reduce `max |Phi|` at least by this factor; otherwise the Jacobian is
+/// re-evaluated and inverted at the current iterate.
+const CHORD_CONTRACTION: f64 = 0.25;
+
 /// Inverse dynamics with `NP` prescribed coordinates; keeps the previous
-/// position solution as the Newton starting point of the next call.
+/// position solution as the Newton starting point of the next call, and on
+/// the fast path the inverse of the free-coordinate Jacobian there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InverseDynamics<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> {
     /// Solver settings.
     pub config: InverseConfig,
     prescribed: [usize; NP],
+    /// The free coordinates in increasing order (the first `NQ - NP` entries).
+    free: [usize; NQ],
     guess: SVector<f64, NQ>,
+    /// `J_f^-1` at `guess` (fast path), if known.
+    jacobian_inverse: Option<SMatrix<f64, NC, NC>>,
+    /// Time, velocities and accelerations of the solution `guess`, for the
+    /// second-order predictor of the next starting point.
+    motion: Option<(f64, SVector<f64, NQ>, SVector<f64, NQ>)>,
 }
 
 impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
@@ -247,10 +465,21 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 0.0,
             ));
         }
+        let mut free = [0usize; NQ];
+        let mut n = 0;
+        for i in 0..NQ {
+            if !prescribed.contains(&i) {
+                free[n] = i;
+                n += 1;
+            }
+        }
         Ok(InverseDynamics {
             config,
             prescribed,
+            free,
             guess: initial_guess,
+            jacobian_inverse: None,
+            motion: None,
         })
     }
 
@@ -267,6 +496,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     /// Replaces the Newton starting point (e.g. to select an assembly mode).
     pub fn set_guess(&mut self, q: SVector<f64, NQ>) {
         self.guess = q;
+        self.jacobian_inverse = None;
+        self.motion = None;
+    }
+
+    /// Whether the fast path applies to the shape: `J_f` square.
+    fn square(&self) -> bool {
+        self.config.fast_path && NP <= NQ && NC == NQ - NP
     }
 
     /// `Phi_q` with the prescribed columns zeroed.
@@ -278,6 +514,65 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         j
     }
 
+    /// Writes `J_f^-1` to `inv` and returns the bound `|J_f|_F |J_f^-1|_F` of
+    /// its condition, if `J_f` is invertible and the bound is within `limit`
+    /// (call only when [`Self::square`]).
+    fn free_inverse(
+        &self,
+        phi_q: &SMatrix<f64, NC, NQ>,
+        limit: f64,
+        inv: &mut SMatrix<f64, NC, NC>,
+    ) -> Option<f64> {
+        for k in 0..NC {
+            inv.set_column(k, &phi_q.column(self.free[k]));
+        }
+        let norm2 = norm_squared(inv);
+        if !invert_in_place(inv) {
+            return None;
+        }
+        let condition = if NC == 0 {
+            1.0
+        } else {
+            sqrt(norm2 * norm_squared(inv))
+        };
+        if condition <= limit {
+            Some(condition)
+        } else {
+            None
+        }
+    }
+
+    /// Newton starting point for prescribed positions `p` at `t`: the last
+    /// solution, with its free coordinates moved along its own motion,
+    /// `q + qd dt + qdd dt^2 / 2` (`dt` the time since it), when that
+    /// extrapolation predicts the prescribed coordinates at least four times
+    /// better than the last solution does (a smooth trajectory with
+    /// consistent `v` and `a`); otherwise (jumps, quasi-static use with zero
+    /// `v` and `a`, first call) the last solution itself. The prescribed
+    /// coordinates are set to `p`.
+    fn start(&self, t: f64, p: &SVector<f64, NP>) -> SVector<f64, NQ> {
+        let mut q = self.guess;
+        if let Some((t0, qd, qdd)) = &self.motion {
+            let dt = t - t0;
+            let (mut err_predicted, mut err_held) = (0.0f64, 0.0f64);
+            for (k, &i) in self.prescribed.iter().enumerate() {
+                let predicted = q[i] + dt * (qd[i] + 0.5 * dt * qdd[i]);
+                err_predicted = err_predicted.max((p[k] - predicted).abs());
+                err_held = err_held.max((p[k] - q[i]).abs());
+            }
+            if 4.0 * err_predicted <= err_held {
+                let moved = q + (qd + qdd * (0.5 * dt)) * dt;
+                if all_finite(&moved) {
+                    q = moved;
+                }
+            }
+        }
+        for (k, &i) in self.prescribed.iter().enumerate() {
+            q[i] = p[k];
+        }
+        q
+    }
+
     /// Vector with the prescribed entries set to `x` and zeros elsewhere.
     fn scatter(&self, x: &SVector<f64, NP>) -> SVector<f64, NQ> {
         let mut v = SVector::<f64, NQ>::zeros();
@@ -285,6 +580,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             v[i] = x[k];
         }
         v
+    }
+
+    /// `y` with its free entries set to `x_f` (call only when [`Self::square`]).
+    fn scatter_free(&self, x_f: &SVector<f64, NC>, y: &mut SVector<f64, NQ>) {
+        for k in 0..NC {
+            y[self.free[k]] = x_f[k];
+        }
     }
 
     /// One inverse-dynamics evaluation at time `t` for prescribed positions
@@ -329,15 +631,23 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         }
         let cfg = self.config;
         let nf = NQ.saturating_sub(NP);
-        // 1. Positions.
-        let mut q = self.guess;
-        for (k, &i) in self.prescribed.iter().enumerate() {
-            q[i] = p[k];
-        }
+        let square = self.square();
+        // 1. Positions: Newton with minimum-norm steps (SVD path) or chord
+        //    steps with an inverse of J_f that is refreshed when it does not
+        //    contract well enough (fast path).
+        let mut q = self.start(t, p);
         let mut iterations = 0u32;
+        let mut factorizations = 1u32;
         let mut phi = eval::constraints(model, &q, t)?;
+        let mut res = inf_norm(&phi);
+        // The inverse for chord steps: the previous call's (at the guess), or
+        // one computed at an iterate into `local`.
+        let mut local = SMatrix::<f64, NC, NC>::zeros();
+        let mut chord = match (square, &self.jacobian_inverse) {
+            (true, Some(_)) => Chord::Cached,
+            _ => Chord::None,
+        };
         loop {
-            let res = inf_norm(&phi);
             if res <= cfg.position_tolerance {
                 break;
             }
@@ -350,47 +660,121 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                     t,
                 ));
             }
-            let phi_q = eval::constraint_jacobian(model, &q, t)?;
-            let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
-            check_condition(&jsvd, nf, cfg.max_condition, t)?;
             let mut dq = SVector::<f64, NQ>::zeros();
-            jsvd.solve_transpose(&(-phi), nf, &mut dq);
-            q += dq;
-            eval::check_result(&q, Quantity::Position, t)?;
+            // A full Newton step (Jacobian at this iterate), always accepted.
+            let fresh = chord == Chord::None;
+            if fresh {
+                factorizations += 1;
+                let phi_q = eval::constraint_jacobian(model, &q, t)?;
+                if square
+                    && self
+                        .free_inverse(&phi_q, cfg.max_condition, &mut local)
+                        .is_some()
+                {
+                    chord = Chord::Local;
+                } else {
+                    let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
+                    check_condition(&jsvd, nf, cfg.max_condition, t)?;
+                    jsvd.solve_transpose(&(-phi), nf, &mut dq);
+                }
+            }
+            let inv = match chord {
+                Chord::Cached => self.jacobian_inverse.as_ref(),
+                Chord::Local => Some(&local),
+                Chord::None => None,
+            };
+            if let Some(inv) = inv {
+                self.scatter_free(&-(inv * phi), &mut dq);
+            }
+            let q_new = q + dq;
+            eval::check_result(&q_new, Quantity::Position, t)?;
             iterations += 1;
-            phi = eval::constraints(model, &q, t)?;
+            let phi_new = eval::constraints(model, &q_new, t)?;
+            let res_new = inf_norm(&phi_new);
+            if !fresh && !(res_new <= CHORD_CONTRACTION * res) {
+                // The old inverse no longer contracts well: refresh it, and
+                // keep this step only if it reduced the residual.
+                chord = Chord::None;
+                if !(res_new < res) {
+                    continue;
+                }
+            }
+            q = q_new;
+            phi = phi_new;
+            res = res_new;
         }
         // 2. Velocities and accelerations.
         let phi_q = eval::constraint_jacobian(model, &q, t)?;
         let phi_t = eval::constraint_time_derivative(model, &q, t)?;
-        let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
-        let jacobian_condition = check_condition(&jsvd, nf, cfg.max_condition, t)?;
-        let v_full = self.scatter(v);
-        let mut qd = SVector::<f64, NQ>::zeros();
-        jsvd.solve_transpose(&(-phi_t - phi_q * v_full), nf, &mut qd);
-        qd += v_full;
-        let gamma = eval::constraint_rhs(model, &q, &qd, t)?;
-        let a_full = self.scatter(a);
-        let mut qdd = SVector::<f64, NQ>::zeros();
-        jsvd.solve_transpose(&(gamma - phi_q * a_full), nf, &mut qdd);
-        qdd += a_full;
-        for (k, &i) in self.prescribed.iter().enumerate() {
-            qd[i] = v[k];
-            qdd[i] = a[k];
+        let mut inv = local;
+        let fast = if square {
+            self.free_inverse(&phi_q, cfg.max_condition, &mut inv)
+        } else {
+            None
+        };
+        let mut qd = self.scatter(v);
+        let mut qdd = self.scatter(a);
+        let gamma;
+        let jacobian_condition;
+        // X = J_f^-1 J_p on the fast path.
+        let mut x = SMatrix::<f64, NC, NP>::zeros();
+        if let Some(condition) = fast {
+            jacobian_condition = condition;
+            let mut jp = SMatrix::<f64, NC, NP>::zeros();
+            for (k, &i) in self.prescribed.iter().enumerate() {
+                jp.set_column(k, &phi_q.column(i));
+            }
+            x = inv * jp;
+            self.scatter_free(&(-(inv * phi_t) - x * v), &mut qd);
+            gamma = eval::constraint_rhs(model, &q, &qd, t)?;
+            self.scatter_free(&(inv * gamma - x * a), &mut qdd);
+        } else {
+            let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
+            jacobian_condition = check_condition(&jsvd, nf, cfg.max_condition, t)?;
+            let mut qd_f = SVector::<f64, NQ>::zeros();
+            jsvd.solve_transpose(&(-phi_t - phi_q * qd), nf, &mut qd_f);
+            qd += qd_f;
+            gamma = eval::constraint_rhs(model, &q, &qd, t)?;
+            let mut qdd_f = SVector::<f64, NQ>::zeros();
+            jsvd.solve_transpose(&(gamma - phi_q * qdd), nf, &mut qdd_f);
+            qdd += qdd_f;
+            for (k, &i) in self.prescribed.iter().enumerate() {
+                qd[i] = v[k];
+                qdd[i] = a[k];
+            }
         }
         eval::check_result(&qd, Quantity::Velocity, t)?;
         eval::check_result(&qdd, Quantity::Acceleration, t)?;
         // 3. Forces.
-        let (tau, lambda, force_report) = forces(model, &cfg, &q, &qd, &qdd, t)?;
+        let m = eval::mass(model, &q, t)?;
+        let h = eval::bias(model, &q, &qd, t)?;
+        let b = eval::actuator_map(model, t)?;
+        let r = m * qdd + h;
+        let fast_forces = match fast {
+            Some(_) => self.forces_eliminated(&cfg, &inv, &x, &phi_q, &b, &r, t)?,
+            None => None,
+        };
+        let (tau, lambda, force_report) = match fast_forces {
+            Some(solution) => solution,
+            None => forces_from(&cfg, &phi_q, &b, &r, t)?,
+        };
         let report = InverseReport {
             iterations,
-            position_residual: inf_norm(&phi),
+            factorizations,
+            position_residual: res,
             velocity_residual: inf_norm(&(phi_q * qd + phi_t)),
             acceleration_residual: inf_norm(&(phi_q * qdd - gamma)),
             jacobian_condition,
+            kinematics: if fast.is_some() {
+                SolvePath::Elimination
+            } else {
+                SolvePath::Svd
+            },
             forces: force_report,
         };
         self.guess = q;
+        self.jacobian_inverse = fast.map(|_| inv);
+        self.motion = Some((t, qd, qdd));
         *out = InverseSolution {
             t,
             q,
@@ -400,6 +784,79 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             lambda,
         };
         Ok(report)
+    }
+
+    /// Fast-path force solve by elimination of `lambda` through `J_f^-1`
+    /// (module docs); `Ok(None)` when `NU != NP` or a bound fails.
+    #[allow(clippy::too_many_arguments)]
+    fn forces_eliminated(
+        &self,
+        cfg: &InverseConfig,
+        inv: &SMatrix<f64, NC, NC>,
+        x: &SMatrix<f64, NC, NP>,
+        phi_q: &SMatrix<f64, NC, NQ>,
+        b: &SMatrix<f64, NQ, NU>,
+        r: &SVector<f64, NQ>,
+        t: f64,
+    ) -> Result<Option<ForceSolution<NC, NU>>, Error> {
+        if NU != NP {
+            return Ok(None);
+        }
+        let mut b_f = SMatrix::<f64, NC, NU>::zeros();
+        let mut r_f = SVector::<f64, NC>::zeros();
+        for k in 0..NC {
+            let i = self.free[k];
+            r_f[k] = r[i];
+            for j in 0..NU {
+                b_f[(k, j)] = b[(i, j)];
+            }
+        }
+        let xt_b = x.tr_mul(&b_f);
+        let xt_r = x.tr_mul(&r_f);
+        // G = B_p - X^T B_f and g = r_p - X^T r_f (NP x NP since NU == NP).
+        let mut g = SMatrix::<f64, NP, NP>::zeros();
+        let mut rhs = SVector::<f64, NP>::zeros();
+        for (k, &i) in self.prescribed.iter().enumerate() {
+            rhs[k] = r[i] - xt_r[k];
+            for j in 0..NP {
+                g[(k, j)] = b[(i, j)] - xt_b[(k, j)];
+            }
+        }
+        let mut g_inv = g;
+        if !invert_in_place(&mut g_inv) {
+            return Ok(None);
+        }
+        let full_rank = sqrt(norm_squared(phi_q) * norm_squared(inv)) * cfg.rank_tolerance < 1.0;
+        let actuation_condition = if NP == 0 {
+            1.0
+        } else {
+            sqrt(
+                norm_squared(&g).min(norm_squared(b))
+                    * norm_squared(&g_inv)
+                    * (1.0 + norm_squared(x)),
+            )
+        };
+        if !full_rank || !(actuation_condition <= cfg.max_condition) {
+            return Ok(None);
+        }
+        let tau_p = g_inv * rhs;
+        let mut tau = SVector::<f64, NU>::zeros();
+        for j in 0..NU {
+            tau[j] = tau_p[j];
+        }
+        let lambda = inv.tr_mul(&(r_f - b_f * tau));
+        finish_forces(
+            phi_q,
+            b,
+            r,
+            tau,
+            lambda,
+            NC,
+            actuation_condition,
+            SolvePath::Elimination,
+            t,
+        )
+        .map(Some)
     }
 }
 

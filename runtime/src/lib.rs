@@ -44,7 +44,7 @@ pub use integrate::{
     StepSettings,
 };
 pub use inverse::{
-    forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution,
+    forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution, SolvePath,
 };
 pub use model::Model;
 pub use nalgebra;

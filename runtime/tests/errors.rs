@@ -441,9 +441,12 @@ fn newton_not_converged() {
 
 #[test]
 fn decomposition_not_converged() {
+    // The SVD path (forced here: the five-bar is square and well posed, so
+    // the fast path needs no SVD and succeeds).
     let fb = FiveBar::<2>::default();
     let cfg = InverseConfig {
         max_sweeps: 0,
+        fast_path: false,
         ..Default::default()
     };
     let mut id =
@@ -460,6 +463,46 @@ fn decomposition_not_converged() {
         )
         .expect_err("no sweeps allowed");
     assert_eq!(e.kind, ErrorKind::DecompositionNotConverged { sweeps: 0 });
+    let before = id;
+    id.config.fast_path = true;
+    id.solve(
+        &fb,
+        0.0,
+        &V::<2>::new(0.0, 0.32),
+        &V::<2>::zeros(),
+        &V::<2>::zeros(),
+        &mut out,
+    )
+    .expect("the fast path needs no SVD");
+    assert_ne!(id, before);
+    // With the fast path on, redundant actuation still needs the SVD (the
+    // force system is 6 x 7): the fallback reports the non-convergence.
+    let fb3 = FiveBar::<3>::default();
+    let cfg = InverseConfig {
+        max_sweeps: 0,
+        ..Default::default()
+    };
+    let mut id =
+        InverseDynamics::<6, 4, 3, 2>::new([4, 5], fb3.assemble(0.0, 0.32), cfg).expect("set-up");
+    let before = id;
+    let mut out3 = InverseSolution::default();
+    let e = id
+        .solve(
+            &fb3,
+            0.0,
+            &V::<2>::new(0.0, 0.32),
+            &V::<2>::zeros(),
+            &V::<2>::zeros(),
+            &mut out3,
+        )
+        .expect_err("no sweeps allowed");
+    assert_eq!(e.kind, ErrorKind::DecompositionNotConverged { sweeps: 0 });
+    assert_eq!(id, before, "solver unchanged on error");
+    assert_eq!(
+        out3,
+        InverseSolution::default(),
+        "output unchanged on error"
+    );
 }
 
 #[test]
