@@ -12,7 +12,8 @@
 //   coriolis_forces                  16     56      0      4
 //   potential_forces                  0      4      0      4
 //   damping_forces                    0      0      0      0
-//   total                           105    296      0     40
+//   bias_jacobians                   38    112      0      4
+//   total                           143    408      0     44
 // (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
 
 use flexdyn_runtime::math;
@@ -292,6 +293,54 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
         out[1] = 0.0;
         out[2] = 0.0;
         out[3] = 0.0;
+        true
+    }
+    ///Exact Jacobians of the bias forces: `h_q = dh/dq`, `h_qd = dh/dqd` (entry `(i, j)` is `d h_i / d x_j`).
+    #[inline]
+    fn bias_jacobians(
+        &self,
+        q: &SVector<f64, 4>,
+        qd: &SVector<f64, 4>,
+        _t: f64,
+        h_q: &mut SMatrix<f64, 4, 4>,
+        h_qd: &mut SMatrix<f64, 4, 4>,
+    ) -> bool {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let (v4, v5) = math::sin_cos(q[2]);
+        let (v6, v7) = math::sin_cos(q[3]);
+        let v8 = -0.25 * v1 * qd[0] * qd[0] - 0.35 * v5 * qd[2] * qd[2];
+        let v9 = -0.25 * v0 * qd[0] * qd[0] - 0.35 * v4 * qd[2] * qd[2];
+        let v10 = -0.25 * v3 * qd[1] * qd[1] - 0.35 * v7 * qd[3] * qd[3];
+        let v11 = -0.25 * v2 * qd[1] * qd[1] - 0.35 * v6 * qd[3] * qd[3];
+        let v12 = v0 * qd[0] * qd[0] * v4;
+        let v13 = v1 * qd[0] * qd[0] * v5;
+        let v14 = v2 * qd[1] * qd[1] * v6;
+        let v15 = v3 * qd[1] * qd[1] * v7;
+        *h_q = SMatrix::zeros();
+        *h_qd = SMatrix::zeros();
+        h_q[(0, 0)] = -2.4525 * v0 - 0.040625 * qd[0] * qd[0] - 0.1625 * v1 * v8
+            - 0.1625 * v0 * v9;
+        h_q[(0, 2)] = -0.056874999999999995 * v0 * v4 * qd[2] * qd[2]
+            - 0.056874999999999995 * v1 * v5 * qd[2] * qd[2];
+        h_q[(1, 1)] = -1.22625 * v2 - 0.009375 * qd[1] * qd[1] - 0.0375 * v3 * v10
+            - 0.0375 * v2 * v11;
+        h_q[(1, 3)] = -0.013125 * v2 * v6 * qd[3] * qd[3]
+            - 0.013125 * v3 * v7 * qd[3] * qd[3];
+        h_q[(2, 0)] = -0.056874999999999995 * v12 - 0.056874999999999995 * v13;
+        h_q[(2, 2)] = 0.0043749999999999995 * v12 + 0.0043749999999999995 * v13
+            - 2.231775 * v4 - 0.21 * v5 * v8 - 0.0735 * qd[2] * qd[2] - 0.21 * v4 * v9;
+        h_q[(3, 1)] = -0.013124999999999998 * v14 - 0.013124999999999998 * v15;
+        h_q[(3, 3)] = 0.0043749999999999995 * v14 + 0.0043749999999999995 * v15
+            - 0.515025 * v6 - 0.034999999999999996 * v7 * v10
+            - 0.012249999999999999 * qd[3] * qd[3] - 0.034999999999999996 * v6 * v11;
+        h_qd[(0, 2)] = 0.11374999999999999 * v0 * v5 * qd[2]
+            - 0.11374999999999999 * v1 * v4 * qd[2];
+        h_qd[(1, 3)] = 0.02625 * v2 * v7 * qd[3] - 0.02625 * v3 * v6 * qd[3];
+        h_qd[(2, 0)] = 0.11374999999999999 * v1 * qd[0] * v4
+            - 0.11374999999999999 * v0 * qd[0] * v5;
+        h_qd[(3, 1)] = 0.026249999999999996 * v3 * qd[1] * v6
+            - 0.026249999999999996 * v2 * qd[1] * v7;
         true
     }
 }

@@ -12,7 +12,8 @@
 //   coriolis_forces                   7     28      0      2
 //   potential_forces                  1      2      0      2
 //   damping_forces                    0      0      0      0
-//   total                            50    150      0     20
+//   bias_jacobians                   16     56      0      2
+//   total                            66    206      0     22
 // (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
 
 use flexdyn_runtime::math;
@@ -234,6 +235,36 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         out[0] = 0.0;
         out[1] = 0.0;
         out[2] = 0.0;
+        true
+    }
+    ///Exact Jacobians of the bias forces: `h_q = dh/dq`, `h_qd = dh/dqd` (entry `(i, j)` is `d h_i / d x_j`).
+    #[inline]
+    fn bias_jacobians(
+        &self,
+        q: &SVector<f64, 3>,
+        qd: &SVector<f64, 3>,
+        _t: f64,
+        h_q: &mut SMatrix<f64, 3, 3>,
+        h_qd: &mut SMatrix<f64, 3, 3>,
+    ) -> bool {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let v4 = -0.1 * v1 * qd[0] * qd[0] - 0.3 * v3 * qd[1] * qd[1];
+        let v5 = 0.3 * v2 * qd[1] * qd[1] - 0.1 * v0 * qd[0] * qd[0];
+        let v6 = v0 * qd[0] * qd[0] * v2;
+        let v7 = v1 * qd[0] * qd[0] * v3;
+        *h_q = SMatrix::zeros();
+        *h_qd = SMatrix::zeros();
+        h_q[(0, 0)] = -1.0300500000000001 * v0 - 0.004000000000000001 * qd[0] * qd[0]
+            - 0.04000000000000001 * v1 * v4 - 0.04000000000000001 * v0 * v5;
+        h_q[(0, 1)] = 0.012000000000000002 * v1 * v3 * qd[1] * qd[1]
+            - 0.012000000000000002 * v0 * v2 * qd[1] * qd[1];
+        h_q[(1, 0)] = 0.012 * v7 - 0.012 * v6;
+        h_q[(1, 1)] = 1.1772 * v2 + 0.004000000000000001 * v7 + 0.08 * v2 * v5
+            - 0.004000000000000001 * v6 - 0.08 * v3 * v4 - 0.024 * qd[1] * qd[1];
+        h_qd[(0, 1)] = 0.024000000000000004 * v0 * v3 * qd[1]
+            + 0.024000000000000004 * v1 * v2 * qd[1];
+        h_qd[(1, 0)] = 0.024 * v1 * qd[0] * v2 + 0.024 * v0 * qd[0] * v3;
         true
     }
 }

@@ -54,6 +54,9 @@ pub trait DynModel {
     fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>>;
     /// Coriolis matrix, when generated.
     fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DMatrix<f64>>;
+    /// Bias-force Jacobians `(dh/dq, dh/dqd)`, when generated.
+    fn bias_jacobians(&self, q: &[f64], qd: &[f64], t: f64)
+        -> Option<(DMatrix<f64>, DMatrix<f64>)>;
 }
 
 /// A model with its dimensions as const parameters.
@@ -158,5 +161,22 @@ where
         self.0
             .coriolis_matrix(&vector(q), &vector(qd), t, &mut out)
             .then(|| DMatrix::from_column_slice(NQ, NQ, out.as_slice()))
+    }
+    fn bias_jacobians(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        t: f64,
+    ) -> Option<(DMatrix<f64>, DMatrix<f64>)> {
+        let mut h_q = SMatrix::<f64, NQ, NQ>::zeros();
+        let mut h_qd = SMatrix::<f64, NQ, NQ>::zeros();
+        self.0
+            .bias_jacobians(&vector(q), &vector(qd), t, &mut h_q, &mut h_qd)
+            .then(|| {
+                (
+                    DMatrix::from_column_slice(NQ, NQ, h_q.as_slice()),
+                    DMatrix::from_column_slice(NQ, NQ, h_qd.as_slice()),
+                )
+            })
     }
 }

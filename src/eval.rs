@@ -62,6 +62,12 @@ pub struct Terms {
     /// Coriolis matrix, when generated.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coriolis_matrix: Option<Vec<Vec<f64>>>,
+    /// `dh/dq`, when generated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias_jacobian_q: Option<Vec<Vec<f64>>>,
+    /// `dh/dqd`, when generated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bias_jacobian_qd: Option<Vec<Vec<f64>>>,
 }
 
 /// A deliberate error added to one term (test-only hook used to prove that
@@ -133,6 +139,7 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         }
     }
     let vec = |v: nalgebra::DVector<f64>| v.as_slice().to_vec();
+    let jacobians = model.bias_jacobians(&s.q, &s.qd, s.t);
     Ok(Terms {
         mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
         bias: model.bias(&s.q, &s.qd, s.t).as_slice().to_vec(),
@@ -150,6 +157,8 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         potential_forces: model.potential_forces(&s.q, s.t).map(vec),
         damping_forces: model.damping_forces(&s.q, &s.qd, s.t).map(vec),
         coriolis_matrix: model.coriolis_matrix(&s.q, &s.qd, s.t).map(|m| rows(&m)),
+        bias_jacobian_q: jacobians.as_ref().map(|(h_q, _)| rows(h_q)),
+        bias_jacobian_qd: jacobians.as_ref().map(|(_, h_qd)| rows(h_qd)),
     })
 }
 
@@ -182,6 +191,14 @@ impl Terms {
                 .as_mut()
                 .and_then(|m| m.iter_mut().flatten().nth(p.index)),
             "potential_energy" => Some(&mut self.potential_energy),
+            "bias_jacobian_q" => self
+                .bias_jacobian_q
+                .as_mut()
+                .and_then(|m| m.iter_mut().flatten().nth(p.index)),
+            "bias_jacobian_qd" => self
+                .bias_jacobian_qd
+                .as_mut()
+                .and_then(|m| m.iter_mut().flatten().nth(p.index)),
             _ => None,
         };
         match entry {

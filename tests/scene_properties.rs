@@ -132,8 +132,7 @@ fn gamma_matches_differences_of_velocity_residual() {
 }
 
 /// `M` is the Hessian of `T` in the velocities and `h` equals
-/// `d/dt(dT/dqd) - dT/dq + dV/dq` (no scene ships with nonzero damping at its
-/// nominal parameters). Since `T` is quadratic in `qd`, differences in `qd`
+/// `d/dt(dT/dqd) - dT/dq + dV/dq + dD/dqd`. Since `T` is quadratic in `qd`, differences in `qd`
 /// are exact up to rounding.
 #[test]
 fn mass_matrix_and_bias_follow_from_the_energies() {
@@ -177,6 +176,15 @@ fn mass_matrix_and_bias_follow_from_the_energies() {
             let reference: Vec<f64> = (0..n)
                 .map(|i| dp[i] - along(&tq, &q, &unit(n, i), t, 0.0, 1e-6)[0])
                 .collect();
+            // Damping forces come from the dissipation function, which the
+            // energies do not see: take them from the generated split (checked
+            // against CasADi's gradient of D); a damped scene without that
+            // split cannot be checked here.
+            let reference: Vec<f64> = match m.damping_forces(&q, &qd, t) {
+                Some(d) => reference.iter().zip(d.iter()).map(|(r, d)| r + d).collect(),
+                None if scene_is_damped(&scene) => break,
+                None => reference,
+            };
             let h = m.bias(&q, &qd, t);
             assert!(
                 max_diff(h.as_slice(), &reference) < 1e-6 * max_abs(&reference, 1.0),
@@ -185,4 +193,47 @@ fn mass_matrix_and_bias_follow_from_the_energies() {
             );
         }
     }
+}
+
+/// Where a scene generates `bias_jacobians`, they equal central differences
+/// of the generated bias forces in `q` and in `qd`.
+#[test]
+fn bias_jacobians_match_differences_of_bias() {
+    let mut checked = 0;
+    for (_, scene) in common::scenes() {
+        let m = model_of(&scene.name);
+        let n = m.nq();
+        let mut rng = common::rng(14);
+        for _ in 0..STATES {
+            let (q, qd, t) = random_state(&scene, &mut rng);
+            let Some((h_q, h_qd)) = m.bias_jacobians(&q, &qd, t) else {
+                break;
+            };
+            checked += 1;
+            let by_q: &dyn Fn(&[f64], f64) -> Vec<f64> =
+                &|x, t| m.bias(x, &qd, t).as_slice().to_vec();
+            let by_qd: &dyn Fn(&[f64], f64) -> Vec<f64> =
+                &|x, t| m.bias(&q, x, t).as_slice().to_vec();
+            for j in 0..n {
+                for (jac, f, x, what) in [(&h_q, by_q, &q, "dh/dq"), (&h_qd, by_qd, &qd, "dh/dqd")]
+                {
+                    let fd = along(f, x, &unit(n, j), t, 0.0, 1e-6);
+                    let col: Vec<f64> = jac.column(j).iter().copied().collect();
+                    let tol = 1e-6 * max_abs(&fd, 1.0);
+                    assert!(
+                        max_diff(&col, &fd) < tol,
+                        "{}: {what} column {j}: {col:?} vs {fd:?}",
+                        scene.name
+                    );
+                }
+            }
+        }
+    }
+    assert!(checked > 0, "no scene generates bias_jacobians");
+}
+
+/// Whether any component of the scene has a nonzero dissipation function.
+fn scene_is_damped(scene: &flexdyn_codegen::model::Model) -> bool {
+    let zero = scene.graph.find_constant(0.0);
+    scene.components.iter().any(|c| Some(c.dissipation) != zero)
 }

@@ -589,6 +589,21 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
         ));
     }
 
+    if let Some((h_q, h_qd)) = &eq.bias_jacobians {
+        optional.extend(e.function(
+            Signature::new(
+                "bias_jacobians",
+                "Exact Jacobians of the bias forces: `h_q = dh/dq`, `h_qd = dh/dqd` (entry `(i, j)` is `d h_i / d x_j`).",
+                true,
+            )
+            .optional(),
+            &[
+                Output::matrix("h_q", h_q, false),
+                Output::matrix("h_qd", h_qd, false),
+            ],
+        ));
+    }
+
     let coords = model.coordinates.iter().map(|c| c.name.as_str());
     let acts = model.actuators.iter().map(|a| a.name.as_str());
     let fields = model.runtime_parameters.iter().map(|p| {

@@ -101,6 +101,7 @@ struct ActuatorOut<'a> {
 struct OutputsOut {
     coriolis_matrix: bool,
     forces: bool,
+    bias_jacobians: bool,
 }
 
 #[derive(Serialize)]
@@ -210,6 +211,7 @@ pub fn export_json(model: &Model) -> String {
         outputs: OutputsOut {
             coriolis_matrix: model.outputs.coriolis_matrix,
             forces: model.outputs.forces,
+            bias_jacobians: model.outputs.bias_jacobians,
         },
     };
     serde_json::to_string_pretty(&export).expect("export serialises")

@@ -18,6 +18,9 @@ use std::fmt;
 use crate::expr::{Graph, Id, Symbol};
 use crate::model::Model;
 
+/// A matrix of graph nodes, as rows.
+pub type Matrix = Vec<Vec<Id>>;
+
 /// Every derived term of a scene, as nodes of the model's graph.
 #[derive(Debug, Clone)]
 pub struct Equations {
@@ -33,6 +36,9 @@ pub struct Equations {
     pub bias: Vec<Id>,
     /// Coriolis matrix from Christoffel symbols, when asked for.
     pub coriolis_matrix: Option<Vec<Vec<Id>>>,
+    /// Jacobians of the bias forces `(dh/dq, dh/dqd)`, when asked for;
+    /// entry `[i][j]` is `d h_i / d x_j`.
+    pub bias_jacobians: Option<(Matrix, Matrix)>,
     /// Total kinetic energy.
     pub kinetic_energy: Id,
     /// Total potential energy.
@@ -133,6 +139,12 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         None
     };
 
+    let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
+    let bias_jacobians = model.outputs.bias_jacobians.then(|| {
+        let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
+        (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars))
+    });
+
     // Constraints.
     let phi: Vec<Id> = model.constraints.iter().map(|c| c.residual).collect();
     for c in &model.constraints {
@@ -143,7 +155,6 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
             });
         }
     }
-    let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
     let phi_q = g.jacobian(&phi, &q_vars);
     let phi_t = g.diff_many(&phi, Symbol::Time);
     let velocity_residual = g.time_derivative_at_zero_acceleration(&phi);
@@ -162,6 +173,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         damping_forces,
         bias,
         coriolis_matrix,
+        bias_jacobians,
         kinetic_energy,
         potential_energy,
         phi,

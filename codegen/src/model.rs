@@ -90,6 +90,9 @@ pub struct Outputs {
     pub coriolis_matrix: bool,
     /// Coriolis, potential and damping forces as separate functions.
     pub forces: bool,
+    /// Exact Jacobians of the bias forces, `dh/dq` and `dh/dqd` (for the
+    /// Newton matrix of implicit integrators).
+    pub bias_jacobians: bool,
 }
 
 /// The finite-element data behind a `flexible_link` component, built
@@ -346,11 +349,14 @@ impl<'a> Builder<'a> {
             match o.get_ref().as_str() {
                 "coriolis_matrix" => outputs.coriolis_matrix = true,
                 "forces" => outputs.forces = true,
+                "bias_jacobians" => outputs.bias_jacobians = true,
                 other => {
                     return Err(self.err(
                         o.span().start,
                         None,
-                        format!("unknown output `{other}` (known: coriolis_matrix, forces)"),
+                        format!(
+                        "unknown output `{other}` (known: coriolis_matrix, forces, bias_jacobians)"
+                    ),
                     ))
                 }
             }

@@ -326,7 +326,7 @@ def build_prods(ks: list, nodes: list, vals: list) -> None:
         vals[k] = v
 
 
-def derive(export: dict, with_coriolis_matrix: bool):
+def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
     """The CasADi function of every term, and the names/shapes of its outputs.
 
     The Christoffel matrix (the costliest term: a full Jacobian of `M qd`) is
@@ -395,6 +395,9 @@ def derive(export: dict, with_coriolis_matrix: bool):
     ]
     if with_coriolis_matrix:
         terms.append(("coriolis_matrix", coriolis_matrix, (nq, nq)))
+    if with_bias_jacobians:
+        terms.append(("bias_jacobian_q", ca.jacobian(bias, q), (nq, nq)))
+        terms.append(("bias_jacobian_qd", ca.jacobian(bias, qd), (nq, nq)))
     outs = [ca.densify(e) for _, e, _ in terms]
     func = ca.Function(f"{export['name']}_terms", [q, qd, t, p], outs)
     return func, [(name, shape) for name, _, shape in terms]
@@ -563,6 +566,7 @@ BASE_TERMS = [
     "kinetic_energy", "potential_energy",
 ]
 FORCE_TERMS = ["coriolis_forces", "potential_forces", "damping_forces"]
+JACOBIAN_TERMS = ["bias_jacobian_q", "bias_jacobian_qd"]
 
 
 def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
@@ -637,14 +641,20 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
         required += FORCE_TERMS
     if outputs.get("coriolis_matrix"):
         required.append("coriolis_matrix")
-    optional = [k for k in FORCE_TERMS + ["coriolis_matrix"] if k not in required]
+    if outputs.get("bias_jacobians"):
+        required += JACOBIAN_TERMS
+    optional = [k for k in FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS if k not in required]
     present = set(results[0].keys()) if results else set()
     for k, r in enumerate(results):
         if set(r.keys()) != present:
             raise ValidationError(f"eval of {scene}: result {k} has keys {sorted(r)}, result 0 has {sorted(present)}")
 
     t0 = time.perf_counter()
-    func, shapes = derive(export, "coriolis_matrix" in required or "coriolis_matrix" in present)
+    func, shapes = derive(
+        export,
+        "coriolis_matrix" in required or "coriolis_matrix" in present,
+        any(k in required or k in present for k in JACOBIAN_TERMS),
+    )
     t_build = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -664,7 +674,7 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
             row.update(compare(rust_array(results, term, shape), ref[term]))
             row["missing"] = False
         rows.append(row)
-    known = set(BASE_TERMS + FORCE_TERMS + ["coriolis_matrix"])
+    known = set(BASE_TERMS + FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS)
     unchecked = sorted(present - known)
     t_compare = time.perf_counter() - t0
 
