@@ -153,12 +153,10 @@ pub fn accelerations<M, const NQ: usize, const NC: usize, const NU: usize>(
 where
     M: Model<NQ, NC, NU>,
 {
-    let m = eval::mass(model, q, t)?;
-    let h = eval::bias(model, q, qd, t)?;
+    let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
     let b = eval::actuator_map(model, t)?;
     let f = b * tau - h;
-    let phi_q = eval::constraint_jacobian(model, q, t)?;
-    let c = stabilised_rhs(model, &config.baumgarte, q, qd, t, &phi_q)?;
+    let c = stabilised_rhs(model, &config.baumgarte, q, qd, t, &phi_q, gamma)?;
     let kkt = Kkt::new(m, &phi_q, config.max_condition, t)?;
     let (qdd, lambda) = kkt.solve(&f, &c);
     eval::check_result(&qdd, Quantity::Acceleration, t)?;
@@ -170,7 +168,8 @@ where
     })
 }
 
-/// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` (zero-sized when `NC == 0`).
+/// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` from the given `Phi_q`
+/// and `gamma` (zero-sized when `NC == 0`).
 pub(crate) fn stabilised_rhs<M, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
     gains: &Baumgarte,
@@ -178,6 +177,7 @@ pub(crate) fn stabilised_rhs<M, const NQ: usize, const NC: usize, const NU: usiz
     qd: &SVector<f64, NQ>,
     t: f64,
     phi_q: &SMatrix<f64, NC, NQ>,
+    gamma: SVector<f64, NC>,
 ) -> Result<SVector<f64, NC>, Error>
 where
     M: Model<NQ, NC, NU>,
@@ -185,7 +185,6 @@ where
     if NC == 0 {
         return Ok(SVector::zeros());
     }
-    let gamma = eval::constraint_rhs(model, q, qd, t)?;
     let mut c = gamma;
     if gains.alpha != 0.0 || gains.beta != 0.0 {
         let phi = eval::constraints(model, q, t)?;

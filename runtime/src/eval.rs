@@ -45,6 +45,42 @@ pub(crate) fn bias<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const
     Ok(h)
 }
 
+/// `M`, `h`, `Phi_q` and `gamma` at one state, from the model's fused
+/// [`Model::dynamics_terms`] (one program sharing every common
+/// subexpression in generated models).
+pub(crate) struct Terms<const NQ: usize, const NC: usize> {
+    pub m: SMatrix<f64, NQ, NQ>,
+    pub h: SVector<f64, NQ>,
+    pub phi_q: SMatrix<f64, NC, NQ>,
+    pub gamma: SVector<f64, NC>,
+}
+
+/// [`Terms`] with every output checked.
+pub(crate) fn dynamics_terms<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
+    model: &M,
+    q: &SVector<f64, NQ>,
+    qd: &SVector<f64, NQ>,
+    t: f64,
+) -> Result<Terms<NQ, NC>, Error> {
+    let mut o = Terms {
+        m: SMatrix::zeros(),
+        h: SVector::zeros(),
+        phi_q: SMatrix::zeros(),
+        gamma: SVector::zeros(),
+    };
+    model.dynamics_terms(q, qd, t, &mut o.m, &mut o.h, &mut o.phi_q, &mut o.gamma);
+    check(&o.m, Quantity::MassMatrix, t)?;
+    check(&o.h, Quantity::Bias, t)?;
+    check(&o.phi_q, Quantity::ConstraintJacobian, t)?;
+    check(&o.gamma, Quantity::ConstraintRhs, t)?;
+    Ok(o)
+}
+
 /// `B`.
 pub(crate) fn actuator_map<
     M: Model<NQ, NC, NU>,
@@ -116,26 +152,6 @@ pub(crate) fn constraint_time_derivative<
         check(&p, Quantity::ConstraintTimeDerivative, t)?;
     }
     Ok(p)
-}
-
-/// `gamma(q, qd, t)`.
-pub(crate) fn constraint_rhs<
-    M: Model<NQ, NC, NU>,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
-    model: &M,
-    q: &SVector<f64, NQ>,
-    qd: &SVector<f64, NQ>,
-    t: f64,
-) -> Result<SVector<f64, NC>, Error> {
-    let mut g = SVector::<f64, NC>::zeros();
-    if NC > 0 {
-        model.constraint_rhs(q, qd, t, &mut g);
-        check(&g, Quantity::ConstraintRhs, t)?;
-    }
-    Ok(g)
 }
 
 /// Checks an actuator input vector.

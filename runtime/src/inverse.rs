@@ -715,6 +715,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         let mut qd = self.scatter(v);
         let mut qdd = self.scatter(a);
         let gamma;
+        let terms;
         let jacobian_condition;
         // X = J_f^-1 J_p on the fast path.
         let mut x = SMatrix::<f64, NC, NP>::zeros();
@@ -726,7 +727,8 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             }
             x = inv * jp;
             self.scatter_free(&(-(inv * phi_t) - x * v), &mut qd);
-            gamma = eval::constraint_rhs(model, &q, &qd, t)?;
+            terms = eval::dynamics_terms(model, &q, &qd, t)?;
+            gamma = terms.gamma;
             self.scatter_free(&(inv * gamma - x * a), &mut qdd);
         } else {
             let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
@@ -734,7 +736,8 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             let mut qd_f = SVector::<f64, NQ>::zeros();
             jsvd.solve_transpose(&(-phi_t - phi_q * qd), nf, &mut qd_f);
             qd += qd_f;
-            gamma = eval::constraint_rhs(model, &q, &qd, t)?;
+            terms = eval::dynamics_terms(model, &q, &qd, t)?;
+            gamma = terms.gamma;
             let mut qdd_f = SVector::<f64, NQ>::zeros();
             jsvd.solve_transpose(&(gamma - phi_q * qdd), nf, &mut qdd_f);
             qdd += qdd_f;
@@ -746,10 +749,8 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         eval::check_result(&qd, Quantity::Velocity, t)?;
         eval::check_result(&qdd, Quantity::Acceleration, t)?;
         // 3. Forces.
-        let m = eval::mass(model, &q, t)?;
-        let h = eval::bias(model, &q, &qd, t)?;
         let b = eval::actuator_map(model, t)?;
-        let r = m * qdd + h;
+        let r = terms.m * qdd + terms.h;
         let fast_forces = match fast {
             Some(_) => self.forces_eliminated(&cfg, &inv, &x, &phi_q, &b, &r, t)?,
             None => None,

@@ -193,11 +193,9 @@ impl<const NQ: usize, const NU: usize> Ctx<NQ, NU> {
     {
         let q = self.q(a);
         let v = self.v(a);
-        let m = eval::mass(model, &q, self.t)?;
-        let hb = eval::bias(model, &q, &v, self.t)?;
-        let phi_q = eval::constraint_jacobian(model, &q, self.t)?;
-        let r1 = m * a + hb - phi_q.transpose() * lambda - self.f_ext;
-        let c = stabilised_rhs(model, &self.gains, &q, &v, self.t, &phi_q)?;
+        let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, &q, &v, self.t)?;
+        let r1 = m * a + h - phi_q.transpose() * lambda - self.f_ext;
+        let c = stabilised_rhs(model, &self.gains, &q, &v, self.t, &phi_q, gamma)?;
         let r2 = phi_q * a - c;
         Ok(Residual { r1, r2, phi_q, m })
     }
