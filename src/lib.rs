@@ -10,6 +10,7 @@ pub mod eval;
 pub mod plot;
 pub mod progress;
 pub mod robot;
+pub mod servo;
 pub mod table;
 
 /// The generated scene modules (one per file in `scenes/`).

@@ -64,9 +64,12 @@ enum Command {
     },
     /// Inverse dynamics of the parallel robot along a circle of the platform
     /// centre (the paper's Eq. 23 by default): the actuator torques, through
-    /// the runtime's real-time path.
+    /// the runtime's real-time path for the rigid robot; for a flexible scene
+    /// by servo constraints on the platform with the elastic coordinates
+    /// integrated (generalized-alpha, one step per --dt).
     Inverse {
-        /// Scene file of the robot (`scenes/parallel_robot_rigid.toml`).
+        /// Scene file of the robot (`scenes/parallel_robot_rigid.toml` or a
+        /// flexible variant, e.g. `scenes/parallel_robot_flexible.toml`).
         #[arg(long)]
         scene: PathBuf,
         /// Angular rate of the circle, rad/s.
@@ -84,7 +87,9 @@ enum Command {
         /// Centre of the circle as x,y,z in m.
         #[arg(long, default_value = "0,0,0.7", allow_negative_numbers = true)]
         center: String,
-        /// CSV output: t, tau_1..3 (N m), px, py, pz (m), vx, vy, vz (m/s), th11, th21, th31 (rad).
+        /// CSV output: t, tau_1..3 (N m), px, py, pz (m), vx, vy, vz (m/s), th11, th21, th31 (rad);
+        /// for flexible scenes px..vz are the prescribed circle and dx, dy, dz (m) the
+        /// platform's deviation from it (servo-constraint accuracy).
         #[arg(long)]
         csv: Option<PathBuf>,
         /// Plot of the three torques against time (.png or .svg).
@@ -105,12 +110,26 @@ enum Command {
         /// Torques to apply (e.g. the CSV written by `flexdyn inverse`).
         #[arg(long)]
         torques: PathBuf,
-        /// Output CSV: t, px, py, pz (m), th11, th21, th31 (rad), phi_max (constraint residual).
+        /// Output CSV: t, px, py, pz (m), th11, th21, th31 (rad), phi_max (constraint residual),
+        /// tau_1..3 (applied torques, N m), dx, dy, dz (m, deviation from the torque table's
+        /// px, py, pz: the path the torques were computed for).
         #[arg(long)]
         csv: Option<PathBuf>,
-        /// Plot of the platform position against time (.png or .svg).
+        /// Plot (.png or .svg) of the platform position against time; for a
+        /// flexible scene, of its deviation dx, dy, dz in mm.
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Add a joint-space PD loop on the actuated joints around the torque
+        /// table's angles th11, th21, th31, with the scene's gains (parameters
+        /// `pd_kp`, `pd_kd`) unless --kp/--kd are given.
+        #[arg(long)]
+        pd: bool,
+        /// Proportional gain of the PD loop, N m/rad (implies --pd).
+        #[arg(long, allow_negative_numbers = true)]
+        kp: Option<f64>,
+        /// Derivative gain of the PD loop, N m s/rad (implies --pd).
+        #[arg(long, allow_negative_numbers = true)]
+        kd: Option<f64>,
         /// Integration step, s.
         #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
         dt: f64,
@@ -120,9 +139,10 @@ enum Command {
         /// Duration, s (default: up to the last torque sample).
         #[arg(long, allow_negative_numbers = true)]
         duration: Option<f64>,
-        /// Integrator: rk4, semi-implicit or gen-alpha.
-        #[arg(long, default_value = "rk4")]
-        integrator: flexdyn::robot::Scheme,
+        /// Integrator: rk4, semi-implicit or gen-alpha (default: rk4 for the
+        /// rigid robot, gen-alpha for flexible scenes).
+        #[arg(long)]
+        integrator: Option<flexdyn::robot::Scheme>,
         /// No progress bar and no summary.
         #[arg(long)]
         quiet: bool,
@@ -201,6 +221,9 @@ fn main() -> ExitCode {
             torques,
             csv,
             plot,
+            pd,
+            kp,
+            kd,
             dt,
             output_dt,
             duration,
@@ -211,6 +234,9 @@ fn main() -> ExitCode {
             torques,
             csv,
             plot,
+            pd: pd || kp.is_some() || kd.is_some(),
+            kp,
+            kd,
             dt,
             output_dt,
             duration,
@@ -293,7 +319,7 @@ fn inverse(
     plot: Option<&Path>,
     quiet: bool,
 ) -> Result<(), String> {
-    use flexdyn::robot::{inverse_along, output_times};
+    use flexdyn::robot::{inverse_rows, output_times};
     let (parsed, geometry) = robot_scene(scene, "inverse")?;
     if !(circle.omega.is_finite() && circle.radius.is_finite() && circle.radius >= 0.0) {
         return Err("--omega must be finite and --radius finite and non-negative".into());
@@ -301,25 +327,38 @@ fn inverse(
     let times = output_times(duration, dt)?;
     let mut progress =
         flexdyn::progress::Progress::new(times.len() as u64, "inverse dynamics", quiet);
-    let solutions = match parsed.name.as_str() {
-        "parallel_robot_rigid" => {
-            let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
-            inverse_along(&model, &geometry, circle, &times, &mut || progress.inc())?
-        }
-        other => unreachable!("robot_scene accepted `{other}`"),
-    };
+    let solutions = flexdyn::with_robot_model!(parsed.name.as_str(), model => {
+        inverse_rows(&model, &geometry, circle, &times, &mut || progress.inc())
+    })
+    .ok_or_else(|| format!("scene `{}` is not a robot scene", parsed.name))??;
     progress.finish();
-    let mut table = flexdyn::table::Table::new(&[
+    let flexible = parsed.nq() > 12;
+    let mut columns = vec![
         "t", "tau_1", "tau_2", "tau_3", "px", "py", "pz", "vx", "vy", "vz", "th11", "th21", "th31",
-    ]);
-    for s in &solutions {
-        table.push(vec![
-            s.t, s.tau[0], s.tau[1], s.tau[2], s.q[9], s.q[10], s.q[11], s.qd[9], s.qd[10],
-            s.qd[11], s.q[0], s.q[3], s.q[6],
-        ]);
+    ];
+    if flexible {
+        columns.extend(["dx", "dy", "dz"]);
     }
+    let mut table = flexdyn::table::Table::new(&columns);
+    for s in &solutions {
+        // Flexible scenes: the prescribed path, and the platform's deviation from it.
+        let [p, v, _] = if flexible {
+            circle.at(s.t)
+        } else {
+            [s.p, s.v, [0.0; 3]]
+        };
+        let mut row = vec![
+            s.t, s.tau[0], s.tau[1], s.tau[2], p[0], p[1], p[2], v[0], v[1], v[2], s.th[0],
+            s.th[1], s.th[2],
+        ];
+        if flexible {
+            row.extend((0..3).map(|k| s.p[k] - p[k]));
+        }
+        table.push(row);
+    }
+    let mut outputs = flexdyn::table::Outputs::default();
     if let Some(path) = csv {
-        table.write(path)?;
+        outputs.write(path, |tmp| table.write(tmp))?;
     }
     if let Some(path) = plot {
         let series: Vec<flexdyn::plot::Series> = (1..=3)
@@ -332,16 +371,19 @@ fn inverse(
             "Driving torques, {} (omega = {} rad/s)",
             parsed.name, circle.omega
         );
-        flexdyn::plot::line_plot(
-            path,
-            &flexdyn::plot::Labels {
-                title: &title,
-                x: "t (s)",
-                y: "torque (N m)",
-            },
-            &series,
-        )?;
+        outputs.write(path, |tmp| {
+            flexdyn::plot::line_plot(
+                tmp,
+                &flexdyn::plot::Labels {
+                    title: &title,
+                    x: "t (s)",
+                    y: "torque (N m)",
+                },
+                &series,
+            )
+        })?;
     }
+    outputs.commit()?;
     if !quiet {
         for i in 0..3 {
             let peak = solutions.iter().map(|s| s.tau[i].abs()).fold(0.0, f64::max);
@@ -356,19 +398,23 @@ struct SimulateArgs {
     torques: PathBuf,
     csv: Option<PathBuf>,
     plot: Option<PathBuf>,
+    pd: bool,
+    kp: Option<f64>,
+    kd: Option<f64>,
     dt: f64,
     output_dt: f64,
     duration: Option<f64>,
-    integrator: flexdyn::robot::Scheme,
+    integrator: Option<flexdyn::robot::Scheme>,
     quiet: bool,
 }
 
 fn simulate(a: &SimulateArgs) -> Result<(), String> {
-    use flexdyn::robot::{consistent_state, output_times, simulate, TorqueTable};
+    use flexdyn::robot::{output_times, simulate_rows, PdSettings, Scheme, TorqueTable};
     let (parsed, geometry) = robot_scene(&a.scene, "simulate")?;
+    let flexible = parsed.nq() > 12;
     let table = flexdyn::table::Table::read(&a.torques)?;
-    let torques =
-        TorqueTable::from_table(&table).map_err(|e| format!("{}: {e}", a.torques.display()))?;
+    let in_table = |e: String| format!("{}: {e}", a.torques.display());
+    let torques = TorqueTable::from_table(&table).map_err(in_table)?;
     let first = |name: &str, default: Option<f64>| -> Result<f64, String> {
         match table.column(name) {
             Ok(c) => Ok(c[0]),
@@ -381,6 +427,34 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
         first("vy", Some(0.0))?,
         first("vz", Some(0.0))?,
     ];
+    // The path the torques were computed for, to measure the deviation from.
+    let path = TorqueTable::from_columns(&table, ["px", "py", "pz"]).map_err(in_table)?;
+    let pd = if a.pd {
+        let gain = |name: &str, given: Option<f64>, option: &str| {
+            given
+                .or_else(|| parsed.parameters.get(name).copied())
+                .ok_or_else(|| {
+                    format!(
+                        "--pd: scene `{}` declares no parameter `{name}` (PD gain); give {option}",
+                        parsed.name
+                    )
+                })
+        };
+        let reference = TorqueTable::from_columns(&table, ["th11", "th21", "th31"])
+            .map_err(|e| in_table(format!("{e} (--pd needs the reference joint angles)")))?;
+        Some(PdSettings {
+            kp: gain("pd_kp", a.kp, "--kp")?,
+            kd: gain("pd_kd", a.kd, "--kd")?,
+            reference,
+        })
+    } else {
+        None
+    };
+    let scheme = a.integrator.unwrap_or(if flexible {
+        Scheme::GeneralizedAlpha
+    } else {
+        Scheme::Rk4
+    });
     let (t0, t1) = torques.span();
     let duration = a.duration.unwrap_or(t1 - t0);
     if !(a.output_dt.is_finite() && a.output_dt > 0.0) {
@@ -399,70 +473,99 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
     }
     let every = ratio.round() as usize;
     let mut progress = flexdyn::progress::Progress::new(steps as u64, "forward dynamics", a.quiet);
-    let states = match parsed.name.as_str() {
-        "parallel_robot_rigid" => {
-            let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
-            let start = consistent_state(&model, &geometry, t0, p, v)?;
-            simulate(
-                &model,
-                a.integrator,
-                start,
-                &torques,
-                a.dt,
-                steps,
-                every,
-                &mut || progress.inc(),
-            )?
-        }
-        other => unreachable!("robot_scene accepted `{other}`"),
-    };
+    let rows = flexdyn::with_robot_model!(parsed.name.as_str(), model => simulate_rows(
+        &model,
+        &geometry,
+        scheme,
+        (t0, p, v),
+        &torques,
+        pd.as_ref(),
+        (a.dt, steps, every),
+        &mut || progress.inc(),
+    ))
+    .ok_or_else(|| format!("scene `{}` is not a robot scene", parsed.name))??;
     progress.finish();
-    let model = flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
-    let mut out =
-        flexdyn::table::Table::new(&["t", "px", "py", "pz", "th11", "th21", "th31", "phi_max"]);
-    for s in &states {
-        let mut phi = nalgebra::SVector::<f64, 9>::zeros();
-        flexdyn::runtime::Model::constraints(&model, &s.q, s.t, &mut phi);
+    let deviation = |r: &flexdyn::robot::SimRow| {
+        let want = path.at(r.t);
+        [r.p[0] - want[0], r.p[1] - want[1], r.p[2] - want[2]]
+    };
+    let mut out = flexdyn::table::Table::new(&[
+        "t", "px", "py", "pz", "th11", "th21", "th31", "phi_max", "tau_1", "tau_2", "tau_3", "dx",
+        "dy", "dz",
+    ]);
+    for r in &rows {
+        let d = deviation(r);
         out.push(vec![
-            s.t,
-            s.q[9],
-            s.q[10],
-            s.q[11],
-            s.q[0],
-            s.q[3],
-            s.q[6],
-            phi.amax(),
+            r.t, r.p[0], r.p[1], r.p[2], r.th[0], r.th[1], r.th[2], r.phi_max, r.tau[0], r.tau[1],
+            r.tau[2], d[0], d[1], d[2],
         ]);
     }
+    let mut outputs = flexdyn::table::Outputs::default();
     if let Some(path) = &a.csv {
-        out.write(path)?;
+        outputs.write(path, |tmp| out.write(tmp))?;
     }
-    if let Some(path) = &a.plot {
-        let series: Vec<flexdyn::plot::Series> = ["px", "py", "pz"]
+    if let Some(plot) = &a.plot {
+        let (labels, scale, title, y) = if flexible {
+            (
+                ["dx", "dy", "dz"],
+                1e3,
+                format!(
+                    "Platform deviation from the torques' path, {}{}",
+                    parsed.name,
+                    if pd.is_some() { " (with PD)" } else { "" }
+                ),
+                "deviation (mm)",
+            )
+        } else {
+            (
+                ["px", "py", "pz"],
+                1.0,
+                "Platform position under the given torques".to_string(),
+                "position (m)",
+            )
+        };
+        let series: Vec<flexdyn::plot::Series> = labels
             .iter()
             .enumerate()
             .map(|(k, label)| flexdyn::plot::Series {
                 label,
-                points: states.iter().map(|s| (s.t, s.q[9 + k])).collect(),
+                points: rows
+                    .iter()
+                    .map(|r| (r.t, scale * if flexible { deviation(r)[k] } else { r.p[k] }))
+                    .collect(),
             })
             .collect();
-        flexdyn::plot::line_plot(
-            path,
-            &flexdyn::plot::Labels {
-                title: "Platform position under the given torques",
-                x: "t (s)",
-                y: "position (m)",
-            },
-            &series,
-        )?;
+        outputs.write(plot, |tmp| {
+            flexdyn::plot::line_plot(
+                tmp,
+                &flexdyn::plot::Labels {
+                    title: &title,
+                    x: "t (s)",
+                    y,
+                },
+                &series,
+            )
+        })?;
     }
+    outputs.commit()?;
     if !a.quiet {
-        let last = states.last().map_or(0.0, |s| s.t);
+        let last = rows.last().map_or(0.0, |r| r.t);
         println!(
             "simulated {:.3} s in {} steps of {} s",
             last - t0,
             steps,
             a.dt
+        );
+        let peak = |k: usize| {
+            rows.iter()
+                .map(|r| deviation(r)[k].abs())
+                .fold(0.0, f64::max)
+        };
+        println!(
+            "max |dx| = {:.4} mm, max |dy| = {:.4} mm, max |dz| = {:.4} mm",
+            1e3 * peak(0),
+            1e3 * peak(1),
+            1e3 * peak(2)
         );
     }
     Ok(())
@@ -474,10 +577,12 @@ fn robot_scene(
     command: &str,
 ) -> Result<(flexdyn::codegen::model::Model, flexdyn::robot::Geometry), String> {
     let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
-    if parsed.name != "parallel_robot_rigid" {
+    if !flexdyn::robot::ROBOT_SCENES.contains(&parsed.name.as_str()) {
         return Err(format!(
-            "`{command}` drives the parallel robot; scene `{}` is not one (try scenes/parallel_robot_rigid.toml)",
-            parsed.name
+            "`{command}` drives the parallel robot; scene `{}` is not one (try scenes/parallel_robot_rigid.toml; \
+             robot scenes: {})",
+            parsed.name,
+            flexdyn::robot::ROBOT_SCENES.join(", ")
         ));
     }
     let geometry = flexdyn::robot::Geometry::from_parameters(&parsed.parameters)?;

@@ -242,29 +242,36 @@ pub type RigidSolution = flexdyn_runtime::InverseSolution<12, 9, 3>;
 /// Inverse dynamics of the rigid robot along `circle` at `times`, through
 /// the runtime's real-time path (one [`flexdyn_runtime::InverseDynamics`]
 /// call per time, warm-started from the previous one). `tick` is called after
-/// each time. Errors name the time and what went wrong.
-pub fn inverse_along<M>(
+/// each time. Errors name the time and what went wrong. Generic over the
+/// dimensions for [`with_robot_model!`]; a scene with more coordinates than
+/// the rigid robot's needs [`crate::servo::flexible_inverse`] instead.
+pub fn inverse_along<M, const NQ: usize, const NC: usize>(
     model: &M,
     g: &Geometry,
     circle: &Circle,
     times: &[f64],
     tick: &mut dyn FnMut(),
-) -> Result<Vec<RigidSolution>, String>
+) -> Result<Vec<flexdyn_runtime::InverseSolution<NQ, NC, 3>>, String>
 where
-    M: flexdyn_runtime::Model<12, 9, 3>,
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
     use flexdyn_runtime::nalgebra::SVector;
+    let layout = Layout::of(model)?;
     let start = times.first().copied().unwrap_or(0.0);
-    let q0 =
+    let rigid =
         inverse_kinematics(g, circle.at(start)[0]).map_err(|e| format!("at t = {start} s: {e}"))?;
-    let mut solver = flexdyn_runtime::InverseDynamics::<12, 9, 3, 3>::new(
-        [9, 10, 11],
-        SVector::from(q0),
+    let mut q0 = SVector::<f64, NQ>::zeros();
+    for (k, &i) in layout.rigid.iter().enumerate() {
+        q0[i] = rigid[k];
+    }
+    let mut solver = flexdyn_runtime::InverseDynamics::<NQ, NC, 3, 3>::new(
+        layout.platform,
+        q0,
         flexdyn_runtime::InverseConfig::default(),
     )
     .map_err(|e| e.to_string())?;
     let mut out = Vec::with_capacity(times.len());
-    let mut sol = RigidSolution::default();
+    let mut sol = flexdyn_runtime::InverseSolution::<NQ, NC, 3>::default();
     for &t in times {
         let [p, v, a] = circle.at(t);
         // The closed form tells precisely why a point cannot be reached.
@@ -285,6 +292,73 @@ where
     Ok(out)
 }
 
+/// One row of the robot's inverse dynamics, whatever the scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseRow {
+    /// Time, s.
+    pub t: f64,
+    /// Actuator torques, N m.
+    pub tau: [f64; 3],
+    /// Platform centre, m.
+    pub p: [f64; 3],
+    /// Platform velocity, m/s.
+    pub v: [f64; 3],
+    /// Actuated joint angles `th11, th21, th31`, rad.
+    pub th: [f64; 3],
+}
+
+/// Inverse dynamics of any robot scene along `circle` at `times`: the rigid
+/// robot's algebraic solve ([`inverse_along`]) when the scene has only the
+/// rigid coordinates, the servo-constrained integration of the elastic
+/// coordinates ([`crate::servo::flexible_inverse`], one step per interval of
+/// `times`) otherwise.
+pub fn inverse_rows<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    g: &Geometry,
+    circle: &Circle,
+    times: &[f64],
+    tick: &mut dyn FnMut(),
+) -> Result<Vec<InverseRow>, String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
+    let layout = Layout::of(model)?;
+    let row = |t: f64, tau: [f64; 3], q: &[f64], qd: &[f64]| InverseRow {
+        t,
+        tau,
+        p: layout.platform.map(|i| q[i]),
+        v: layout.platform.map(|i| qd[i]),
+        th: layout.actuated.map(|i| q[i]),
+    };
+    if layout.is_flexible() {
+        let samples = crate::servo::flexible_inverse(model, &layout, g, circle, times, tick)?;
+        Ok(samples
+            .iter()
+            .map(|s| {
+                row(
+                    s.state.t,
+                    s.tau,
+                    s.state.q.as_slice(),
+                    s.state.qd.as_slice(),
+                )
+            })
+            .collect())
+    } else {
+        let sols = inverse_along(model, g, circle, times, tick)?;
+        Ok(sols
+            .iter()
+            .map(|s| {
+                row(
+                    s.t,
+                    [s.tau[0], s.tau[1], s.tau[2]],
+                    s.q.as_slice(),
+                    s.qd.as_slice(),
+                )
+            })
+            .collect())
+    }
+}
+
 /// Actuator torques sampled in time, linearly interpolated between samples
 /// and held constant outside them.
 #[derive(Debug, Clone, PartialEq)]
@@ -297,11 +371,21 @@ impl TorqueTable {
     /// From the columns `t, tau_1, tau_2, tau_3` of a table; times must
     /// increase strictly.
     pub fn from_table(table: &crate::table::Table) -> Result<TorqueTable, String> {
+        TorqueTable::from_columns(table, ["tau_1", "tau_2", "tau_3"])
+    }
+
+    /// From the column `t` and three other columns of a table (any three
+    /// quantities sampled in time, e.g. the joint angles `th11, th21, th31`
+    /// written by `flexdyn inverse`); times must increase strictly.
+    pub fn from_columns(
+        table: &crate::table::Table,
+        names: [&str; 3],
+    ) -> Result<TorqueTable, String> {
         let times = table.column("t")?;
         let taus = [
-            table.column("tau_1")?,
-            table.column("tau_2")?,
-            table.column("tau_3")?,
+            table.column(names[0])?,
+            table.column(names[1])?,
+            table.column(names[2])?,
         ];
         if times.is_empty() {
             return Err("the torque table has no rows".into());
@@ -323,6 +407,23 @@ impl TorqueTable {
         Ok(TorqueTable { times, torques })
     }
 
+    /// From samples `(t, value)`; times must increase strictly.
+    pub fn from_samples(samples: &[(f64, [f64; 3])]) -> Result<TorqueTable, String> {
+        if samples.is_empty() {
+            return Err("no samples".into());
+        }
+        if samples
+            .windows(2)
+            .any(|w| w[1].0.partial_cmp(&w[0].0) != Some(std::cmp::Ordering::Greater))
+        {
+            return Err("times must increase strictly".into());
+        }
+        Ok(TorqueTable {
+            times: samples.iter().map(|s| s.0).collect(),
+            torques: samples.iter().map(|s| s.1).collect(),
+        })
+    }
+
     /// First and last sample times.
     pub fn span(&self) -> (f64, f64) {
         (self.times[0], self.times[self.times.len() - 1])
@@ -340,6 +441,26 @@ impl TorqueTable {
         let (t0, t1) = (self.times[k - 1], self.times[k]);
         let s = (t - t0) / (t1 - t0);
         let (a, b) = (self.torques[k - 1], self.torques[k]);
+        std::array::from_fn(|i| a[i] + s * (b[i] - a[i]))
+    }
+
+    /// Rate of change at `t`: central differences at the samples (one-sided at
+    /// the ends), linearly interpolated; zero outside the sampled span and for
+    /// a single sample.
+    pub fn rate_at(&self, t: f64) -> [f64; 3] {
+        let n = self.times.len();
+        if n < 2 || t < self.times[0] || t > self.times[n - 1] {
+            return [0.0; 3];
+        }
+        let node = |k: usize| -> [f64; 3] {
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+            let dt = self.times[b] - self.times[a];
+            std::array::from_fn(|i| (self.torques[b][i] - self.torques[a][i]) / dt)
+        };
+        let k = self.times.partition_point(|&x| x <= t).clamp(1, n - 1);
+        let (t0, t1) = (self.times[k - 1], self.times[k]);
+        let s = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+        let (a, b) = (node(k - 1), node(k));
         std::array::from_fn(|i| a[i] + s * (b[i] - a[i]))
     }
 }
@@ -405,31 +526,44 @@ where
     Ok(RigidState::new(sol.q, sol.qd, t))
 }
 
-/// Forward dynamics of the rigid robot from `state` under `torques`, with
-/// steps of `dt`, recording the state every `every` steps (and at the
-/// start), for `steps` steps. `tick` is called after each step.
+/// Forward dynamics of a robot model (rigid or flexible; wrap it in
+/// [`crate::servo::Feedback`] for a control loop) from `state` under
+/// `torques`, with steps of `dt`, recording the state every `every` steps
+/// (and at the start), for `steps` steps. `tick` is called after each step.
 #[allow(clippy::too_many_arguments)]
-pub fn simulate<M>(
+pub fn simulate<M, const NQ: usize, const NC: usize>(
     model: &M,
     scheme: Scheme,
-    mut state: RigidState,
+    mut state: flexdyn_runtime::State<NQ>,
     torques: &TorqueTable,
     dt: f64,
     steps: usize,
     every: usize,
     tick: &mut dyn FnMut(),
-) -> Result<Vec<RigidState>, String>
+) -> Result<Vec<flexdyn_runtime::State<NQ>>, String>
 where
-    M: flexdyn_runtime::Model<12, 9, 3>,
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
     use flexdyn_runtime::integrate::{GeneralizedAlpha, Rk4, SemiImplicitEuler, StepSettings};
     use flexdyn_runtime::{FromFn, Integrator};
     let input = FromFn(|t: f64| flexdyn_runtime::nalgebra::SVector::<f64, 3>::from(torques.at(t)));
-    let settings = StepSettings::default();
+    let settings = StepSettings::with_projection();
     let mut out = vec![state];
-    let mut run = |integ: &mut dyn FnMut(&mut RigidState) -> Result<(), flexdyn_runtime::Error>| {
+    let explain = |e: flexdyn_runtime::Error| {
+        match e.kind {
+        flexdyn_runtime::ErrorKind::StepTooLarge { .. } if scheme == Scheme::Rk4 => format!(
+            "{e}: the explicit RK4 scheme is unstable at this step for the stiffest motion of \
+             scene `{}` (elastic modes, stiff joints); use --integrator gen-alpha or a smaller --dt",
+            M::NAME
+        ),
+        _ => e.to_string(),
+    }
+    };
+    let mut run = |integ: &mut dyn FnMut(
+        &mut flexdyn_runtime::State<NQ>,
+    ) -> Result<(), flexdyn_runtime::Error>| {
         for k in 1..=steps {
-            integ(&mut state).map_err(|e| e.to_string())?;
+            integ(&mut state).map_err(explain)?;
             if k % every.max(1) == 0 {
                 out.push(state);
             }
@@ -440,18 +574,285 @@ where
     match scheme {
         Scheme::Rk4 => {
             let mut g = Rk4::new(settings);
-            run(&mut |s| g.step(model, s, &input, dt).map(|_| ()))?;
+            run(&mut |s| Integrator::<NQ, NC, 3>::step(&mut g, model, s, &input, dt).map(|_| ()))?;
         }
         Scheme::SemiImplicit => {
             let mut g = SemiImplicitEuler::new(settings);
-            run(&mut |s| g.step(model, s, &input, dt).map(|_| ()))?;
+            run(&mut |s| Integrator::<NQ, NC, 3>::step(&mut g, model, s, &input, dt).map(|_| ()))?;
         }
         Scheme::GeneralizedAlpha => {
-            let mut g = GeneralizedAlpha::<12, 9>::new(settings, Default::default());
+            let config = flexdyn_runtime::GeneralizedAlphaConfig {
+                rho_inf: crate::servo::SERVO_RHO_INF,
+                filter_start: false,
+                ..Default::default()
+            };
+            let mut g = GeneralizedAlpha::<NQ, NC>::new(settings, config);
             run(&mut |s| g.step(model, s, &input, dt).map(|_| ()))?;
         }
     }
     Ok(out)
+}
+
+/// The robot scenes the robot commands (`inverse`, `simulate`) drive: the
+/// rigid robot and its flexible variants.
+pub const ROBOT_SCENES: [&str; 5] = [
+    "parallel_robot_rigid",
+    "parallel_robot_flexible",
+    "parallel_robot_flexible_links",
+    "parallel_robot_flexible_joints",
+    "parallel_robot_soft",
+];
+
+/// Evaluates `$body` with `$m` bound to the generated model of robot scene
+/// `$name` (one of [`ROBOT_SCENES`], at its nominal runtime parameters):
+/// `Some(body)`, or `None` for any other name. Each arm is compiled for its
+/// own model type, so `$body` may call functions generic over the model's
+/// dimensions.
+#[macro_export]
+macro_rules! with_robot_model {
+    ($name:expr, $m:ident => $body:expr) => {
+        match $name {
+            "parallel_robot_rigid" => {
+                let $m = $crate::scenes::parallel_robot_rigid::ParallelRobotRigid;
+                Some($body)
+            }
+            "parallel_robot_flexible" => {
+                let $m = $crate::scenes::parallel_robot_flexible::ParallelRobotFlexible::default();
+                Some($body)
+            }
+            "parallel_robot_flexible_links" => {
+                let $m =
+                    $crate::scenes::parallel_robot_flexible_links::ParallelRobotFlexibleLinks;
+                Some($body)
+            }
+            "parallel_robot_flexible_joints" => {
+                let $m =
+                    $crate::scenes::parallel_robot_flexible_joints::ParallelRobotFlexibleJoints::default();
+                Some($body)
+            }
+            "parallel_robot_soft" => {
+                let $m = $crate::scenes::parallel_robot_soft::ParallelRobotSoft;
+                Some($body)
+            }
+            _ => None,
+        }
+    };
+}
+
+/// The joint-space PD loop of a forward run: gains and the reference angles
+/// of the actuated joints (`th11, th21, th31`) in time.
+#[derive(Debug, Clone)]
+pub struct PdSettings {
+    /// Proportional gain, N m/rad.
+    pub kp: f64,
+    /// Derivative gain, N m s/rad.
+    pub kd: f64,
+    /// Reference angles.
+    pub reference: TorqueTable,
+}
+
+/// One recorded row of a forward run, whatever the scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimRow {
+    /// Time, s.
+    pub t: f64,
+    /// Platform centre, m.
+    pub p: [f64; 3],
+    /// Actuated joint angles, rad.
+    pub th: [f64; 3],
+    /// Largest closure-constraint residual.
+    pub phi_max: f64,
+    /// Applied actuator torques (feed-forward plus feedback), N m.
+    pub tau: [f64; 3],
+}
+
+/// Forward dynamics of any robot scene from the undeformed robot
+/// ([`initial_state`]) at `t0` with its platform at `p` moving at `v`, under
+/// `torques` plus the PD loop `pd` if given, `steps` steps of `dt`, recording
+/// every `every` steps.
+#[allow(clippy::too_many_arguments)]
+pub fn simulate_rows<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    g: &Geometry,
+    scheme: Scheme,
+    (t0, p, v): (f64, [f64; 3], [f64; 3]),
+    torques: &TorqueTable,
+    pd: Option<&PdSettings>,
+    (dt, steps, every): (f64, usize, usize),
+    tick: &mut dyn FnMut(),
+) -> Result<Vec<SimRow>, String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
+    let layout = Layout::of(model)?;
+    let start = initial_state(model, &layout, g, t0, p, v)?;
+    let pd = pd
+        .map(|s| crate::servo::JointPd::new(s.kp, s.kd, s.reference.clone(), layout.actuated))
+        .transpose()?;
+    let states = match &pd {
+        Some(pd) => {
+            let closed = crate::servo::Feedback {
+                inner: model,
+                law: |q: &flexdyn_runtime::nalgebra::SVector<f64, NQ>,
+                      qd: &flexdyn_runtime::nalgebra::SVector<f64, NQ>,
+                      t: f64| pd.torques(q, qd, t),
+            };
+            simulate(&closed, scheme, start, torques, dt, steps, every, tick)?
+        }
+        None => simulate(model, scheme, start, torques, dt, steps, every, tick)?,
+    };
+    Ok(states
+        .iter()
+        .map(|s| {
+            let mut phi = flexdyn_runtime::nalgebra::SVector::<f64, NC>::zeros();
+            model.constraints(&s.q, s.t, &mut phi);
+            let ff = torques.at(s.t);
+            let fb = pd
+                .as_ref()
+                .map_or([0.0; 3], |pd| pd.torques(&s.q, &s.qd, s.t));
+            SimRow {
+                t: s.t,
+                p: layout.platform.map(|i| s.q[i]),
+                th: layout.actuated.map(|i| s.q[i]),
+                phi_max: phi.amax(),
+                tau: std::array::from_fn(|j| ff[j] + fb[j]),
+            }
+        })
+        .collect())
+}
+
+/// The rigid robot's twelve coordinates, in the order of
+/// [`inverse_kinematics`]. Every robot scene (rigid or flexible) names its
+/// coordinates so; flexible scenes add platform rotations, joint twists and
+/// modal coordinates.
+pub const RIGID_COORDINATES: [&str; 12] = [
+    "th11", "th12", "th13", "th21", "th22", "th23", "th31", "th32", "th33", "px", "py", "pz",
+];
+
+/// Where a robot scene keeps the quantities the robot commands need, found
+/// by name (coordinates) and from the actuator map (actuated joints).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Layout {
+    /// Index of each of [`RIGID_COORDINATES`] among the scene's coordinates.
+    pub rigid: [usize; 12],
+    /// Indices of the platform centre `px, py, pz`.
+    pub platform: [usize; 3],
+    /// Index of the coordinate each actuator drives (`th11, th21, th31`).
+    pub actuated: [usize; 3],
+    /// Number of coordinates of the scene.
+    pub nq: usize,
+}
+
+impl Layout {
+    /// The layout of `model`, or an error naming what the scene lacks.
+    pub fn of<M, const NQ: usize, const NC: usize>(model: &M) -> Result<Layout, String>
+    where
+        M: flexdyn_runtime::Model<NQ, NC, 3>,
+    {
+        let find = |name: &str| {
+            M::COORDINATES
+                .iter()
+                .position(|c| *c == name)
+                .ok_or_else(|| {
+                    format!(
+                        "scene `{}` has no coordinate `{name}`: a robot scene names its rigid \
+                         coordinates {}",
+                        M::NAME,
+                        RIGID_COORDINATES.join(", ")
+                    )
+                })
+        };
+        let mut rigid = [0; 12];
+        for (k, name) in RIGID_COORDINATES.iter().enumerate() {
+            rigid[k] = find(name)?;
+        }
+        let mut b = flexdyn_runtime::nalgebra::SMatrix::<f64, NQ, 3>::zeros();
+        model.actuator_map(&mut b);
+        let mut actuated = [0; 3];
+        for j in 0..3 {
+            let rows: Vec<usize> = (0..NQ).filter(|&i| b[(i, j)] != 0.0).collect();
+            match rows.as_slice() {
+                [i] if b[(*i, j)] == 1.0 && *i == rigid[3 * j] => actuated[j] = *i,
+                _ => {
+                    return Err(format!(
+                        "scene `{}`: actuator `{}` must drive coordinate `{}` alone with unit gain",
+                        M::NAME,
+                        M::ACTUATORS[j],
+                        RIGID_COORDINATES[3 * j]
+                    ))
+                }
+            }
+        }
+        Ok(Layout {
+            rigid,
+            platform: [rigid[9], rigid[10], rigid[11]],
+            actuated,
+            nq: NQ,
+        })
+    }
+
+    /// Whether the scene has coordinates beyond the rigid robot's twelve
+    /// (platform rotations, joint twists, modal coordinates).
+    pub fn is_flexible(&self) -> bool {
+        self.nq > 12
+    }
+}
+
+/// The state of a robot scene with its platform at `p` moving at `v`: the
+/// rigid coordinates from the closed-form inverse kinematics, every other
+/// coordinate (platform rotations, joint twists, modal coordinates) and its
+/// rate zero (the undeformed robot; the gravity sag, below a micrometre for
+/// the spec's links, is left to the dynamics), and the rates of the nine
+/// joint angles from the velocity constraints. Checked to satisfy the
+/// position and velocity constraints to `1e-9`.
+pub fn initial_state<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    layout: &Layout,
+    g: &Geometry,
+    t: f64,
+    p: [f64; 3],
+    v: [f64; 3],
+) -> Result<flexdyn_runtime::State<NQ>, String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
+    use flexdyn_runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
+    let rigid = inverse_kinematics(g, p).map_err(|e| format!("initial state: {e}"))?;
+    let mut q = SVector::<f64, NQ>::zeros();
+    for (k, &i) in layout.rigid.iter().enumerate() {
+        q[i] = rigid[k];
+    }
+    let mut qd = SVector::<f64, NQ>::zeros();
+    for k in 0..3 {
+        qd[layout.platform[k]] = v[k];
+    }
+    // Joint-angle rates: Phi_q[:, joints] w = -(Phi_q qd_known + Phi_t).
+    let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
+    let mut phi_t = SVector::<f64, NC>::zeros();
+    model.constraint_jacobian(&q, t, &mut phi_q);
+    model.constraint_time_derivative(&q, t, &mut phi_t);
+    let joints = &layout.rigid[..9];
+    let a = DMatrix::from_fn(NC, 9, |r, c| phi_q[(r, joints[c])]);
+    let rhs = DVector::from_iterator(NC, (-(phi_q * qd + phi_t)).iter().copied());
+    let w = a
+        .svd(true, true)
+        .solve(&rhs, 1e-12)
+        .map_err(|e| format!("initial state: {e}"))?;
+    for (c, &i) in joints.iter().enumerate() {
+        qd[i] = w[c];
+    }
+    let state = flexdyn_runtime::State::new(q, qd, t);
+    let drift = flexdyn_runtime::constraint_drift(model, &state);
+    if !(drift.position < 1e-9 && drift.velocity < 1e-9) {
+        return Err(format!(
+            "initial state: scene `{}` does not close at the rigid robot's pose \
+             (constraint residual {:.3e}, velocity residual {:.3e})",
+            M::NAME,
+            drift.position,
+            drift.velocity
+        ));
+    }
+    Ok(state)
 }
 
 #[cfg(test)]
