@@ -138,5 +138,59 @@ fn robot(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, robot);
+/// The flexible robot (39 coordinates, kHz modes) with the generalized-alpha
+/// integrator at the paper's 5 ms step, its Newton matrix from the generated
+/// bias Jacobians against finite differences, from rest at the circle's
+/// start under zero torque (the robot sags and swings under gravity).
+fn flexible_robot(c: &mut Criterion) {
+    use flexdyn::robot::{initial_state, Layout};
+    use flexdyn::runtime::integrate::{GeneralizedAlpha, StepSettings};
+    use flexdyn::runtime::FiniteDifferenceJacobians;
+    use flexdyn::scenes::parallel_robot_flexible::ParallelRobotFlexible;
+    let model = ParallelRobotFlexible::default();
+    let layout = Layout::of(&model).unwrap();
+    let p0 = Circle::paper(2.0).at(0.0)[0];
+    let start = initial_state(&model, &layout, &Geometry::SPEC, 0.0, p0, [0.0; 3]).unwrap();
+    let tau = SVector::<f64, 3>::zeros();
+    let mut group = c.benchmark_group("parallel_robot_flexible");
+    fn run<M: Model<39, 12, 3>>(
+        group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+        name: &str,
+        model: &M,
+        start: State<39>,
+        tau: &SVector<f64, 3>,
+    ) {
+        let mut integrator =
+            GeneralizedAlpha::<39, 12>::new(StepSettings::default(), Default::default());
+        let mut state = start;
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                if state.t > 1.0 {
+                    state = start;
+                }
+                if let Err(e) = integrator.step(model, &mut state, tau, 0.005) {
+                    panic!("{name}: {e:?}");
+                }
+                black_box(&state);
+            })
+        });
+    }
+    run(
+        &mut group,
+        "generalized_alpha_step_5ms",
+        &model,
+        start,
+        &tau,
+    );
+    run(
+        &mut group,
+        "generalized_alpha_step_5ms_fd_jacobians",
+        &FiniteDifferenceJacobians(model),
+        start,
+        &tau,
+    );
+    group.finish();
+}
+
+criterion_group!(benches, robot, flexible_robot);
 criterion_main!(benches);

@@ -6,8 +6,11 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use flexdyn::runtime::integrate::{
     GaussLegendre4, GeneralizedAlpha, Rk4, SemiImplicitEuler, StepSettings,
 };
-use flexdyn::runtime::nalgebra::{SMatrix, SVector};
-use flexdyn::runtime::{Integrator, InverseConfig, InverseDynamics, InverseSolution, Model, State};
+use flexdyn::runtime::nalgebra::SVector;
+use flexdyn::runtime::{
+    FiniteDifferenceJacobians, Integrator, InverseConfig, InverseDynamics, InverseSolution, Model,
+    State,
+};
 use flexdyn::scenes::{five_bar::FiveBar, slider_crank::SliderCrank};
 
 /// Consistent start of the slider-crank: crank angle theta, rod angle and
@@ -45,59 +48,6 @@ fn steps<M, G, const NQ: usize, const NC: usize, const NU: usize>(
             black_box(&state);
         })
     });
-}
-
-/// The model with its generated bias Jacobians hidden: the generalized-alpha
-/// integrator then builds its Newton matrix by finite differences (`NQ`
-/// residual evaluations), so the two can be timed side by side.
-struct FiniteDifferenceJacobians<M>(M);
-
-impl<M, const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
-    for FiniteDifferenceJacobians<M>
-where
-    M: Model<NQ, NC, NU>,
-{
-    const NAME: &'static str = M::NAME;
-    const COORDINATES: [&'static str; NQ] = M::COORDINATES;
-    const ACTUATORS: [&'static str; NU] = M::ACTUATORS;
-    fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>) {
-        self.0.mass_matrix(q, t, m)
-    }
-    fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
-        self.0.bias(q, qd, t, h)
-    }
-    fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>) {
-        self.0.constraints(q, t, phi)
-    }
-    fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>) {
-        self.0.constraint_jacobian(q, t, phi_q)
-    }
-    fn constraint_time_derivative(
-        &self,
-        q: &SVector<f64, NQ>,
-        t: f64,
-        phi_t: &mut SVector<f64, NC>,
-    ) {
-        self.0.constraint_time_derivative(q, t, phi_t)
-    }
-    fn constraint_rhs(
-        &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        gamma: &mut SVector<f64, NC>,
-    ) {
-        self.0.constraint_rhs(q, qd, t, gamma)
-    }
-    fn actuator_map(&self, b: &mut SMatrix<f64, NQ, NU>) {
-        self.0.actuator_map(b)
-    }
-    fn kinetic_energy(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.0.kinetic_energy(q, qd, t)
-    }
-    fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.0.potential_energy(q, t)
-    }
 }
 
 fn slider_crank(c: &mut Criterion) {

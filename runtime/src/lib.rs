@@ -46,7 +46,7 @@ pub use integrate::{
 pub use inverse::{
     forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution, SolvePath,
 };
-pub use model::Model;
+pub use model::{FiniteDifferenceJacobians, Model};
 pub use nalgebra;
 pub use projection::{project, ProjectionConfig, ProjectionReport};
 pub use state::{constraint_drift, total_energy, Drift, State};

@@ -162,3 +162,74 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
         self.constraint_rhs(q, qd, t, gamma);
     }
 }
+
+/// A model with its generated bias Jacobians hidden (the required methods,
+/// the runtime parameters and the fused `dynamics_terms` forwarded): the generalized-alpha integrator then builds its Newton
+/// matrix by finite differences (`NQ` residual evaluations). For measuring
+/// what the generated Jacobians save on a given model.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FiniteDifferenceJacobians<M>(pub M);
+
+impl<M, const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
+    for FiniteDifferenceJacobians<M>
+where
+    M: Model<NQ, NC, NU>,
+{
+    const NAME: &'static str = M::NAME;
+    const COORDINATES: [&'static str; NQ] = M::COORDINATES;
+    const ACTUATORS: [&'static str; NU] = M::ACTUATORS;
+    fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>) {
+        self.0.mass_matrix(q, t, m)
+    }
+    fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
+        self.0.bias(q, qd, t, h)
+    }
+    fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>) {
+        self.0.constraints(q, t, phi)
+    }
+    fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>) {
+        self.0.constraint_jacobian(q, t, phi_q)
+    }
+    fn constraint_time_derivative(
+        &self,
+        q: &SVector<f64, NQ>,
+        t: f64,
+        phi_t: &mut SVector<f64, NC>,
+    ) {
+        self.0.constraint_time_derivative(q, t, phi_t)
+    }
+    fn constraint_rhs(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        gamma: &mut SVector<f64, NC>,
+    ) {
+        self.0.constraint_rhs(q, qd, t, gamma)
+    }
+    fn actuator_map(&self, b: &mut SMatrix<f64, NQ, NU>) {
+        self.0.actuator_map(b)
+    }
+    fn kinetic_energy(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> f64 {
+        self.0.kinetic_energy(q, qd, t)
+    }
+    fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64 {
+        self.0.potential_energy(q, t)
+    }
+    const PARAMETERS: &'static [&'static str] = M::PARAMETERS;
+    fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+        self.0.set_parameter(name, value)
+    }
+    fn dynamics_terms(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        t: f64,
+        m: &mut SMatrix<f64, NQ, NQ>,
+        h: &mut SVector<f64, NQ>,
+        phi_q: &mut SMatrix<f64, NC, NQ>,
+        gamma: &mut SVector<f64, NC>,
+    ) {
+        self.0.dynamics_terms(q, qd, t, m, h, phi_q, gamma)
+    }
+}

@@ -91,10 +91,12 @@ struct Memory<const NQ: usize, const NC: usize> {
 /// including the mass-matrix, constraint-force and `gamma` derivatives. When
 /// the model implements [`Model::bias_jacobians`], `J11 = M + c_v h_qd +
 /// c_q h_q` and `J21 = (1 + 2 alpha c_v + beta_B^2 c_q) Phi_q` (the smaller
-/// geometric terms are neglected; Newton still converges, linearly). The
-/// matrix is reused while the corrections contract fast and refreshed
-/// otherwise; at most `max_iterations` iterations, converged when the implied
-/// corrections of `q` and `qd` are within `atol + rtol |x|`.
+/// geometric terms are neglected; Newton still converges, linearly; if it
+/// has not converged after half of `max_iterations`, the remaining
+/// iterations use the finite-difference matrix). The matrix is reused
+/// while the corrections contract fast and refreshed otherwise; at most
+/// `max_iterations` iterations, converged when the implied corrections of
+/// `q` and `qd` are within `atol + rtol |x|`.
 ///
 /// Second order; unconditionally stable for linear problems; for
 /// `rho_inf < 1` unresolved modes (e.g. kHz flexible modes at a 5 ms step)
@@ -273,6 +275,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
                         &mem.a,
                         &mem.lambda,
                         &res,
+                        false,
                     )?;
                     let mut filtered = eval::mass(model, &state.q, t0)? * mem.a;
                     jm.lu_a.solve(&mut filtered);
@@ -293,12 +296,27 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
         let mut converged = false;
         while iterations < cfg.max_iterations {
             iterations += 1;
+            // The analytic Newton matrix leaves out the derivatives of
+            // `M a` and `Phi_q^T lambda` in `q`; where that stalls Newton
+            // (large constraint forces on stiff parts), the second half of
+            // the iterations uses the exact finite-difference matrix.
+            let exact = iterations > cfg.max_iterations / 2;
+            if exact && iterations == cfg.max_iterations / 2 + 1 {
+                jac = None;
+            }
             let res = ctx.residual(model, &a, &lambda)?;
             let jm = match jac.take() {
                 Some(j) => j,
-                None => {
-                    build_jacobian(model, &cfg, dyn_cfg.max_condition, &ctx, &a, &lambda, &res)?
-                }
+                None => build_jacobian(
+                    model,
+                    &cfg,
+                    dyn_cfg.max_condition,
+                    &ctx,
+                    &a,
+                    &lambda,
+                    &res,
+                    exact,
+                )?,
             };
             // Delta a = d0 + X Delta lambda, (J21 X) Delta lambda = -r2 - J21 d0.
             let mut d0 = -res.r1;
@@ -376,11 +394,12 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
 
 /// Builds and factors the Newton iteration matrix at `(a, lambda)`.
 ///
-/// Without analytic bias Jacobians the blocks `dR1/da`, `dR2/da` are forward
+/// Without analytic bias Jacobians (or with `finite_differences`) the blocks `dR1/da`, `dR2/da` are forward
 /// differences of the residual itself in the direction of each `a_j` (exact
 /// Newton matrix up to truncation). The step `delta_j` is chosen so that
 /// neither the implied position change `c_q delta_j` nor the velocity change
 /// `c_v delta_j` exceeds `fd_step * max(|x_j|, 1)`.
+#[allow(clippy::too_many_arguments)]
 fn build_jacobian<M, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
     cfg: &GeneralizedAlphaConfig,
@@ -389,6 +408,7 @@ fn build_jacobian<M, const NQ: usize, const NC: usize, const NU: usize>(
     a: &SVector<f64, NQ>,
     lambda: &SVector<f64, NC>,
     res: &Residual<NQ, NC>,
+    finite_differences: bool,
 ) -> Result<Jacobian<NQ, NC>, Error>
 where
     M: Model<NQ, NC, NU>,
@@ -400,7 +420,7 @@ where
     let mut hv = SMatrix::<f64, NQ, NQ>::zeros();
     let q = ctx.q(a);
     let v = ctx.v(a);
-    if model.bias_jacobians(&q, &v, t, &mut hq, &mut hv) {
+    if !finite_differences && model.bias_jacobians(&q, &v, t, &mut hq, &mut hv) {
         if !all_finite(&hq) || !all_finite(&hv) {
             return Err(Error::new(
                 ErrorKind::NonFiniteModelOutput {
