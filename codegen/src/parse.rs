@@ -14,7 +14,7 @@ use proc_macro2::Span;
 use syn::spanned::Spanned;
 use syn::{BinOp, Expr, Lit, UnOp};
 
-use crate::expr::{Func, Graph, Id, Symbol};
+use crate::expr::{Func, Graph, Id, Node, Symbol};
 
 /// Longest expression accepted, in bytes.
 pub const MAX_LEN: usize = 16 * 1024;
@@ -22,6 +22,10 @@ pub const MAX_LEN: usize = 16 * 1024;
 pub const MAX_DEPTH: usize = 48;
 /// Most operators (and unary minus signs) in one expression.
 pub const MAX_OPERATORS: usize = 500;
+/// Largest integer power an expression may build up (by nesting `powi` or
+/// by repeated products): the generated code multiplies powers out, so
+/// `x^n` costs `n` multiplications (`powi(powi(x, 64), 64)` would be 4096).
+pub const MAX_POWER: i64 = 256;
 
 /// What a name in an expression stands for.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -190,6 +194,22 @@ impl Converter<'_> {
                 at,
                 "constant subexpression is not finite (division by zero or overflow)",
             );
+        }
+        // A product, possibly scaled by a constant.
+        let product = match self.graph.node(id) {
+            Node::Sum(ts, k) if ts.len() == 1 && k.get() == 0.0 => ts[0].0,
+            _ => id,
+        };
+        if let Node::Prod(fs) = self.graph.node(product) {
+            let power = fs.iter().map(|&(_, e)| i64::from(e).abs()).max();
+            if let Some(p) = power.filter(|&p| p > MAX_POWER) {
+                return err(
+                    at,
+                    format!(
+                        "the powers here combine to an exponent of {p}; at most {MAX_POWER} is allowed"
+                    ),
+                );
+            }
         }
         Ok(id)
     }
