@@ -1,7 +1,8 @@
 //! Numeric CSV tables: a header row of column names, then rows of numbers.
 
+use std::ffi::OsString;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A table of numbers with named columns.
 #[derive(Debug, Clone, PartialEq)]
@@ -122,6 +123,66 @@ pub fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
         })
 }
 
+/// Output files of one command, all or nothing: each is written under a
+/// temporary name next to its destination (keeping the extension, which picks
+/// a plot's format) and moved into place by [`Outputs::commit`] only once all
+/// of them have been written. If the command fails first, dropping this
+/// removes the temporary files, so no output (partial or complete) is left.
+#[derive(Debug, Default)]
+pub struct Outputs {
+    /// (temporary file, destination), in order.
+    staged: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Outputs {
+    /// Write the output destined for `path` through `write`, which is called
+    /// with the temporary path; errors name `path`.
+    pub fn write(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&Path) -> Result<(), String>,
+    ) -> Result<(), String> {
+        if path.is_dir() {
+            return Err(format!(
+                "cannot write {}: it is a directory",
+                path.display()
+            ));
+        }
+        let name = path
+            .file_name()
+            .ok_or_else(|| format!("cannot write {}: not a file name", path.display()))?;
+        let mut tmp_name = OsString::from(format!(
+            ".flexdyn-{}-{}-",
+            std::process::id(),
+            self.staged.len()
+        ));
+        tmp_name.push(name);
+        let tmp = path.with_file_name(tmp_name);
+        // Registered before writing, so that a partly written file is removed too.
+        self.staged.push((tmp.clone(), path.to_path_buf()));
+        write(&tmp).map_err(|e| e.replace(&tmp.display().to_string(), &path.display().to_string()))
+    }
+
+    /// Move every output into place.
+    pub fn commit(mut self) -> Result<(), String> {
+        for (tmp, path) in std::mem::take(&mut self.staged) {
+            std::fs::rename(&tmp, &path).map_err(|e| {
+                let _ = std::fs::remove_file(&tmp);
+                format!("cannot write {}: {e}", path.display())
+            })?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Outputs {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.staged {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -140,5 +201,35 @@ mod tests {
             .contains("not a finite"));
         assert!(Table::parse("").is_err());
         assert!(back.column("y").unwrap_err().contains("no column `y`"));
+    }
+
+    #[test]
+    fn outputs_are_all_or_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
+        let listing = || std::fs::read_dir(dir.path()).unwrap().count();
+        // The second output fails: the first is not left behind.
+        let mut outputs = Outputs::default();
+        outputs.write(&a, |tmp| write_atomic(tmp, "x")).unwrap();
+        let e = outputs
+            .write(&b, |tmp| {
+                std::fs::write(tmp, "partial").unwrap();
+                Err(format!("cannot plot to {}", tmp.display()))
+            })
+            .unwrap_err();
+        assert_eq!(e, format!("cannot plot to {}", b.display()));
+        drop(outputs);
+        assert_eq!(listing(), 0);
+        // Both succeed: both are in place, nothing else.
+        let mut outputs = Outputs::default();
+        outputs.write(&a, |tmp| write_atomic(tmp, "x")).unwrap();
+        outputs.write(&b, |tmp| write_atomic(tmp, "y")).unwrap();
+        outputs.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "y");
+        assert_eq!(listing(), 2);
+        // A directory is refused before anything is written.
+        let mut outputs = Outputs::default();
+        let e = outputs.write(dir.path(), |_| Ok(())).unwrap_err();
+        assert!(e.contains("is a directory"), "{e}");
     }
 }
