@@ -445,13 +445,20 @@ impl TorqueTable {
     }
 
     /// Rate of change at `t`: central differences at the samples (one-sided at
-    /// the ends), linearly interpolated; zero outside the sampled span and for
-    /// a single sample.
+    /// the ends), linearly interpolated; zero outside the sampled span (where
+    /// [`TorqueTable::at`] holds the values) and for a single sample. Times
+    /// within rounding (`1e-9` of the span) of an end count as that end.
     pub fn rate_at(&self, t: f64) -> [f64; 3] {
         let n = self.times.len();
-        if n < 2 || t < self.times[0] || t > self.times[n - 1] {
+        if n < 2 {
             return [0.0; 3];
         }
+        let (first, last) = (self.times[0], self.times[n - 1]);
+        let slack = 1e-9 * (last - first);
+        if t < first - slack || t > last + slack {
+            return [0.0; 3];
+        }
+        let t = t.clamp(first, last);
         let node = |k: usize| -> [f64; 3] {
             let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
             let dt = self.times[b] - self.times[a];

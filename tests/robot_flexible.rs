@@ -501,9 +501,9 @@ fn pd_settings(circle: &Circle, times: &[f64]) -> flexdyn::robot::PdSettings {
     }
 }
 
-/// Largest deviation of the platform from the circle under the rigid
-/// torques plus the PD loop, generalized-alpha at the paper's step.
-fn pd_path_deviation<M, const NQ: usize, const NC: usize>(model: &M, times: &[f64]) -> f64
+/// The platform path under the rigid torques plus the PD loop,
+/// generalized-alpha at the paper's step.
+fn pd_path<M, const NQ: usize, const NC: usize>(model: &M, times: &[f64]) -> Vec<[f64; 3]>
 where
     M: Model<NQ, NC, 3>,
 {
@@ -520,12 +520,7 @@ where
         &mut || {},
     )
     .unwrap();
-    rows.iter()
-        .map(|r| {
-            let want = circle.at(r.t)[0];
-            (0..3).map(|k| (r.p[k] - want[k]).abs()).fold(0.0, f64::max)
-        })
-        .fold(0.0, f64::max)
+    rows.iter().map(|r| r.p).collect()
 }
 
 #[test]
@@ -556,15 +551,20 @@ fn stiffer_links_converge_to_the_rigid_robot() {
     // The remaining difference is the start-up transient's tail (common to
     // both, decaying with the servo's 0.1 s time constant).
     assert!(d_stiff < d_nominal / 3.0, "{d_stiff} vs {d_nominal}");
-    let dev_nominal = pd_path_deviation(&ParallelRobotFlexibleLinks, &times);
-    let dev_stiff = pd_path_deviation(&stiff, &times);
-    let dev_rigid = pd_path_deviation(&ParallelRobotRigid, &times);
+    // Path: the rigid torques plus the PD loop. The undeformed start kicks
+    // the platform by the same few micrometres whatever the stiffness (the
+    // release is one unresolved step at 0.005 s), so the paths are compared
+    // after the loop has settled it.
+    let rigid_path = pd_path(&ParallelRobotRigid, &times);
+    let off = |path: Vec<[f64; 3]>| max_diff(&path[SETTLED..], &rigid_path[SETTLED..]);
+    let dev_nominal = off(pd_path(&ParallelRobotFlexibleLinks, &times));
+    let dev_stiff = off(pd_path(&stiff, &times));
     println!(
-        "max path deviation: nominal E {dev_nominal:.3e} m, E x 1e4 {dev_stiff:.3e} m, rigid {dev_rigid:.3e} m"
+        "max |p - p_rigid| after 0.25 s: nominal E {dev_nominal:.3e} m, E x 1e4 {dev_stiff:.3e} m"
     );
     assert!(
-        (dev_stiff - dev_rigid).abs() < (dev_nominal - dev_rigid).abs() / 10.0,
-        "{dev_stiff} vs {dev_nominal} (rigid {dev_rigid})"
+        dev_stiff < dev_nominal / 3.0,
+        "{dev_stiff} vs {dev_nominal}"
     );
 }
 
