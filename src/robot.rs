@@ -673,7 +673,7 @@ pub struct SimRow {
     pub tau: [f64; 3],
 }
 
-/// Forward dynamics of any robot scene from the undeformed robot
+/// Forward dynamics of any robot scene from the robot in static equilibrium on its path
 /// ([`initial_state`]) at `t0` with its platform at `p` moving at `v`, under
 /// `torques` plus the PD loop `pd` if given, `steps` steps of `dt`, recording
 /// every `every` steps.
@@ -735,6 +735,9 @@ where
 pub const RIGID_COORDINATES: [&str; 12] = [
     "th11", "th12", "th13", "th21", "th22", "th23", "th31", "th32", "th33", "px", "py", "pz",
 ];
+
+/// Names of the platform's small-rotation coordinates in the flexible scenes.
+pub const PLATFORM_ROTATIONS: [&str; 3] = ["apx", "apy", "apz"];
 
 /// Where a robot scene keeps the quantities the robot commands need, found
 /// by name (coordinates) and from the actuator map (actuated joints).
@@ -805,13 +808,16 @@ impl Layout {
     }
 }
 
-/// The state of a robot scene with its platform at `p` moving at `v`: the
-/// rigid coordinates from the closed-form inverse kinematics, every other
-/// coordinate (platform rotations, joint twists, modal coordinates) and its
-/// rate zero (the undeformed robot; the gravity sag, below a micrometre for
-/// the spec's links, is left to the dynamics), and the rates of the nine
-/// joint angles from the velocity constraints. Checked to satisfy the
-/// position and velocity constraints to `1e-9`.
+/// The state of a robot scene with its platform at `p` moving at `v`.
+///
+/// Positions: the rigid coordinates from the closed-form inverse kinematics;
+/// for a flexible scene, then the static equilibrium under gravity with the
+/// platform held at `p` ([`static_equilibrium`]: the elastic coordinates at
+/// their gravity sag, the joint angles adjusted to it), so that a run does
+/// not start by releasing the undeformed structure under load. Rates: the
+/// platform's `v`, every other rate from the velocity constraints (minimum
+/// norm; for the rigid robot the nine joint rates exactly). Checked to
+/// satisfy the position and velocity constraints to `1e-9`.
 pub fn initial_state<M, const NQ: usize, const NC: usize>(
     model: &M,
     layout: &Layout,
@@ -829,23 +835,35 @@ where
     for (k, &i) in layout.rigid.iter().enumerate() {
         q[i] = rigid[k];
     }
+    if layout.is_flexible() {
+        q = static_equilibrium(model, layout, &q, t)?.0;
+    }
     let mut qd = SVector::<f64, NQ>::zeros();
     for k in 0..3 {
         qd[layout.platform[k]] = v[k];
     }
-    // Joint-angle rates: Phi_q[:, joints] w = -(Phi_q qd_known + Phi_t).
+    // The joint rates (and the platform's rotation rates, where it has
+    // rotation coordinates): Phi_q[:, free] w = -(Phi_q qd_platform + Phi_t),
+    // least squares; the elastic rates stay zero.
     let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
     let mut phi_t = SVector::<f64, NC>::zeros();
     model.constraint_jacobian(&q, t, &mut phi_q);
     model.constraint_time_derivative(&q, t, &mut phi_t);
-    let joints = &layout.rigid[..9];
-    let a = DMatrix::from_fn(NC, 9, |r, c| phi_q[(r, joints[c])]);
+    let mut free: Vec<usize> = layout.rigid[..9].to_vec();
+    free.extend(
+        M::COORDINATES
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| PLATFORM_ROTATIONS.contains(c))
+            .map(|(i, _)| i),
+    );
+    let a = DMatrix::from_fn(NC, free.len(), |r, c| phi_q[(r, free[c])]);
     let rhs = DVector::from_iterator(NC, (-(phi_q * qd + phi_t)).iter().copied());
     let w = a
         .svd(true, true)
         .solve(&rhs, 1e-12)
         .map_err(|e| format!("initial state: {e}"))?;
-    for (c, &i) in joints.iter().enumerate() {
+    for (c, &i) in free.iter().enumerate() {
         qd[i] = w[c];
     }
     let state = flexdyn_runtime::State::new(q, qd, t);
@@ -860,6 +878,110 @@ where
         ));
     }
     Ok(state)
+}
+
+/// Static equilibrium of a robot scene under gravity with the platform
+/// centre held where `start` puts it: Newton on
+///
+/// ```text
+/// dV/dq(q) - Phi_q(q)^T lambda - B tau = 0,   Phi(q) = 0,   S q = S start
+/// ```
+///
+/// (`dV/dq` as the bias forces at rest), with the Jacobian of the first
+/// block by forward differences. Returns the positions and the holding
+/// torques. From the rigid pose it converges in a few iterations (the
+/// elastic forces are linear in the modal coordinates and twists).
+pub fn static_equilibrium<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    layout: &Layout,
+    start: &flexdyn_runtime::nalgebra::SVector<f64, NQ>,
+    t: f64,
+) -> Result<(flexdyn_runtime::nalgebra::SVector<f64, NQ>, [f64; 3]), String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
+    use flexdyn_runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
+    let n = NQ + NC + 3;
+    let target = layout.platform.map(|i| start[i]);
+    let mut b = SMatrix::<f64, NQ, 3>::zeros();
+    model.actuator_map(&mut b);
+    let rest = SVector::<f64, NQ>::zeros();
+    // The q-dependent part: dV/dq - Phi_q^T lambda, and Phi.
+    let forces = |q: &SVector<f64, NQ>, lambda: &DVector<f64>| {
+        let mut h = SVector::<f64, NQ>::zeros();
+        let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
+        let mut phi = SVector::<f64, NC>::zeros();
+        model.bias(q, &rest, t, &mut h);
+        model.constraint_jacobian(q, t, &mut phi_q);
+        model.constraints(q, t, &mut phi);
+        let lam = SVector::<f64, NC>::from_iterator(lambda.iter().copied());
+        (h - phi_q.transpose() * lam, phi, phi_q)
+    };
+    let residual = |q: &SVector<f64, NQ>, lambda: &DVector<f64>, tau: &[f64; 3]| {
+        let (f, phi, _) = forces(q, lambda);
+        let f = f - b * SVector::<f64, 3>::from(*tau);
+        DVector::from_fn(n, |r, _| {
+            if r < NQ {
+                f[r]
+            } else if r < NQ + NC {
+                phi[r - NQ]
+            } else {
+                q[layout.platform[r - NQ - NC]] - target[r - NQ - NC]
+            }
+        })
+    };
+    let mut q = *start;
+    let mut lambda = DVector::<f64>::zeros(NC);
+    let mut tau = [0.0; 3];
+    for _ in 0..30 {
+        let r = residual(&q, &lambda, &tau);
+        if !r.iter().all(|x| x.is_finite()) {
+            break;
+        }
+        let (f0, _, phi_q) = forces(&q, &lambda);
+        let mut jac = DMatrix::<f64>::zeros(n, n);
+        for j in 0..NQ {
+            let d = 1e-7 * q[j].abs().max(1e-2);
+            let mut qp = q;
+            qp[j] += d;
+            let (fp, _, _) = forces(&qp, &lambda);
+            for i in 0..NQ {
+                jac[(i, j)] = (fp[i] - f0[i]) / d;
+            }
+            for i in 0..NC {
+                jac[(NQ + i, j)] = phi_q[(i, j)];
+                jac[(j, NQ + i)] = -phi_q[(i, j)];
+            }
+            for k in 0..3 {
+                jac[(j, NQ + NC + k)] = -b[(j, k)];
+            }
+        }
+        for k in 0..3 {
+            jac[(NQ + NC + k, layout.platform[k])] = 1.0;
+        }
+        let dx = jac
+            .full_piv_lu()
+            .solve(&(-&r))
+            .filter(|d| d.iter().all(|x| x.is_finite()))
+            .ok_or("initial state: the static equilibrium's Newton matrix is singular")?;
+        for i in 0..NQ {
+            q[i] += dx[i];
+        }
+        for i in 0..NC {
+            lambda[i] += dx[NQ + i];
+        }
+        for k in 0..3 {
+            tau[k] += dx[NQ + NC + k];
+        }
+        let step = (0..NQ).map(|i| dx[i].abs()).fold(0.0, f64::max);
+        if step < 1e-14 {
+            return Ok((q, tau));
+        }
+    }
+    Err(format!(
+        "initial state: no static equilibrium of scene `{}` near the rigid pose (Newton did not converge)",
+        M::NAME
+    ))
 }
 
 #[cfg(test)]

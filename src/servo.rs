@@ -396,7 +396,7 @@ pub struct ServoSample<const NQ: usize> {
 /// the servo-constrained model ([`Servo`]) integrated by generalized-α
 /// (`rho_inf` = [`SERVO_RHO_INF`], coordinate projection after every step)
 /// with one step per interval of `times` (which must increase; the paper's
-/// 0.005 s step for the CLI), from the undeformed robot on the path at
+/// 0.005 s step for the CLI), from the robot in static equilibrium on the path at
 /// `times[0]` ([`crate::robot::initial_state`]). Returns the state and the
 /// torques at every time.
 ///
