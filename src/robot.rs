@@ -556,15 +556,23 @@ where
     let input = FromFn(|t: f64| flexdyn_runtime::nalgebra::SVector::<f64, 3>::from(torques.at(t)));
     let settings = StepSettings::with_projection();
     let mut out = vec![state];
-    let explain = |e: flexdyn_runtime::Error| {
-        match e.kind {
+    let name = M::NAME;
+    let explain = |e: flexdyn_runtime::Error| match e.kind {
         flexdyn_runtime::ErrorKind::StepTooLarge { .. } if scheme == Scheme::Rk4 => format!(
-            "{e}: the explicit RK4 scheme is unstable at this step for the stiffest motion of \
-             scene `{}` (elastic modes, stiff joints); use --integrator gen-alpha or a smaller --dt",
-            M::NAME
+            "{e}: the explicit RK4 scheme is unstable at this step for the stiffest motion \
+             of scene `{name}` (elastic modes, stiff joints); use --integrator gen-alpha \
+             or a smaller --dt"
+        ),
+        _ if scheme != Scheme::GeneralizedAlpha && NQ > 12 => format!(
+            "{e} (the explicit `{}` scheme is likely unstable at this step on the \
+             elastic modes of scene `{name}`; use --integrator gen-alpha)",
+            if scheme == Scheme::Rk4 {
+                "rk4"
+            } else {
+                "semi-implicit"
+            }
         ),
         _ => e.to_string(),
-    }
     };
     let mut run = |integ: &mut dyn FnMut(
         &mut flexdyn_runtime::State<NQ>,
