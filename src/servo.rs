@@ -37,48 +37,10 @@ where
     M: Model<NQ, NC, 3>,
     F: Fn(&SVector<f64, NQ>, &SVector<f64, NQ>, f64) -> [f64; 3],
 {
-    const NAME: &'static str = M::NAME;
-    const COORDINATES: [&'static str; NQ] = M::COORDINATES;
-    const ACTUATORS: [&'static str; 3] = M::ACTUATORS;
-
-    fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>) {
-        self.inner.mass_matrix(q, t, m);
-    }
+    flexdyn_runtime::forward_model!(inner: M, NQ, NC, 3);
     fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
         self.inner.bias(q, qd, t, h);
         subtract_input(self.inner, &(self.law)(q, qd, t), h);
-    }
-    fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>) {
-        self.inner.constraints(q, t, phi);
-    }
-    fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>) {
-        self.inner.constraint_jacobian(q, t, phi_q);
-    }
-    fn constraint_time_derivative(
-        &self,
-        q: &SVector<f64, NQ>,
-        t: f64,
-        phi_t: &mut SVector<f64, NC>,
-    ) {
-        self.inner.constraint_time_derivative(q, t, phi_t);
-    }
-    fn constraint_rhs(
-        &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        gamma: &mut SVector<f64, NC>,
-    ) {
-        self.inner.constraint_rhs(q, qd, t, gamma);
-    }
-    fn actuator_map(&self, b: &mut SMatrix<f64, NQ, 3>) {
-        self.inner.actuator_map(b);
-    }
-    fn kinetic_energy(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.inner.kinetic_energy(q, qd, t)
-    }
-    fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.inner.potential_energy(q, t)
     }
     fn dynamics_terms(
         &self,
@@ -309,50 +271,12 @@ impl<M, const NQ: usize, const NC: usize> Model<NQ, NC, 3> for Servo<'_, M>
 where
     M: Model<NQ, NC, 3>,
 {
-    const NAME: &'static str = M::NAME;
-    const COORDINATES: [&'static str; NQ] = M::COORDINATES;
-    const ACTUATORS: [&'static str; 3] = M::ACTUATORS;
-
-    fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>) {
-        self.inner.mass_matrix(q, t, m);
-    }
+    flexdyn_runtime::forward_model!(inner: M, NQ, NC, 3);
     fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
         let mut m = SMatrix::<f64, NQ, NQ>::zeros();
         let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
         let mut gamma = SVector::<f64, NC>::zeros();
         self.dynamics_terms(q, qd, t, &mut m, h, &mut phi_q, &mut gamma);
-    }
-    fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>) {
-        self.inner.constraints(q, t, phi);
-    }
-    fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>) {
-        self.inner.constraint_jacobian(q, t, phi_q);
-    }
-    fn constraint_time_derivative(
-        &self,
-        q: &SVector<f64, NQ>,
-        t: f64,
-        phi_t: &mut SVector<f64, NC>,
-    ) {
-        self.inner.constraint_time_derivative(q, t, phi_t);
-    }
-    fn constraint_rhs(
-        &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        gamma: &mut SVector<f64, NC>,
-    ) {
-        self.inner.constraint_rhs(q, qd, t, gamma);
-    }
-    fn actuator_map(&self, b: &mut SMatrix<f64, NQ, 3>) {
-        self.inner.actuator_map(b);
-    }
-    fn kinetic_energy(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.inner.kinetic_energy(q, qd, t)
-    }
-    fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.inner.potential_energy(q, t)
     }
     fn dynamics_terms(
         &self,

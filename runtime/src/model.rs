@@ -163,10 +163,81 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     }
 }
 
+/// Inside an `impl Model<NQ, NC, NU> for Wrapper` block, forwards the items a
+/// wrapper model usually leaves alone to the wrapped model `$M` stored in
+/// field `$inner` (by value or by reference): the names, `mass_matrix`, the
+/// four constraint terms, `actuator_map` and the two energies. The wrapper
+/// writes `bias` (and, where it changes them, `dynamics_terms` and the other
+/// provided methods) itself. `$NQ`, `$NC`, `$NU` are the impl's dimensions.
+#[macro_export]
+macro_rules! forward_model {
+    ($inner:tt: $M:ty, $NQ:tt, $NC:tt, $NU:tt) => {
+        const NAME: &'static str = <$M as $crate::Model<$NQ, $NC, $NU>>::NAME;
+        const COORDINATES: [&'static str; $NQ] = <$M as $crate::Model<$NQ, $NC, $NU>>::COORDINATES;
+        const ACTUATORS: [&'static str; $NU] = <$M as $crate::Model<$NQ, $NC, $NU>>::ACTUATORS;
+        fn mass_matrix(
+            &self,
+            q: &$crate::nalgebra::SVector<f64, $NQ>,
+            t: f64,
+            m: &mut $crate::nalgebra::SMatrix<f64, $NQ, $NQ>,
+        ) {
+            self.$inner.mass_matrix(q, t, m)
+        }
+        fn constraints(
+            &self,
+            q: &$crate::nalgebra::SVector<f64, $NQ>,
+            t: f64,
+            phi: &mut $crate::nalgebra::SVector<f64, $NC>,
+        ) {
+            self.$inner.constraints(q, t, phi)
+        }
+        fn constraint_jacobian(
+            &self,
+            q: &$crate::nalgebra::SVector<f64, $NQ>,
+            t: f64,
+            phi_q: &mut $crate::nalgebra::SMatrix<f64, $NC, $NQ>,
+        ) {
+            self.$inner.constraint_jacobian(q, t, phi_q)
+        }
+        fn constraint_time_derivative(
+            &self,
+            q: &$crate::nalgebra::SVector<f64, $NQ>,
+            t: f64,
+            phi_t: &mut $crate::nalgebra::SVector<f64, $NC>,
+        ) {
+            self.$inner.constraint_time_derivative(q, t, phi_t)
+        }
+        fn constraint_rhs(
+            &self,
+            q: &$crate::nalgebra::SVector<f64, $NQ>,
+            qd: &$crate::nalgebra::SVector<f64, $NQ>,
+            t: f64,
+            gamma: &mut $crate::nalgebra::SVector<f64, $NC>,
+        ) {
+            self.$inner.constraint_rhs(q, qd, t, gamma)
+        }
+        fn actuator_map(&self, b: &mut $crate::nalgebra::SMatrix<f64, $NQ, $NU>) {
+            self.$inner.actuator_map(b)
+        }
+        fn kinetic_energy(
+            &self,
+            q: &$crate::nalgebra::SVector<f64, $NQ>,
+            qd: &$crate::nalgebra::SVector<f64, $NQ>,
+            t: f64,
+        ) -> f64 {
+            self.$inner.kinetic_energy(q, qd, t)
+        }
+        fn potential_energy(&self, q: &$crate::nalgebra::SVector<f64, $NQ>, t: f64) -> f64 {
+            self.$inner.potential_energy(q, t)
+        }
+    };
+}
+
 /// A model with its generated bias Jacobians hidden (the required methods,
-/// the runtime parameters and the fused `dynamics_terms` forwarded): the generalized-alpha integrator then builds its Newton
-/// matrix by finite differences (`NQ` residual evaluations). For measuring
-/// what the generated Jacobians save on a given model.
+/// the runtime parameters and the fused `dynamics_terms` forwarded): the
+/// generalized-alpha integrator then builds its Newton matrix by finite
+/// differences (`NQ` residual evaluations). For measuring what the generated
+/// Jacobians save on a given model.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FiniteDifferenceJacobians<M>(pub M);
 
@@ -175,46 +246,9 @@ impl<M, const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
 where
     M: Model<NQ, NC, NU>,
 {
-    const NAME: &'static str = M::NAME;
-    const COORDINATES: [&'static str; NQ] = M::COORDINATES;
-    const ACTUATORS: [&'static str; NU] = M::ACTUATORS;
-    fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>) {
-        self.0.mass_matrix(q, t, m)
-    }
+    crate::forward_model!(0: M, NQ, NC, NU);
     fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
         self.0.bias(q, qd, t, h)
-    }
-    fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>) {
-        self.0.constraints(q, t, phi)
-    }
-    fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>) {
-        self.0.constraint_jacobian(q, t, phi_q)
-    }
-    fn constraint_time_derivative(
-        &self,
-        q: &SVector<f64, NQ>,
-        t: f64,
-        phi_t: &mut SVector<f64, NC>,
-    ) {
-        self.0.constraint_time_derivative(q, t, phi_t)
-    }
-    fn constraint_rhs(
-        &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        gamma: &mut SVector<f64, NC>,
-    ) {
-        self.0.constraint_rhs(q, qd, t, gamma)
-    }
-    fn actuator_map(&self, b: &mut SMatrix<f64, NQ, NU>) {
-        self.0.actuator_map(b)
-    }
-    fn kinetic_energy(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.0.kinetic_energy(q, qd, t)
-    }
-    fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64 {
-        self.0.potential_energy(q, t)
     }
     const PARAMETERS: &'static [&'static str] = M::PARAMETERS;
     fn set_parameter(&mut self, name: &str, value: f64) -> bool {
