@@ -230,7 +230,7 @@ pub fn output_times(duration: f64, dt: f64) -> Result<Vec<f64>, String> {
     let steps = (duration / dt + 1e-9).floor();
     if steps > 1e7 {
         return Err(format!(
-            "{duration} s at a step of {dt} s is {steps:.0} steps; at most 10^7 are allowed"
+            "{duration} s at a step of {dt:e} s is {steps:.3e} steps; at most 10^7 are allowed"
         ));
     }
     Ok((0..=steps as usize).map(|k| k as f64 * dt).collect())
