@@ -275,21 +275,57 @@ where
     for &t in times {
         let [p, v, a] = circle.at(t);
         // The closed form tells precisely why a point cannot be reached.
-        inverse_kinematics(g, p).map_err(|e| format!("at t = {t} s: {e}"))?;
-        solver
-            .solve(
-                model,
-                t,
-                &SVector::from(p),
-                &SVector::from(v),
-                &SVector::from(a),
-                &mut sol,
-            )
-            .map_err(|e| format!("at t = {t} s: {e}"))?;
+        let ik = inverse_kinematics(g, p).map_err(|e| format!("at t = {t} s: {e}"))?;
+        let (p, v, a) = (SVector::from(p), SVector::from(v), SVector::from(a));
+        let warm = solver.solve(model, t, &p, &v, &a, &mut sol);
+        if warm.is_err() || branch_distance(&layout, &sol.q, &ik) > BRANCH_TOLERANCE {
+            // Newton, warm-started from the last tick, stalled or crossed a
+            // fold into another assembly mode (possible after a large jump
+            // or near the workspace edge): start again from the closed
+            // form, on the working branch.
+            let mut guess = sol.q;
+            for (k, &i) in layout.rigid.iter().enumerate() {
+                guess[i] = ik[k];
+            }
+            solver.set_guess(guess);
+            solver
+                .solve(model, t, &p, &v, &a, &mut sol)
+                .map_err(|e| e.to_string())?;
+            let d = branch_distance(&layout, &sol.q, &ik);
+            if d > BRANCH_TOLERANCE {
+                return Err(format!(
+                    "at t = {t} s: the solution left the working branch (joint angles {d:.3e} rad \
+                     from the closed-form inverse kinematics)"
+                ));
+            }
+        }
         out.push(sol);
         tick();
     }
     Ok(out)
+}
+
+/// How far (rad) the solved joint angles may be from the closed-form
+/// inverse kinematics and still count as the working branch: far above the
+/// elastic deflections of the flexible scenes, far below the distance to
+/// another assembly mode.
+const BRANCH_TOLERANCE: f64 = 1e-2;
+
+/// Largest difference, wrapped to `(-pi, pi]`, between the nine joint
+/// angles of `q` and the closed-form inverse kinematics `ik`.
+fn branch_distance<const NQ: usize>(
+    layout: &Layout,
+    q: &flexdyn_runtime::nalgebra::SVector<f64, NQ>,
+    ik: &[f64; 12],
+) -> f64 {
+    layout.rigid[..9]
+        .iter()
+        .zip(ik)
+        .map(|(&i, &angle)| {
+            let d = (q[i] - angle).rem_euclid(std::f64::consts::TAU);
+            d.min(std::f64::consts::TAU - d)
+        })
+        .fold(0.0, f64::max)
 }
 
 /// One row of the robot's inverse dynamics, whatever the scene.
@@ -1045,5 +1081,37 @@ mod tests {
             Err(IkError::Unreachable { .. }) => {}
             other => panic!("{other:?}"),
         }
+    }
+
+    /// Issue 8 (workspace-edge hard case): coarse ticks along wide circles
+    /// make the warm-started Newton jump far (it stalled at 4 of these 12
+    /// reachable circles before the restart from the closed form); every
+    /// point is solved, on the closed-form inverse kinematics' working
+    /// branch, never silently on another assembly mode.
+    #[test]
+    fn issue_8_coarse_ticks_are_solved_on_the_working_branch() {
+        let model = crate::scenes::parallel_robot_rigid::ParallelRobotRigid;
+        let layout = Layout::of(&model).unwrap();
+        let g = Geometry::SPEC;
+        let mut flips = 0;
+        for radius in [0.3, 0.4, 0.5, 0.6] {
+            for dt in [0.4, 0.8, 1.2] {
+                let circle = Circle {
+                    omega: 2.0,
+                    radius,
+                    center: [0.0, 0.0, 0.7],
+                };
+                let times: Vec<f64> = (0..12).map(|k| k as f64 * dt).collect();
+                let sols = inverse_along(&model, &g, &circle, &times, &mut || {})
+                    .unwrap_or_else(|e| panic!("radius {radius}, tick {dt} s: {e}"));
+                for (s, &t) in sols.iter().zip(&times) {
+                    let ik = inverse_kinematics(&g, circle.at(t)[0]).unwrap();
+                    if branch_distance(&layout, &s.q, &ik) > 1e-6 {
+                        flips += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(flips, 0, "solutions off the working branch");
     }
 }
