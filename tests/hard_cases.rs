@@ -419,6 +419,7 @@ fn flyball_explicit_scheme_is_refused_at_a_coarse_step() {
                 dt: d,
                 value,
                 limit,
+                ..
             } = e.kind
             else {
                 panic!("expected StepTooLarge, got {e}");

@@ -162,6 +162,15 @@ pub enum ErrorKind {
         value: f64,
         /// The limit.
         limit: f64,
+        /// Stability check only: the estimated spectral radius `rho(J) =
+        /// value / dt` in 1/s, i.e. the angular frequency (rad/s) of the
+        /// fastest oscillation (or the fastest decay rate) that the stages
+        /// saw, so that the message can name the offending mode and the
+        /// largest step that could be stable (`limit / rate`). A power
+        /// iteration from the current state: a lower bound on the fastest
+        /// mode of the model when that mode is not yet excited. `None` for
+        /// the `max_step` check.
+        rate: Option<f64>,
     },
     /// The adaptive integrator would need a step below its minimum step size.
     StepSizeUnderflow {
@@ -259,7 +268,30 @@ impl fmt::Display for ErrorKind {
                 write!(f, "Jacobi SVD did not converge in {} sweeps", sweeps)
             }
             ErrorKind::InvalidStepSize { dt } => write!(f, "invalid step size {:e}", dt),
-            ErrorKind::StepTooLarge { dt, value, limit } => write!(
+            ErrorKind::StepTooLarge {
+                dt,
+                value,
+                limit,
+                rate: Some(rate),
+            } => write!(
+                f,
+                "step size {:e} too large for the explicit scheme: estimated dt * rho(J) = {:.3e} \
+                 exceeds its stability limit {:e}; the stages saw a mode at about {:.3e} rad/s \
+                 ({:.3e} Hz; the fastest mode is at least that fast), so stable steps are below \
+                 {:.3e} s at most",
+                dt,
+                value,
+                limit,
+                rate,
+                rate / (2.0 * core::f64::consts::PI),
+                limit / rate
+            ),
+            ErrorKind::StepTooLarge {
+                dt,
+                value,
+                limit,
+                rate: None,
+            } => write!(
                 f,
                 "step size {:e} too large: {:e} exceeds limit {:e}",
                 dt, value, limit

@@ -528,7 +528,8 @@ fn step_too_large() {
             ErrorKind::StepTooLarge {
                 dt: 0.1,
                 value: 0.1,
-                limit: 1e-2
+                limit: 1e-2,
+                rate: None,
             }
         )
     };

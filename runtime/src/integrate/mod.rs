@@ -167,6 +167,7 @@ pub(crate) fn begin_step<const NQ: usize>(
                 dt,
                 value: dt,
                 limit: max_step,
+                rate: None,
             },
             state.t,
         ));

@@ -18,7 +18,10 @@ use crate::state::State;
 /// linear oscillator or a linear damper). RK4 is stable for `dt |lambda|`
 /// below about 2.8; a step whose estimate exceeds
 /// [`stability_limit`](Rk4::stability_limit) fails with
-/// [`ErrorKind::StepTooLarge`] before the state is touched.
+/// [`ErrorKind::StepTooLarge`] before the state is touched; the error
+/// carries `rate = estimate / dt`, the angular frequency of the fastest mode
+/// the stages saw, and its message names it (rad/s and Hz) with the largest
+/// step that could be stable, `limit / rate`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rk4 {
     /// Shared settings.
@@ -85,6 +88,7 @@ where
                 dt: h,
                 value: estimate,
                 limit,
+                rate: Some(estimate / h),
             },
             t,
         ));
@@ -132,5 +136,94 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
             projection,
             drift,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::*;
+    use crate::integrate::Integrator;
+    use nalgebra::{SMatrix, SVector};
+
+    /// `x'' = -w^2 x`: unit mass, stiffness `w^2`, no constraints.
+    struct Oscillator {
+        w: f64,
+    }
+
+    impl Model<1, 0, 1> for Oscillator {
+        const NAME: &'static str = "oscillator";
+        const COORDINATES: [&'static str; 1] = ["x"];
+        const ACTUATORS: [&'static str; 1] = ["f"];
+        fn mass_matrix(&self, _: &SVector<f64, 1>, _: f64, m: &mut SMatrix<f64, 1, 1>) {
+            m[(0, 0)] = 1.0;
+        }
+        fn bias(&self, q: &SVector<f64, 1>, _: &SVector<f64, 1>, _: f64, h: &mut SVector<f64, 1>) {
+            h[0] = self.w * self.w * q[0];
+        }
+        fn constraints(&self, _: &SVector<f64, 1>, _: f64, _: &mut SVector<f64, 0>) {}
+        fn constraint_jacobian(&self, _: &SVector<f64, 1>, _: f64, _: &mut SMatrix<f64, 0, 1>) {}
+        fn constraint_time_derivative(&self, _: &SVector<f64, 1>, _: f64, _: &mut SVector<f64, 0>) {
+        }
+        fn constraint_rhs(
+            &self,
+            _: &SVector<f64, 1>,
+            _: &SVector<f64, 1>,
+            _: f64,
+            _: &mut SVector<f64, 0>,
+        ) {
+        }
+        fn actuator_map(&self, b: &mut SMatrix<f64, 1, 1>) {
+            b[(0, 0)] = 1.0;
+        }
+        fn kinetic_energy(&self, _: &SVector<f64, 1>, qd: &SVector<f64, 1>, _: f64) -> f64 {
+            0.5 * qd[0] * qd[0]
+        }
+        fn potential_energy(&self, q: &SVector<f64, 1>, _: f64) -> f64 {
+            0.5 * self.w * self.w * q[0] * q[0]
+        }
+    }
+
+    #[test]
+    fn refused_step_names_the_fastest_mode() {
+        // 1 kHz oscillator (w = 2 pi 1000 rad/s) at 1 ms: dt w = 6.28 > 2.8.
+        // For a linear oscillator the stage estimate is exact, so the error
+        // carries rate = w and the message names 1 kHz and the stable step
+        // 2.8 / w = 4.46e-4 s.
+        let w = 2.0 * core::f64::consts::PI * 1000.0;
+        let model = Oscillator { w };
+        let start = State::new(SVector::from([1e-3]), SVector::from([0.5]), 0.0);
+        let mut s = start;
+        let e = Rk4::default()
+            .step(&model, &mut s, &SVector::<f64, 1>::zeros(), 1e-3)
+            .unwrap_err();
+        assert_eq!(s, start);
+        let ErrorKind::StepTooLarge {
+            dt,
+            value,
+            limit,
+            rate: Some(rate),
+        } = e.kind
+        else {
+            panic!("expected the stability check, got {e}");
+        };
+        assert_eq!((dt, limit), (1e-3, 2.8));
+        assert!((rate / w - 1.0).abs() < 1e-9, "{rate} vs {w}");
+        assert!((value - rate * dt).abs() < 1e-12 * value);
+        let msg = std::format!("{e}");
+        for part in [
+            "step size 1e-3",
+            "1.000e3 Hz",
+            "6.283e3 rad/s",
+            "4.456e-4 s",
+        ] {
+            assert!(msg.contains(part), "`{part}` not in: {msg}");
+        }
+        // Below the limit the step is taken and reports the same estimate.
+        let r = Rk4::default()
+            .step(&model, &mut s, &SVector::<f64, 1>::zeros(), 4e-4)
+            .unwrap();
+        assert!((r.stability_estimate - 4e-4 * w).abs() < 1e-9);
     }
 }
