@@ -365,7 +365,7 @@ where
     tick();
     let fail = |e: flexdyn_runtime::Error| match servo.failure() {
         Some(why) => why,
-        None => format!("at t = {} s: {e}", e.t),
+        None => e.to_string(),
     };
     for w in times.windows(2) {
         let dt = w[1] - w[0];

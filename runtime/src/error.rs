@@ -318,7 +318,7 @@ impl fmt::Display for ErrorKind {
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "at t = {}: {}", self.t, self.kind)
+        write!(f, "at t = {} s: {}", self.t, self.kind)
     }
 }
 
