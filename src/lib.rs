@@ -9,6 +9,7 @@ pub mod dynamic;
 pub mod eval;
 pub mod plot;
 pub mod progress;
+pub mod report;
 pub mod robot;
 pub mod servo;
 pub mod table;

@@ -147,6 +147,28 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Measure speed against error of the robot's model variants and
+    /// integrators on this machine and write docs/performance.md, its CSV and
+    /// its Pareto plots (a few minutes; --quick for a small version).
+    Report {
+        /// The Markdown page; the CSV and plots go to a folder of the same
+        /// name without the extension.
+        #[arg(long, default_value = "docs/performance.md")]
+        out: PathBuf,
+        /// A small study (three variants, short runs, no repetition), for a
+        /// quick look or a test.
+        #[arg(long)]
+        quick: bool,
+        /// Timed repetitions of each run (default 3; 1 with --quick).
+        #[arg(long)]
+        repeats: Option<usize>,
+        /// Directory of the scene files.
+        #[arg(long, default_value = "scenes")]
+        scenes: PathBuf,
+        /// No progress bar and no summary.
+        #[arg(long)]
+        quiet: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -184,6 +206,13 @@ fn main() -> ExitCode {
             }
         }
         Command::Export { scene, out } => export(&scene, &out),
+        Command::Report {
+            out,
+            quick,
+            repeats,
+            scenes,
+            quiet,
+        } => report(&out, quick, repeats, &scenes, quiet),
         Command::Eval {
             scene,
             states,
@@ -566,6 +595,45 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
             1e3 * peak(0),
             1e3 * peak(1),
             1e3 * peak(2)
+        );
+    }
+    Ok(())
+}
+
+fn report(
+    out: &Path,
+    quick: bool,
+    repeats: Option<usize>,
+    scenes: &Path,
+    quiet: bool,
+) -> Result<(), String> {
+    use flexdyn::report::{op_counts, run, run_count, Files, Settings, Study};
+    let mut settings = if quick {
+        Settings::quick()
+    } else {
+        Settings::full()
+    };
+    if let Some(r) = repeats {
+        if r == 0 || r > 100 {
+            return Err(format!("--repeats must be between 1 and 100, got {r}"));
+        }
+        settings.repeats = r;
+    }
+    let ops = op_counts(scenes, &settings.variants)?;
+    let mut progress =
+        flexdyn::progress::Progress::new(run_count(&settings) as u64, "report", quiet);
+    let study = Study::new(settings, scenes)?;
+    let results = run(&study, &mut |_| progress.inc())?;
+    progress.finish();
+    let files = Files::new(out);
+    flexdyn::report::write(&results, &ops, &files)?;
+    if !quiet {
+        println!(
+            "{} runs in {:.0} s; wrote {} and {}/",
+            results.forward.len() + results.inverse.len() + 4,
+            results.elapsed,
+            files.page.display(),
+            files.dir.display()
         );
     }
     Ok(())

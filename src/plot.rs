@@ -47,23 +47,36 @@ const COLORS: [RGBColor; 6] = [
 /// Draw `series` against a common horizontal axis into `path` (`.png` or `.svg`).
 pub fn line_plot(path: &Path, labels: &Labels, series: &[Series]) -> Result<(), String> {
     register();
+    let size = (960, 540);
+    match format(path)? {
+        Format::Png => draw(
+            BitMapBackend::new(path, size).into_drawing_area(),
+            labels,
+            series,
+        ),
+        Format::Svg => draw(
+            SVGBackend::new(path, size).into_drawing_area(),
+            labels,
+            series,
+        ),
+    }
+}
+
+/// Image formats, chosen by the file extension.
+enum Format {
+    Png,
+    Svg,
+}
+
+fn format(path: &Path) -> Result<Format, String> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .unwrap_or_default()
         .to_ascii_lowercase();
-    let size = (960, 540);
     match ext.as_str() {
-        "png" => draw(
-            BitMapBackend::new(path, size).into_drawing_area(),
-            labels,
-            series,
-        ),
-        "svg" => draw(
-            SVGBackend::new(path, size).into_drawing_area(),
-            labels,
-            series,
-        ),
+        "png" => Ok(Format::Png),
+        "svg" => Ok(Format::Svg),
         _ => Err(format!(
             "cannot plot to {}: the file name must end in .png or .svg",
             path.display()
@@ -126,6 +139,123 @@ fn draw<DB: DrawingBackend>(
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+/// Draw groups of points on log-log axes into `path` (`.png` or `.svg`), each
+/// group in its own colour and marker, with `front` (for example a Pareto
+/// front) as a black line. Points that are not positive are left out.
+pub fn scatter_plot(
+    path: &Path,
+    labels: &Labels,
+    groups: &[(String, Vec<(f64, f64)>)],
+    front: &[(f64, f64)],
+) -> Result<(), String> {
+    register();
+    let keep = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0;
+    let all: Vec<(f64, f64)> = groups
+        .iter()
+        .flat_map(|(_, p)| p.iter().copied())
+        .filter(keep)
+        .collect();
+    if all.is_empty() {
+        return Err("nothing to plot: no positive finite points".into());
+    }
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in &all {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    let widen = |a: f64, b: f64| (a / 1.5, b * 1.5);
+    let ((x0, x1), (y0, y1)) = (widen(x0, x1), widen(y0, y1));
+    let size = (1000, 640);
+    let bounds = ((x0, x1), (y0, y1));
+    match format(path)? {
+        Format::Png => draw_scatter(
+            BitMapBackend::new(path, size).into_drawing_area(),
+            labels,
+            groups,
+            front,
+            bounds,
+        ),
+        Format::Svg => draw_scatter(
+            SVGBackend::new(path, size).into_drawing_area(),
+            labels,
+            groups,
+            front,
+            bounds,
+        ),
+    }
+}
+
+type Bounds = ((f64, f64), (f64, f64));
+
+fn draw_scatter<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    labels: &Labels,
+    groups: &[(String, Vec<(f64, f64)>)],
+    front: &[(f64, f64)],
+    ((x0, x1), (y0, y1)): Bounds,
+) -> Result<(), String> {
+    let keep = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0;
+    let err = |e: &dyn std::fmt::Display| format!("plotting failed: {e}");
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(labels.title, ("sans-serif", 24))
+        .margin(12)
+        .x_label_area_size(44)
+        .y_label_area_size(80)
+        .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc(labels.x)
+        .y_desc(labels.y)
+        .y_label_formatter(&|y| format!("{y:.0e}"))
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(|e| err(&e))?;
+    for (k, (label, pts)) in groups.iter().enumerate() {
+        let color = COLORS[k % COLORS.len()];
+        let pts: Vec<(f64, f64)> = pts.iter().copied().filter(keep).collect();
+        let style = color.filled();
+        let anno = match k / COLORS.len() {
+            0 => chart.draw_series(pts.iter().map(|&p| Circle::new(p, 5, style).into_dyn())),
+            1 => chart.draw_series(
+                pts.iter()
+                    .map(|&p| TriangleMarker::new(p, 6, style).into_dyn()),
+            ),
+            _ => chart.draw_series(
+                pts.iter()
+                    .map(|&p| Cross::new(p, 5, color.stroke_width(2)).into_dyn()),
+            ),
+        }
+        .map_err(|e| err(&e))?;
+        let shape = k / COLORS.len();
+        anno.label(label.as_str())
+            .legend(move |(x, y)| match shape {
+                0 => Circle::new((x + 10, y), 5, style).into_dyn(),
+                1 => TriangleMarker::new((x + 10, y), 6, style).into_dyn(),
+                _ => Cross::new((x + 10, y), 5, color.stroke_width(2)).into_dyn(),
+            });
+    }
+    let line: Vec<(f64, f64)> = front.iter().copied().filter(keep).collect();
+    chart
+        .draw_series(LineSeries::new(line, BLACK.stroke_width(1)))
+        .map_err(|e| err(&e))?
+        .label("Pareto front")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
         .draw()
         .map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))?;

@@ -644,15 +644,60 @@ where
     Ok(out)
 }
 
-/// The robot scenes the robot commands (`inverse`, `simulate`) drive: the
-/// rigid robot and its flexible variants.
-pub const ROBOT_SCENES: [&str; 5] = [
-    "parallel_robot_rigid",
-    "parallel_robot_flexible",
-    "parallel_robot_flexible_links",
-    "parallel_robot_flexible_joints",
-    "parallel_robot_soft",
-];
+/// Expands `$callback!` with every robot scene the robot commands
+/// (`inverse`, `simulate`, `report`) drive, as `module => Type` pairs: the
+/// rigid robot, its flexible variants and their reductions. The one list
+/// behind [`ROBOT_SCENES`] and [`with_robot_model!`].
+#[doc(hidden)]
+#[macro_export]
+macro_rules! robot_scene_list {
+    ($callback:ident ! ( $($args:tt)* )) => {
+        $crate::$callback!( $($args)* ;
+            parallel_robot_rigid => ParallelRobotRigid,
+            parallel_robot_flexible => ParallelRobotFlexible,
+            parallel_robot_flexible_links => ParallelRobotFlexibleLinks,
+            parallel_robot_flexible_joints => ParallelRobotFlexibleJoints,
+            parallel_robot_soft => ParallelRobotSoft,
+            parallel_robot_flexible_m1 => ParallelRobotFlexibleM1,
+            parallel_robot_flexible_m2 => ParallelRobotFlexibleM2,
+            parallel_robot_flexible_m3 => ParallelRobotFlexibleM3,
+            parallel_robot_flexible_m4 => ParallelRobotFlexibleM4,
+            parallel_robot_flexible_m1_rigid_joints => ParallelRobotFlexibleM1RigidJoints,
+            parallel_robot_flexible_m2_rigid_joints => ParallelRobotFlexibleM2RigidJoints,
+            parallel_robot_flexible_m6_rigid_joints => ParallelRobotFlexibleM6RigidJoints,
+            parallel_robot_flexible_pruned => ParallelRobotFlexiblePruned
+        )
+    };
+}
+
+#[doc(hidden)]
+#[macro_export]
+macro_rules! robot_scene_names {
+    (; $($scene:ident => $ty:ident),*) => {
+        [$(stringify!($scene)),*]
+    };
+}
+
+/// The robot scenes the robot commands (`inverse`, `simulate`, `report`)
+/// drive: the rigid robot, its flexible variants and their reductions.
+pub const ROBOT_SCENES: [&str; 13] = robot_scene_list!(robot_scene_names!());
+
+#[doc(hidden)]
+#[macro_export]
+macro_rules! robot_scene_dispatch {
+    ($name:expr, $m:ident => $body:expr; $($scene:ident => $ty:ident),*) => {{
+        let name: &str = $name;
+        $(
+            if name == stringify!($scene) {
+                #[allow(clippy::default_constructed_unit_structs)]
+                let $m = $crate::scenes::$scene::$ty::default();
+                Some($body)
+            } else
+        )* {
+            None
+        }
+    }};
+}
 
 /// Evaluates `$body` with `$m` bound to the generated model of robot scene
 /// `$name` (one of [`ROBOT_SCENES`], at its nominal runtime parameters):
@@ -662,31 +707,7 @@ pub const ROBOT_SCENES: [&str; 5] = [
 #[macro_export]
 macro_rules! with_robot_model {
     ($name:expr, $m:ident => $body:expr) => {
-        match $name {
-            "parallel_robot_rigid" => {
-                let $m = $crate::scenes::parallel_robot_rigid::ParallelRobotRigid;
-                Some($body)
-            }
-            "parallel_robot_flexible" => {
-                let $m = $crate::scenes::parallel_robot_flexible::ParallelRobotFlexible::default();
-                Some($body)
-            }
-            "parallel_robot_flexible_links" => {
-                let $m =
-                    $crate::scenes::parallel_robot_flexible_links::ParallelRobotFlexibleLinks;
-                Some($body)
-            }
-            "parallel_robot_flexible_joints" => {
-                let $m =
-                    $crate::scenes::parallel_robot_flexible_joints::ParallelRobotFlexibleJoints::default();
-                Some($body)
-            }
-            "parallel_robot_soft" => {
-                let $m = $crate::scenes::parallel_robot_soft::ParallelRobotSoft;
-                Some($body)
-            }
-            _ => None,
-        }
+        $crate::robot_scene_list!(robot_scene_dispatch!($name, $m => $body))
     };
 }
 

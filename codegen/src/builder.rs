@@ -28,6 +28,8 @@ pub struct Generated {
     pub name: String,
     /// The scene file.
     pub scene: PathBuf,
+    /// Every file read for it (a derived scene and its base).
+    pub sources: Vec<PathBuf>,
     /// Formatted module source.
     pub source: String,
     /// Numbers of coordinates, constraints and actuators.
@@ -78,6 +80,7 @@ pub fn generate_scene(path: &Path) -> Result<Generated, Error> {
     Ok(Generated {
         name: model.name.clone(),
         scene: path.to_path_buf(),
+        sources: model.sources.clone(),
         source: emitted.source,
         dims: (model.nq(), model.constraints.len(), model.actuators.len()),
         functions: emitted.functions,
@@ -203,6 +206,11 @@ impl Builder {
         let mut scenes: Vec<Generated> = Vec::new();
         for f in &files {
             let g = generate_scene(f)?;
+            if self.rerun_if_changed {
+                for s in g.sources.iter().filter(|s| !files.contains(s)) {
+                    println!("cargo:rerun-if-changed={}", s.display());
+                }
+            }
             if let Some(other) = scenes.iter().find(|s| s.name == g.name) {
                 return Err(Error {
                     file: f.clone(),

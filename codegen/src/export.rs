@@ -115,6 +115,7 @@ struct Export<'a> {
     constraints: Vec<ConstraintOut<'a>>,
     actuators: Vec<ActuatorOut<'a>>,
     outputs: OutputsOut,
+    drop_below: Option<f64>,
 }
 
 /// The export of a model as pretty-printed JSON.
@@ -213,6 +214,7 @@ pub fn export_json(model: &Model) -> String {
             forces: model.outputs.forces,
             bias_jacobians: model.outputs.bias_jacobians,
         },
+        drop_below: model.drop_below,
     };
     serde_json::to_string_pretty(&export).expect("export serialises")
 }

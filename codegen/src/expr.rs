@@ -541,6 +541,33 @@ impl Graph {
         roots.iter().map(|r| value[r]).collect()
     }
 
+    /// Rebuild `roots` with every symbol replaced by `map(symbol)` (kept where
+    /// it gives `None`), through the canonical constructors, so that the
+    /// results fold and simplify as if they had been written that way.
+    pub fn substitute(&mut self, roots: &[Id], map: &dyn Fn(Symbol) -> Option<Id>) -> Vec<Id> {
+        let order = self.reachable(roots);
+        let mut new: HashMap<Id, Id> = HashMap::with_capacity(order.len());
+        for id in order {
+            let v = match self.node(id).clone() {
+                Node::Const(_) => id,
+                Node::Sym(s) => map(s).unwrap_or(id),
+                Node::Sum(ts, k) => {
+                    let terms: Vec<(Id, f64)> =
+                        ts.iter().map(|&(t, c)| (new[&t], c.get())).collect();
+                    self.linear(&terms, k.get())
+                }
+                Node::Prod(fs) => {
+                    let factors: Vec<(Id, i32)> = fs.iter().map(|&(b, e)| (new[&b], e)).collect();
+                    self.product(&factors)
+                }
+                Node::Call(f, a) => self.call(f, new[&a]),
+                Node::Atan2(y, x) => self.atan2(new[&y], new[&x]),
+            };
+            new.insert(id, v);
+        }
+        roots.iter().map(|r| new[r]).collect()
+    }
+
     /// Render an expression as text (for diagnostics and tests).
     pub fn display(&self, id: Id) -> String {
         match self.node(id) {
@@ -704,6 +731,30 @@ mod tests {
         let v = at(&g, e, &[0.3, 1.7]);
         let want = ((0.3f64.sin() * 1.7) / (0.3 + 1.7)).atan2(0.3);
         assert!((v - want).abs() < 1e-15);
+    }
+
+    #[test]
+    fn substitution_folds_like_fresh_construction() {
+        let mut g = Graph::new();
+        let (x, y) = (g.q(0), g.q(1));
+        // x*y + sin(y) + cos(x)^2 + sin(x)^2 with y := 0 is 1 (sin(0) folds, x*0 vanishes).
+        let xy = g.mul(x, y);
+        let sy = g.sin(y);
+        let (sx, cx) = (g.sin(x), g.cos(x));
+        let (s2, c2) = (g.powi(sx, 2), g.powi(cx, 2));
+        let e = g.sum(&[xy, sy, s2, c2]);
+        let zero = g.constant(0.0);
+        let out = g.substitute(&[e, x], &|s| (s == Symbol::Q(1)).then_some(zero));
+        assert!(g.is_const(out[0], 1.0), "{}", g.display(out[0]));
+        assert_eq!(out[1], x);
+        // Renaming q1 -> q0 turns x*y into x^2, the same node as built directly.
+        let out = g.substitute(&[xy], &|s| (s == Symbol::Q(1)).then_some(x));
+        assert_eq!(out[0], g.powi(x, 2));
+        // Values agree with evaluating the original at the substituted point.
+        let w = g.atan2(sy, xy);
+        let half = g.constant(0.5);
+        let out = g.substitute(&[w], &|s| (s == Symbol::Q(0)).then_some(half));
+        assert!((at(&g, out[0], &[9.0, 1.3]) - at(&g, w, &[0.5, 1.3])).abs() < 1e-15);
     }
 
     #[test]

@@ -126,6 +126,24 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
             }
         }
     }
+    // The bias Jacobians (a Newton matrix, which need not be exact) are
+    // those of the exact bias forces: pruning bounds the forces, not their
+    // derivatives.
+    let exact_bias: Vec<Id> = (0..n)
+        .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
+        .collect();
+    if let Some(tol) = model.drop_below {
+        crate::reduce::prune(
+            g,
+            &model.coordinates,
+            &model.runtime_parameters,
+            tol,
+            &mut mass,
+            &mut coriolis,
+            &mut potential_forces,
+            &mut damping_forces,
+        );
+    }
     let bias: Vec<Id> = (0..n)
         .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
         .collect();
@@ -142,7 +160,10 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
     let bias_jacobians = model.outputs.bias_jacobians.then(|| {
         let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
-        (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars))
+        (
+            g.jacobian(&exact_bias, &q_vars),
+            g.jacobian(&exact_bias, &qd_vars),
+        )
     });
 
     // Constraints.

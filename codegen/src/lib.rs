@@ -4,7 +4,8 @@
 //! scene file ([`scene`]) -> parsed expressions ([`parse`]) -> component
 //! energies ([`model`]) -> derived terms ([`lagrange`]) -> optimised
 //! straight-line program ([`program`]) -> emitted Rust ([`emit`]), driven by
-//! the [`Builder`].
+//! the [`Builder`]. A derived scene is reduced ([`reduce`]: modes dropped,
+//! coordinates frozen, negligible terms pruned) on the way.
 
 mod builder;
 pub mod diff;
@@ -17,6 +18,7 @@ pub mod lagrange;
 pub mod model;
 pub mod parse;
 pub mod program;
+pub mod reduce;
 pub mod scene;
 
 pub use builder::{generate_scene, write_if_changed, Builder, Generated, Report};

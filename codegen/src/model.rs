@@ -11,7 +11,7 @@
 //! `coincident` and `perpendicular` between frames) and the actuators.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use nalgebra::DMatrix;
 use toml::Spanned;
@@ -24,8 +24,8 @@ use crate::fem::{
 };
 use crate::parse::{parse_expr, Binding, Scope, RESERVED};
 use crate::scene::{
-    parse_scene, AxisDef, ComponentDef, ConstraintDef, ConstraintEnd, EndStiffnessDef, FrameDef,
-    ParameterDef, SScalar, Scalar, ScalarList, SceneDef,
+    parse_scene_file, AxisDef, ComponentDef, ConstraintDef, ConstraintEnd, EndStiffnessDef,
+    FrameDef, ParameterDef, SScalar, Scalar, ScalarList, SceneDef, SceneFile,
 };
 
 /// A generalized coordinate.
@@ -149,6 +149,12 @@ pub struct Model {
     pub outputs: Outputs,
     /// Finite-element data of the flexible links, in component order.
     pub flexible_links: Vec<FlexibleLink>,
+    /// Relative tolerance below which summands of the mass matrix and bias
+    /// forces are dropped after the derivation (a derived scene's
+    /// `reduce.drop_below`; see [`crate::reduce`]).
+    pub drop_below: Option<f64>,
+    /// Every file the model was read from (a derived scene and its base).
+    pub sources: Vec<PathBuf>,
 }
 
 impl Model {
@@ -169,10 +175,53 @@ impl Model {
         Model::from_source(&Source::new(path, text))
     }
 
-    /// Build the model from a scene file's text.
+    /// Build the model from a scene file's text. A derived scene (one with a
+    /// top-level `base`) loads its base from the same directory and applies
+    /// its reductions ([`crate::reduce`]).
     pub fn from_source(source: &Source) -> Result<Model, Error> {
-        let def = parse_scene(source)?;
-        Builder::new(source).build(&def)
+        match parse_scene_file(source)? {
+            SceneFile::Full(def) => Builder::new(source).build(&def),
+            SceneFile::Derived(def) => {
+                check_ident(source, &def.name, "scene name")?;
+                check_lower_case(source, &def.name)?;
+                let base = def.base.get_ref();
+                let plain = Path::new(base)
+                    .file_name()
+                    .is_some_and(|f| f == std::ffi::OsStr::new(base))
+                    && base.ends_with(".toml");
+                if !plain {
+                    return Err(source.error_at(
+                        def.base.span().start,
+                        None,
+                        format!(
+                            "base `{base}` must be the file name of a scene (`*.toml`) in the \
+                             same directory"
+                        ),
+                    ));
+                }
+                let path = source.path().with_file_name(base);
+                let text = std::fs::read_to_string(&path).map_err(|e| {
+                    source.error_at(
+                        def.base.span().start,
+                        None,
+                        format!("cannot read base scene {}: {e}", path.display()),
+                    )
+                })?;
+                let base_source = Source::new(&path, text);
+                let SceneFile::Full(base_def) = parse_scene_file(&base_source)? else {
+                    return Err(source.error_at(
+                        def.base.span().start,
+                        None,
+                        format!(
+                            "base `{base}` is itself a derived scene; derive from a full scene"
+                        ),
+                    ));
+                };
+                let mut model = Builder::new(&base_source).build(&base_def)?;
+                model.sources.insert(0, source.path().to_path_buf());
+                crate::reduce::apply(model, &def, source)
+            }
+        }
     }
 }
 
@@ -196,6 +245,18 @@ fn check_ident(source: &Source, name: &Spanned<String>, what: &str) -> Result<()
             name.span().start,
             None,
             format!("{what} `{s}` is a reserved word"),
+        ));
+    }
+    Ok(())
+}
+
+/// Scene names name Rust modules: lower case.
+fn check_lower_case(source: &Source, name: &Spanned<String>) -> Result<(), Error> {
+    if name.get_ref().chars().any(|c| c.is_ascii_uppercase()) {
+        return Err(source.error_at(
+            name.span().start,
+            None,
+            "scene name must be lower case (it names a Rust module)",
         ));
     }
     Ok(())
@@ -284,13 +345,7 @@ impl<'a> Builder<'a> {
 
     fn build(mut self, def: &SceneDef) -> Result<Model, Error> {
         check_ident(self.source, &def.name, "scene name")?;
-        if !def.name.get_ref().chars().all(|c| !c.is_ascii_uppercase()) {
-            return Err(self.err(
-                def.name.span().start,
-                None,
-                "scene name must be lower case (it names a Rust module)",
-            ));
-        }
+        check_lower_case(self.source, &def.name)?;
         let mut coordinates = self.coordinates(def)?;
         let runtime_parameters = self.parameters(def)?;
         self.gravity = match &def.gravity {
@@ -372,6 +427,8 @@ impl<'a> Builder<'a> {
             actuators,
             outputs,
             flexible_links: self.flexible.into_iter().map(|(_, l)| l).collect(),
+            drop_below: None,
+            sources: vec![self.source.path().to_path_buf()],
         })
     }
 

@@ -431,18 +431,78 @@ pub struct SceneDef {
     pub outputs: Vec<Spanned<String>>,
 }
 
+/// A scene derived from another scene file by a reduction: "model only what
+/// the scene needs" (see [`crate::reduce`]).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DerivedSceneDef {
+    /// Identifier: module name of the generated code.
+    pub name: Spanned<String>,
+    /// Free text for people; never copied into generated code.
+    pub description: Option<String>,
+    /// The scene it reduces: a file name in the same directory.
+    pub base: Spanned<String>,
+    /// What to leave out.
+    pub reduce: Spanned<ReduceDef>,
+}
+
+/// The reductions a derived scene applies to its base.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReduceDef {
+    /// Keep only the lowest `modes` modes of every flexible link.
+    pub modes: Option<Spanned<i64>>,
+    /// Keep only the modes below this frequency (Hz) of every flexible link.
+    pub max_frequency: Option<Spanned<f64>>,
+    /// Coordinates held at zero (for example the twists of flexible joints,
+    /// which makes those joints rigid).
+    #[serde(default)]
+    pub freeze: Vec<Spanned<String>>,
+    /// Drop the terms of the mass matrix and the bias forces whose
+    /// contribution over the declared coordinate and velocity ranges stays
+    /// below this fraction of the term's scale.
+    pub drop_below: Option<Spanned<f64>>,
+}
+
+/// A scene file: a full scene, or a reduction of another.
+#[derive(Debug, Clone)]
+pub enum SceneFile {
+    /// A scene written out in full.
+    Full(SceneDef),
+    /// A scene derived from another file (it has a top-level `base`).
+    Derived(DerivedSceneDef),
+}
+
 /// Largest scene file accepted, in bytes.
 pub const MAX_SCENE_BYTES: usize = 4 << 20;
 
 /// Parse a scene file's text.
 pub fn parse_scene(source: &Source) -> Result<SceneDef, Error> {
-    if source.text().len() > MAX_SCENE_BYTES {
-        return Err(source.error(format!(
-            "scene file is larger than {} bytes",
-            MAX_SCENE_BYTES
-        )));
+    check_size(source)?;
+    from_toml(source)
+}
+
+/// Parse a scene file's text, full or derived (one with a top-level `base`).
+pub fn parse_scene_file(source: &Source) -> Result<SceneFile, Error> {
+    check_size(source)?;
+    let derived =
+        toml::from_str::<toml::Table>(source.text()).is_ok_and(|t| t.contains_key("base"));
+    if derived {
+        from_toml(source).map(SceneFile::Derived)
+    } else {
+        from_toml(source).map(SceneFile::Full)
     }
-    toml::from_str::<SceneDef>(source.text()).map_err(|e| {
+}
+
+fn check_size(source: &Source) -> Result<(), Error> {
+    if source.text().len() > MAX_SCENE_BYTES {
+        return Err(source.error(format!("scene file is larger than {MAX_SCENE_BYTES} bytes")));
+    }
+    Ok(())
+}
+
+fn from_toml<T: serde::de::DeserializeOwned>(source: &Source) -> Result<T, Error> {
+    toml::from_str::<T>(source.text()).map_err(|e| {
         let offset = e.span().map_or(0, |s| s.start);
         let mut message = e.message().trim().to_owned();
         if message.is_empty() {
