@@ -121,12 +121,7 @@ struct Export<'a> {
 /// The export of a model as pretty-printed JSON.
 pub fn export_json(model: &Model) -> String {
     let g = &model.graph;
-    let mut roots: Vec<Id> = Vec::new();
-    for c in &model.components {
-        roots.extend([c.kinetic, c.potential, c.dissipation]);
-    }
-    roots.extend(model.constraints.iter().map(|c| c.residual));
-    let order = g.reachable(&roots);
+    let order = g.reachable(&model.input_roots());
     let index = |id: Id| order.binary_search(&id).expect("reachable node");
     let nodes = order
         .iter()

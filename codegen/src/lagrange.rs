@@ -144,9 +144,13 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
             &mut damping_forces,
         );
     }
-    let bias: Vec<Id> = (0..n)
-        .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
-        .collect();
+    let bias: Vec<Id> = if model.drop_below.is_some() {
+        (0..n)
+            .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
+            .collect()
+    } else {
+        exact_bias.clone()
+    };
     let kinetic_energy = g.sum(&kinetic);
     let potential_energy = g.sum(&potential);
 

@@ -163,6 +163,17 @@ impl Model {
         self.coordinates.len()
     }
 
+    /// The scene's symbolic inputs: `T`, `V`, `D` of every component in
+    /// order, then every constraint residual.
+    pub fn input_roots(&self) -> Vec<Id> {
+        let mut roots: Vec<Id> = Vec::new();
+        for c in &self.components {
+            roots.extend([c.kinetic, c.potential, c.dissipation]);
+        }
+        roots.extend(self.constraints.iter().map(|c| c.residual));
+        roots
+    }
+
     /// Load a scene file.
     pub fn load(path: &Path) -> Result<Model, Error> {
         let text = std::fs::read_to_string(path).map_err(|e| Error {

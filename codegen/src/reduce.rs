@@ -155,13 +155,9 @@ pub fn apply(mut model: Model, def: &DerivedSceneDef, source: &Source) -> Result
             next += 1;
         }
     }
+    let roots = model.input_roots();
     let g = &mut model.graph;
     let zero = g.constant(0.0);
-    let mut roots: Vec<Id> = Vec::new();
-    for c in &model.components {
-        roots.extend([c.kinetic, c.potential, c.dissipation]);
-    }
-    roots.extend(model.constraints.iter().map(|c| c.residual));
     let q: Vec<Id> = index
         .iter()
         .map(|j| j.map_or(zero, |j| g.symbol(Symbol::Q(j))))
