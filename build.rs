@@ -1,14 +1,33 @@
-//! Regenerates the equations of every scene in `scenes/` into `$OUT_DIR`.
+//! Regenerates the equations of every scene in `scenes/` into `$OUT_DIR`,
+//! and a test-only copy of two scenes with one emitted coefficient each
+//! perturbed by 1e-6 (relative), which `flexdyn eval --perturbed` evaluates
+//! and the CasADi validation must reject (`tests/casadi_validation.rs`).
+use flexdyn_codegen::Builder;
+
 fn main() {
-    let result = flexdyn_codegen::Builder::new()
-        .scenes_in("scenes")
-        .emit_rerun_if_changed(true)
-        .index(
+    let out = std::path::PathBuf::from(std::env::var_os("OUT_DIR").unwrap_or_default());
+    let index = |b: Builder| {
+        b.index(
             "scenes.rs",
             "crate::dynamic::DynModel",
             "crate::dynamic::erase",
         )
-        .generate();
+    };
+    let result = index(
+        Builder::new()
+            .scenes_in("scenes")
+            .emit_rerun_if_changed(true),
+    )
+    .generate()
+    .and_then(|_| {
+        index(Builder::new())
+            .scene("scenes/pendulum.toml")
+            .scene("scenes/parallel_robot_rigid.toml")
+            .perturb_coefficient("pendulum", "bias", 0, 1e-6)
+            .perturb_coefficient("parallel_robot_rigid", "mass_matrix", 0, 1e-6)
+            .out_dir(out.join("perturbed"))
+            .generate()
+    });
     if let Err(e) = result {
         eprintln!("error: {e}");
         std::process::exit(1);

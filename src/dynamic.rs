@@ -36,6 +36,8 @@ pub trait DynModel {
     fn constraint_time_derivative(&self, q: &[f64], t: f64) -> DVector<f64>;
     /// Acceleration right-hand side.
     fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64>;
+    /// `(M, h, Phi_q, gamma)` from the fused `dynamics_terms` program.
+    fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64) -> Fused;
     /// Actuator map.
     fn actuator_map(&self) -> DMatrix<f64>;
     /// Kinetic energy.
@@ -58,6 +60,9 @@ pub trait DynModel {
     fn bias_jacobians(&self, q: &[f64], qd: &[f64], t: f64)
         -> Option<(DMatrix<f64>, DMatrix<f64>)>;
 }
+
+/// `(M, h, Phi_q, gamma)` as computed together by `dynamics_terms`.
+pub type Fused = (DMatrix<f64>, DVector<f64>, DMatrix<f64>, DVector<f64>);
 
 /// A model with its dimensions as const parameters.
 pub struct Erased<M, const NQ: usize, const NC: usize, const NU: usize>(pub M);
@@ -120,6 +125,20 @@ where
         let mut g = SVector::<f64, NC>::zeros();
         self.0.constraint_rhs(&vector(q), &vector(qd), t, &mut g);
         DVector::from_column_slice(g.as_slice())
+    }
+    fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64) -> Fused {
+        let mut m = SMatrix::<f64, NQ, NQ>::zeros();
+        let mut h = SVector::<f64, NQ>::zeros();
+        let mut j = SMatrix::<f64, NC, NQ>::zeros();
+        let mut g = SVector::<f64, NC>::zeros();
+        self.0
+            .dynamics_terms(&vector(q), &vector(qd), t, &mut m, &mut h, &mut j, &mut g);
+        (
+            DMatrix::from_column_slice(NQ, NQ, m.as_slice()),
+            DVector::from_column_slice(h.as_slice()),
+            DMatrix::from_column_slice(NC, NQ, j.as_slice()),
+            DVector::from_column_slice(g.as_slice()),
+        )
     }
     fn actuator_map(&self) -> DMatrix<f64> {
         let mut b = SMatrix::<f64, NQ, NU>::zeros();

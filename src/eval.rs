@@ -46,6 +46,14 @@ pub struct Terms {
     pub constraint_rhs: Vec<f64>,
     /// Actuator map.
     pub actuator_map: Vec<Vec<f64>>,
+    /// `M` as the fused `dynamics_terms` computes it (what the solvers use).
+    pub fused_mass_matrix: Vec<Vec<f64>>,
+    /// `h` from `dynamics_terms`.
+    pub fused_bias: Vec<f64>,
+    /// `Phi_q` from `dynamics_terms`.
+    pub fused_constraint_jacobian: Vec<Vec<f64>>,
+    /// `gamma` from `dynamics_terms`.
+    pub fused_constraint_rhs: Vec<f64>,
     /// Kinetic energy.
     pub kinetic_energy: f64,
     /// Potential energy.
@@ -68,38 +76,6 @@ pub struct Terms {
     /// `dh/dqd`, when generated.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bias_jacobian_qd: Option<Vec<Vec<f64>>>,
-}
-
-/// A deliberate error added to one term (test-only hook used to prove that
-/// the validation catches a broken term): `term:index:delta`, where `index`
-/// counts entries row by row.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Perturbation {
-    /// Term name as in [`Terms`].
-    pub term: String,
-    /// Entry index, row-major.
-    pub index: usize,
-    /// Amount added.
-    pub delta: f64,
-}
-
-impl std::str::FromStr for Perturbation {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        let parts: Vec<&str> = s.split(':').collect();
-        let [term, index, delta] = parts.as_slice() else {
-            return Err(format!("expected term:index:delta, got `{s}`"));
-        };
-        Ok(Perturbation {
-            term: (*term).to_owned(),
-            index: index
-                .parse()
-                .map_err(|e| format!("bad index `{index}`: {e}"))?,
-            delta: delta
-                .parse()
-                .map_err(|e| format!("bad delta `{delta}`: {e}"))?,
-        })
-    }
 }
 
 fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
@@ -140,6 +116,7 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
     }
     let vec = |v: nalgebra::DVector<f64>| v.as_slice().to_vec();
     let jacobians = model.bias_jacobians(&s.q, &s.qd, s.t);
+    let (fused_m, fused_h, fused_phi_q, fused_gamma) = model.dynamics_terms(&s.q, &s.qd, s.t);
     Ok(Terms {
         mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
         bias: model.bias(&s.q, &s.qd, s.t).as_slice().to_vec(),
@@ -151,6 +128,10 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
             .to_vec(),
         constraint_rhs: model.constraint_rhs(&s.q, &s.qd, s.t).as_slice().to_vec(),
         actuator_map: rows(&model.actuator_map()),
+        fused_mass_matrix: rows(&fused_m),
+        fused_bias: vec(fused_h),
+        fused_constraint_jacobian: rows(&fused_phi_q),
+        fused_constraint_rhs: vec(fused_gamma),
         kinetic_energy: model.kinetic_energy(&s.q, &s.qd, s.t),
         potential_energy: model.potential_energy(&s.q, s.t),
         coriolis_forces: model.coriolis_forces(&s.q, &s.qd, s.t).map(vec),
@@ -160,53 +141,4 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         bias_jacobian_q: jacobians.as_ref().map(|(h_q, _)| rows(h_q)),
         bias_jacobian_qd: jacobians.as_ref().map(|(_, h_qd)| rows(h_qd)),
     })
-}
-
-impl Terms {
-    /// Apply a perturbation; an error if the term or entry does not exist.
-    pub fn perturb(&mut self, p: &Perturbation) -> Result<(), String> {
-        let entry: Option<&mut f64> = match p.term.as_str() {
-            "mass_matrix" => self.mass_matrix.iter_mut().flatten().nth(p.index),
-            "bias" => self.bias.get_mut(p.index),
-            "constraints" => self.constraints.get_mut(p.index),
-            "constraint_jacobian" => self.constraint_jacobian.iter_mut().flatten().nth(p.index),
-            "constraint_time_derivative" => self.constraint_time_derivative.get_mut(p.index),
-            "constraint_rhs" => self.constraint_rhs.get_mut(p.index),
-            "actuator_map" => self.actuator_map.iter_mut().flatten().nth(p.index),
-            "kinetic_energy" => Some(&mut self.kinetic_energy),
-            "coriolis_forces" => self
-                .coriolis_forces
-                .as_mut()
-                .and_then(|v| v.get_mut(p.index)),
-            "potential_forces" => self
-                .potential_forces
-                .as_mut()
-                .and_then(|v| v.get_mut(p.index)),
-            "damping_forces" => self
-                .damping_forces
-                .as_mut()
-                .and_then(|v| v.get_mut(p.index)),
-            "coriolis_matrix" => self
-                .coriolis_matrix
-                .as_mut()
-                .and_then(|m| m.iter_mut().flatten().nth(p.index)),
-            "potential_energy" => Some(&mut self.potential_energy),
-            "bias_jacobian_q" => self
-                .bias_jacobian_q
-                .as_mut()
-                .and_then(|m| m.iter_mut().flatten().nth(p.index)),
-            "bias_jacobian_qd" => self
-                .bias_jacobian_qd
-                .as_mut()
-                .and_then(|m| m.iter_mut().flatten().nth(p.index)),
-            _ => None,
-        };
-        match entry {
-            Some(x) => {
-                *x += p.delta;
-                Ok(())
-            }
-            None => Err(format!("no entry {} in term `{}`", p.index, p.term)),
-        }
-    }
 }

@@ -20,5 +20,14 @@ pub mod scenes {
     include!(concat!(env!("OUT_DIR"), "/scenes.rs"));
 }
 
+/// Test only: copies of `pendulum` and `parallel_robot_rigid` with one
+/// emitted coefficient deliberately wrong (see `build.rs`), evaluated by
+/// `flexdyn eval --perturbed` to prove the CasADi validation catches it.
+#[doc(hidden)]
+#[allow(missing_docs)]
+pub mod perturbed_scenes {
+    include!(concat!(env!("OUT_DIR"), "/perturbed/scenes.rs"));
+}
+
 pub use flexdyn_codegen as codegen;
 pub use flexdyn_runtime as runtime;

@@ -58,9 +58,10 @@ enum Command {
         /// Output file (standard output when absent).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Test-only hook: add DELTA to entry INDEX of TERM, as TERM:INDEX:DELTA.
+        /// Test-only hook: evaluate the build of the scene with one emitted
+        /// coefficient deliberately wrong (pendulum and parallel_robot_rigid).
         #[arg(long, hide = true)]
-        perturb: Option<flexdyn::eval::Perturbation>,
+        perturbed: bool,
     },
     /// Inverse dynamics of the parallel robot along a circle of the platform
     /// centre (the paper's Eq. 23 by default): the actuator torques, through
@@ -95,6 +96,11 @@ enum Command {
         /// Plot of the three torques against time (.png or .svg).
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Also write every output step's full state (q, qd, t) as JSON in
+        /// the `flexdyn eval` input format: the scene's working states for the
+        /// CasADi validation (`scenes/<scene>.states.json`).
+        #[arg(long, value_name = "FILE")]
+        states: Option<PathBuf>,
         /// No progress bar and no summary.
         #[arg(long)]
         quiet: bool,
@@ -217,8 +223,8 @@ fn main() -> ExitCode {
             scene,
             states,
             out,
-            perturb,
-        } => eval(&scene, &states, out.as_deref(), perturb.as_ref()),
+            perturbed,
+        } => eval(&scene, &states, out.as_deref(), perturbed),
         Command::Inverse {
             scene,
             omega,
@@ -228,6 +234,7 @@ fn main() -> ExitCode {
             center,
             csv,
             plot,
+            states,
             quiet,
         } => parse_center(&center).and_then(|center| {
             let circle = flexdyn::robot::Circle {
@@ -240,8 +247,7 @@ fn main() -> ExitCode {
                 &circle,
                 duration,
                 dt,
-                csv.as_deref(),
-                plot.as_deref(),
+                &InverseOutputs { csv, plot, states },
                 quiet,
             )
         }),
@@ -287,19 +293,27 @@ fn export(scene: &Path, out: &Path) -> Result<(), String> {
     write_atomic(out, &flexdyn::codegen::export::export_json(&model))
 }
 
-fn eval(
-    scene: &Path,
-    states: &Path,
-    out: Option<&Path>,
-    perturb: Option<&flexdyn::eval::Perturbation>,
-) -> Result<(), String> {
+fn eval(scene: &Path, states: &Path, out: Option<&Path>, perturbed: bool) -> Result<(), String> {
     use flexdyn::eval::{check_state, evaluate, States};
     let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
-    let mut model = flexdyn::scenes::model(&parsed.name).ok_or_else(|| {
-        format!(
-            "scene `{}` is not compiled into this binary: put its file in scenes/ and rebuild",
-            parsed.name
-        )
+    let lookup = if perturbed {
+        flexdyn::perturbed_scenes::model
+    } else {
+        flexdyn::scenes::model
+    };
+    let mut model = lookup(&parsed.name).ok_or_else(|| {
+        if perturbed {
+            format!(
+                "scene `{}` has no perturbed build (those are: {})",
+                parsed.name,
+                flexdyn::perturbed_scenes::SCENES.join(", ")
+            )
+        } else {
+            format!(
+                "scene `{}` is not compiled into this binary: put its file in scenes/ and rebuild",
+                parsed.name
+            )
+        }
     })?;
     let text = std::fs::read_to_string(states)
         .map_err(|e| format!("cannot read {}: {e}", states.display()))?;
@@ -310,13 +324,9 @@ fn eval(
         check_state(model.as_ref(), s, k)?;
         if !s.params.is_empty() {
             // Parameters apply to this state only: start from the defaults.
-            model = flexdyn::scenes::model(&parsed.name).ok_or("scene vanished")?;
+            model = lookup(&parsed.name).ok_or("scene vanished")?;
         }
-        let mut terms = evaluate(model.as_mut(), s).map_err(|e| format!("state {k}: {e}"))?;
-        if let Some(p) = perturb {
-            terms.perturb(p)?;
-        }
-        results.push(terms);
+        results.push(evaluate(model.as_mut(), s).map_err(|e| format!("state {k}: {e}"))?);
     }
     let json = serde_json::json!({ "scene": parsed.name, "results": results });
     let text = serde_json::to_string(&json).map_err(|e| e.to_string())?;
@@ -339,13 +349,19 @@ fn parse_center(text: &str) -> Result<[f64; 3], String> {
         .map_err(|_| format!("--center must be three numbers x,y,z, got `{text}`"))
 }
 
+/// The files `flexdyn inverse` writes.
+struct InverseOutputs {
+    csv: Option<PathBuf>,
+    plot: Option<PathBuf>,
+    states: Option<PathBuf>,
+}
+
 fn inverse(
     scene: &Path,
     circle: &flexdyn::robot::Circle,
     duration: f64,
     dt: f64,
-    csv: Option<&Path>,
-    plot: Option<&Path>,
+    files: &InverseOutputs,
     quiet: bool,
 ) -> Result<(), String> {
     use flexdyn::robot::{inverse_rows, output_times};
@@ -386,10 +402,21 @@ fn inverse(
         table.push(row);
     }
     let mut outputs = flexdyn::table::Outputs::default();
-    if let Some(path) = csv {
+    if let Some(path) = &files.csv {
         outputs.write(path, |tmp| table.write(tmp))?;
     }
-    if let Some(path) = plot {
+    if let Some(path) = &files.states {
+        let states: Vec<serde_json::Value> = solutions
+            .iter()
+            .map(|s| serde_json::json!({ "t": s.t, "q": s.q, "qd": s.qd }))
+            .collect();
+        let text = serde_json::to_string(&serde_json::json!({ "states": states }))
+            .map_err(|e| e.to_string())?;
+        outputs.write(path, |tmp| {
+            std::fs::write(tmp, text + "\n").map_err(|e| format!("cannot write: {e}"))
+        })?;
+    }
+    if let Some(path) = &files.plot {
         let series: Vec<flexdyn::plot::Series> = (1..=3)
             .map(|i| flexdyn::plot::Series {
                 label: ["tau_1", "tau_2", "tau_3"][i - 1],

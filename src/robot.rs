@@ -329,7 +329,7 @@ fn branch_distance<const NQ: usize>(
 }
 
 /// One row of the robot's inverse dynamics, whatever the scene.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct InverseRow {
     /// Time, s.
     pub t: f64,
@@ -341,6 +341,10 @@ pub struct InverseRow {
     pub v: [f64; 3],
     /// Actuated joint angles `th11, th21, th31`, rad.
     pub th: [f64; 3],
+    /// Every coordinate.
+    pub q: Vec<f64>,
+    /// Every velocity.
+    pub qd: Vec<f64>,
 }
 
 /// Inverse dynamics of any robot scene along `circle` at `times`: the rigid
@@ -365,6 +369,8 @@ where
         p: layout.platform.map(|i| q[i]),
         v: layout.platform.map(|i| qd[i]),
         th: layout.actuated.map(|i| q[i]),
+        q: q.to_vec(),
+        qd: qd.to_vec(),
     };
     if layout.is_flexible() {
         let samples = crate::servo::flexible_inverse(model, &layout, g, circle, times, tick)?;

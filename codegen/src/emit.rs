@@ -64,6 +64,57 @@ struct Emitter<'a> {
     graph: &'a Graph,
     model: &'a Model,
     reports: Vec<FunctionReport>,
+    perturbation: Option<&'a CoefficientPerturbation>,
+    perturbed: bool,
+}
+
+/// A deliberate error in one emitted coefficient, for tests only: it proves
+/// that the validation against CasADi catches a wrong term in the generated
+/// code itself (see `Builder::perturb_coefficient`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoefficientPerturbation {
+    /// Scene whose module is perturbed.
+    pub scene: String,
+    /// Emitted function (`mass_matrix`, `bias`, ...).
+    pub function: String,
+    /// Which coefficient of that function's program: the `index`-th
+    /// coefficient of a sum, counting statements in order, then outputs.
+    pub index: usize,
+    /// The coefficient is multiplied by `1 + relative`.
+    pub relative: f64,
+}
+
+/// Multiply the `index`-th sum coefficient of `p` by `factor`; `false` when
+/// the program has fewer coefficients.
+fn scale_coefficient(p: &mut Program, index: usize, factor: f64) -> bool {
+    fn visit(c: &mut Code, left: &mut usize, factor: f64) -> bool {
+        match c {
+            Code::Sum { terms, .. } => terms.iter_mut().any(|(k, t)| {
+                if *left == 0 {
+                    *k *= factor;
+                    return true;
+                }
+                *left -= 1;
+                visit(t, left, factor)
+            }),
+            Code::Prod { num, den } => num
+                .iter_mut()
+                .chain(den.iter_mut())
+                .any(|f| visit(f, left, factor)),
+            Code::Call(_, x) => visit(x, left, factor),
+            Code::Atan2(y, x) => visit(y, left, factor) || visit(x, left, factor),
+            Code::Var(_) | Code::Sym(_) | Code::Lit(_) => false,
+        }
+    }
+    let mut left = index;
+    p.stmts
+        .iter_mut()
+        .map(|s| match s {
+            Stmt::Let { value, .. } => value,
+            Stmt::SinCos { arg, .. } => arg,
+        })
+        .chain(p.outputs.iter_mut())
+        .any(|c| visit(c, &mut left, factor))
 }
 
 fn lit(x: f64) -> TokenStream {
@@ -291,8 +342,13 @@ impl Emitter<'_> {
         }
     }
 
-    fn record(&mut self, name: &'static str, p: &Program) {
+    /// Record the operation count of function `name`, and apply the
+    /// test-only perturbation when it targets this function.
+    fn record(&mut self, name: &'static str, p: &mut Program) {
         self.reports.push(FunctionReport { name, ops: p.ops });
+        if let Some(c) = self.perturbation.filter(|c| c.function == name) {
+            self.perturbed |= scale_coefficient(p, c.index, 1.0 + c.relative);
+        }
     }
 
     /// A function writing one or more outputs (vectors or matrices) from one
@@ -319,8 +375,8 @@ impl Emitter<'_> {
                 }
             }
         }
-        let p = schedule(self.graph, &ids);
-        self.record(sig.name, &p);
+        let mut p = schedule(self.graph, &ids);
+        self.record(sig.name, &mut p);
         let used = self.inputs(&ids);
         let body = self.stmts(&p);
         let mut assigns = TokenStream::new();
@@ -390,8 +446,8 @@ impl Emitter<'_> {
 
     fn scalar_fn(&mut self, name: &'static str, doc: &str, id: Id, with_qd: bool) -> TokenStream {
         let nq = usize_lit(self.model.nq());
-        let p = schedule(self.graph, &[id]);
-        self.record(name, &p);
+        let mut p = schedule(self.graph, &[id]);
+        self.record(name, &mut p);
         let used = self.inputs(&[id]);
         let body = self.stmts(&p);
         let e = self.code(&p.outputs[0], SUM);
@@ -449,10 +505,22 @@ fn input_idents(used: Inputs) -> (proc_macro2::Ident, proc_macro2::Ident, proc_m
 
 /// Emit the module of a scene.
 pub fn emit(model: &Model, eq: &Equations) -> Emitted {
+    emit_perturbed(model, eq, None).0
+}
+
+/// [`emit`] with an optional test-only perturbation of one coefficient;
+/// also says whether the perturbation found its coefficient.
+pub fn emit_perturbed(
+    model: &Model,
+    eq: &Equations,
+    perturbation: Option<&CoefficientPerturbation>,
+) -> (Emitted, bool) {
     let mut e = Emitter {
         graph: &model.graph,
         model,
         reports: Vec::new(),
+        perturbation,
+        perturbed: false,
     };
     let n = model.nq();
     let nc = model.constraints.len();
@@ -726,8 +794,18 @@ pub fn emit(model: &Model, eq: &Equations) -> Emitted {
          // (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)\n\n",
         "total", total.adds, total.muls, total.divs, total.calls
     ));
-    Emitted {
-        source: header + &body,
-        functions: e.reports,
+    if let (Some(c), true) = (perturbation, e.perturbed) {
+        header.push_str(&format!(
+            "// TEST ONLY: coefficient {} of `{}` deliberately multiplied by 1 + {:e}.\n\n",
+            c.index, c.function, c.relative
+        ));
     }
+    let perturbed = e.perturbed;
+    (
+        Emitted {
+            source: header + &body,
+            functions: e.reports,
+        },
+        perturbed,
+    )
 }
