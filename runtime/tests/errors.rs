@@ -240,6 +240,33 @@ fn singular_constraint_jacobian() {
         &V::<1>::zeros(),
     );
     assert!(e.is_ok(), "well conditioned with one constraint");
+    // Ill-conditioned, not singular: two constraint spheres that touch, at
+    // 1e-7 from the contact point. The condition of Phi_q M^-1 Phi_q^T is
+    // 1 / (1e-7)^2 = 1e14 (eigenvalues 8 and 8e-14), above the default limit
+    // of 1e12 but finite; every integrator refuses the step and names it.
+    let spheres = TouchingSpheres::default();
+    let near = State::new(V::<3>::new(1.0, 1e-7, 0.0), V::<3>::zeros(), 4.5);
+    all_integrators(&spheres, near, &V::<1>::zeros(), 1e-3, |e| {
+        match e.kind {
+            ErrorKind::SingularConstraintJacobian { condition, limit } => {
+                assert!(condition.is_finite() && condition > 1e13, "{e}");
+                assert_eq!(limit, DynamicsConfig::default().max_condition);
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+        assert_eq!(e.t, 4.5);
+        assert!(e.to_string().contains("at t = 4.5"), "{e}");
+    });
+    // Away from the contact (d = 1e-3, condition 1e6) the same model is fine.
+    let fine = accelerations(
+        &spheres,
+        &DynamicsConfig::default(),
+        &V::<3>::new(1.0, 1e-3, 0.0),
+        &V::<3>::zeros(),
+        0.0,
+        &V::<1>::zeros(),
+    );
+    assert!(fine.is_ok(), "{fine:?}");
     // Inverse dynamics: slider-crank driven through the slider at the dead
     // centre (x = r + l, theta = phi = 0): the crank angle is not determined
     // by x there, the Jacobian of the free coordinates is singular.

@@ -185,4 +185,10 @@ fn spring_chain_and_elastic_pendulum_are_consistent() {
         &V::<2>::new(0.8, 0.6),
         0.0,
     );
+    check_model(
+        &TouchingSpheres::default(),
+        &V::<3>::new(0.9, 0.3, -0.2),
+        &V::<3>::new(0.1, -0.4, 0.7),
+        0.0,
+    );
 }

@@ -597,6 +597,59 @@ impl Model<2, 1, 1> for CartesianPendulum {
 }
 
 // ---------------------------------------------------------------------------
+// Point mass (x, y, z) held on two unit spheres centred at the origin and at
+// (2, 0, 0): they touch at (1, 0, 0), where the two constraint gradients are
+// parallel. At (1, d, 0) the Jacobian's condition grows like 1/d^2. Force
+// input on y.
+// ---------------------------------------------------------------------------
+#[derive(Clone, Copy, Debug)]
+pub struct TouchingSpheres {
+    pub m: f64,
+    pub g: f64,
+}
+
+impl Default for TouchingSpheres {
+    fn default() -> Self {
+        TouchingSpheres { m: 1.0, g: 9.81 }
+    }
+}
+
+impl Model<3, 2, 1> for TouchingSpheres {
+    const NAME: &'static str = "touching_spheres";
+    const COORDINATES: [&'static str; 3] = ["x", "y", "z"];
+    const ACTUATORS: [&'static str; 1] = ["fy"];
+    fn mass_matrix(&self, _q: &V<3>, _t: f64, m: &mut Mat<3, 3>) {
+        *m = Mat::<3, 3>::identity() * self.m;
+    }
+    fn bias(&self, _q: &V<3>, _qd: &V<3>, _t: f64, h: &mut V<3>) {
+        *h = V::<3>::new(0.0, 0.0, self.m * self.g);
+    }
+    fn constraints(&self, q: &V<3>, _t: f64, phi: &mut V<2>) {
+        let c = V::<3>::new(2.0, 0.0, 0.0);
+        *phi = V::<2>::new(q.norm_squared() - 1.0, (q - c).norm_squared() - 1.0);
+    }
+    fn constraint_jacobian(&self, q: &V<3>, _t: f64, j: &mut Mat<2, 3>) {
+        j.set_row(0, &(2.0 * q).transpose());
+        j.set_row(1, &(2.0 * V::<3>::new(q[0] - 2.0, q[1], q[2])).transpose());
+    }
+    fn constraint_time_derivative(&self, _q: &V<3>, _t: f64, p: &mut V<2>) {
+        *p = V::<2>::zeros();
+    }
+    fn constraint_rhs(&self, _q: &V<3>, qd: &V<3>, _t: f64, g: &mut V<2>) {
+        *g = V::<2>::from_element(-2.0 * qd.norm_squared());
+    }
+    fn actuator_map(&self, b: &mut Mat<3, 1>) {
+        *b = Mat::<3, 1>::new(0.0, 1.0, 0.0);
+    }
+    fn kinetic_energy(&self, _q: &V<3>, qd: &V<3>, _t: f64) -> f64 {
+        0.5 * self.m * qd.norm_squared()
+    }
+    fn potential_energy(&self, q: &V<3>, _t: f64) -> f64 {
+        self.m * self.g * q[2]
+    }
+}
+
+// ---------------------------------------------------------------------------
 // Fault injection around any model.
 // ---------------------------------------------------------------------------
 #[derive(Clone, Copy, Debug)]
