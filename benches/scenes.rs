@@ -1,12 +1,13 @@
-//! Issue 3: nanoseconds per inverse-dynamics call and per integrator step for
-//! the generated five-bar and slider-crank scenes.
+//! Issues 3 and 7: nanoseconds per generated term (`M`, `h`, `Phi_q`,
+//! `gamma`, and the fused `dynamics_terms`), per inverse-dynamics call and
+//! per integrator step for the generated five-bar and slider-crank scenes.
 //! Run with `cargo bench --bench scenes`.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use flexdyn::runtime::integrate::{
     GaussLegendre4, GeneralizedAlpha, Rk4, SemiImplicitEuler, StepSettings,
 };
-use flexdyn::runtime::nalgebra::SVector;
+use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::{
     FiniteDifferenceJacobians, Integrator, InverseConfig, InverseDynamics, InverseSolution, Model,
     State,
@@ -50,9 +51,41 @@ fn steps<M, G, const NQ: usize, const NC: usize, const NU: usize>(
     });
 }
 
+/// Each generated term at one consistent state.
+fn terms<M, const NQ: usize, const NC: usize, const NU: usize>(
+    c: &mut Criterion,
+    scene: &str,
+    model: &M,
+    s: &State<NQ>,
+) where
+    M: Model<NQ, NC, NU>,
+{
+    let (q, qd) = (black_box(s.q), black_box(s.qd));
+    let mut m = SMatrix::<f64, NQ, NQ>::zeros();
+    let mut h = SVector::<f64, NQ>::zeros();
+    let mut j = SMatrix::<f64, NC, NQ>::zeros();
+    let mut g = SVector::<f64, NC>::zeros();
+    c.bench_function(&format!("{scene}/mass_matrix"), |b| {
+        b.iter(|| model.mass_matrix(&q, 0.0, black_box(&mut m)))
+    });
+    c.bench_function(&format!("{scene}/bias"), |b| {
+        b.iter(|| model.bias(&q, &qd, 0.0, black_box(&mut h)))
+    });
+    c.bench_function(&format!("{scene}/constraint_jacobian"), |b| {
+        b.iter(|| model.constraint_jacobian(&q, 0.0, black_box(&mut j)))
+    });
+    c.bench_function(&format!("{scene}/constraint_rhs"), |b| {
+        b.iter(|| model.constraint_rhs(&q, &qd, 0.0, black_box(&mut g)))
+    });
+    c.bench_function(&format!("{scene}/dynamics_terms"), |b| {
+        b.iter(|| model.dynamics_terms(&q, &qd, 0.0, &mut m, &mut h, &mut j, black_box(&mut g)))
+    });
+}
+
 fn slider_crank(c: &mut Criterion) {
     let model = SliderCrank;
     let start = slider_crank_state(0.3, 5.0);
+    terms(c, "slider_crank", &model, &start);
     steps(
         c,
         "slider_crank/rk4_step",
@@ -131,6 +164,7 @@ fn five_bar(c: &mut Criterion) {
         )
         .unwrap();
     let start = State::new(sol.q, sol.qd, 0.0);
+    terms(c, "five_bar", &model, &start);
     steps(
         c,
         "five_bar/rk4_step",

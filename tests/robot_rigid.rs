@@ -166,3 +166,55 @@ fn unreachable_points_are_clear_errors() {
     };
     assert!(e.starts_with("at t = "), "{e}");
 }
+
+/// Issue 4: a platform position that puts chain 1's planar arm (driving link
+/// l1 and L = l2 + l3, the driven link in the plane) within `eps` of fully
+/// stretched is refused as near-singular, and the reported condition number
+/// equals that of the arm's 2x2 Jacobian computed here by SVD; slightly
+/// further in, the same arm is accepted.
+#[test]
+fn near_singular_poses_are_refused_with_their_condition_number() {
+    use flexdyn::robot::{IkError, MAX_CONDITION};
+    use flexdyn::runtime::nalgebra::Matrix2;
+    let big_l = G.l2 + G.l3;
+    let direction = -1.2f64; // of the stretched arm in chain 1's x-z plane, rad
+    let pose = |eps: f64| {
+        let d = G.l1 + big_l - eps;
+        let p = [G.ra - G.rp + d * direction.cos(), 0.0, d * direction.sin()];
+        // The arm's Jacobian in absolute link angles, from the law of cosines.
+        let beta = ((d * d - G.l1 * G.l1 - big_l * big_l) / (2.0 * G.l1 * big_l)).acos();
+        let th1 = direction - (big_l * beta.sin()).atan2(G.l1 + big_l * beta.cos());
+        let th2 = th1 + beta;
+        let j = Matrix2::new(
+            -G.l1 * th1.sin(),
+            -big_l * th2.sin(),
+            G.l1 * th1.cos(),
+            big_l * th2.cos(),
+        );
+        let sv = j.singular_values();
+        (p, sv.max() / sv.min())
+    };
+    let (p, expected) = pose(1e-12);
+    assert!(expected > MAX_CONDITION, "{expected:e}");
+    match inverse_kinematics(&G, p) {
+        Err(IkError::NearSingular { chain, condition }) => {
+            assert_eq!(chain, 0);
+            assert!(
+                (condition / expected - 1.0).abs() < 1e-3,
+                "{condition:e} vs {expected:e}"
+            );
+            let msg = IkError::NearSingular { chain, condition }.to_string();
+            assert!(
+                msg.contains("chain 1") && msg.contains("condition number"),
+                "{msg}"
+            );
+        }
+        other => panic!("expected a near-singular refusal, got {other:?}"),
+    }
+    let (p, expected) = pose(1e-3);
+    assert!(expected < MAX_CONDITION, "{expected:e}");
+    assert!(
+        flexdyn::robot::chain_ik(&G, 0, p).is_ok(),
+        "a pose 1 mm from stretched must still solve for chain 1"
+    );
+}
