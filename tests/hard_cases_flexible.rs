@@ -231,9 +231,10 @@ fn flexible_robot_explicit_schemes_fail_at_coarse_steps_as_the_spectrum_predicts
     let energy = |s: &State<NQ>| held_energy(&model, &layout, tau_g, th0, s);
 
     // RK4 at the paper's step and at 0.02 s: both far beyond 2 sqrt 2 / w_max,
-    // refused before the state changes, the error naming the step and a mode
-    // no faster than w_max (the stage estimate is a power iteration: it sees
-    // the modes the state excites, a lower bound on w_max).
+    // refused before the state changes, the error naming the step and the
+    // fastest mode, w_max of the test's own linearisation to 2 % (the
+    // stages alone see only the modes the state excites; the refusal
+    // sharpens that by a power iteration on the linearised runtime model).
     for dt in [0.005, 0.02] {
         assert!(dt * w_max > 10.0 * RK4_LIMIT);
         let mut s = s0;
@@ -249,7 +250,10 @@ fn flexible_robot_explicit_schemes_fail_at_coarse_steps_as_the_spectrum_predicts
         else {
             panic!("expected the stability check, got {e}");
         };
-        assert!(d == dt && value > limit && rate <= 1.05 * w_max, "{e}");
+        assert!(
+            d == dt && value > limit && (rate / w_max - 1.0).abs() < 0.02,
+            "{e} (w_max = {w_max:.4e} rad/s)"
+        );
         let msg = e.to_string();
         assert!(
             msg.contains(&format!("{dt:e}")) && msg.contains("Hz"),

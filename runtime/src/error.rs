@@ -162,14 +162,15 @@ pub enum ErrorKind {
         value: f64,
         /// The limit.
         limit: f64,
-        /// Stability check only: the estimated spectral radius `rho(J) =
-        /// value / dt` in 1/s, i.e. the angular frequency (rad/s) of the
-        /// fastest oscillation (or the fastest decay rate) that the stages
-        /// saw, so that the message can name the offending mode and the
-        /// largest step that could be stable (`limit / rate`). A power
-        /// iteration from the current state: a lower bound on the fastest
-        /// mode of the model when that mode is not yet excited. `None` for
-        /// the `max_step` check.
+        /// Stability check only: the estimated spectral radius `rho(J)` in
+        /// 1/s, i.e. the angular frequency (rad/s) of the fastest
+        /// oscillation (or the fastest decay rate), so that the message can
+        /// name the offending mode and the largest step that could be stable
+        /// (`limit / rate`). Within a step (adaptive RK4) it is `value / dt`
+        /// from the stages, which see only the modes the state excites;
+        /// [`crate::Rk4`] refines it by a bounded power iteration on the
+        /// model linearised at the state, which finds the fastest mode even
+        /// when it is not excited. `None` for the `max_step` check.
         rate: Option<f64>,
     },
     /// The adaptive integrator would need a step below its minimum step size.
@@ -276,9 +277,8 @@ impl fmt::Display for ErrorKind {
             } => write!(
                 f,
                 "step size {:e} too large for the explicit scheme: estimated dt * rho(J) = {:.3e} \
-                 exceeds its stability limit {:e}; the stages saw a mode at about {:.3e} rad/s \
-                 ({:.3e} Hz; the fastest mode is at least that fast), so stable steps are below \
-                 {:.3e} s at most",
+                 exceeds its stability limit {:e}; the fastest mode is at about {:.3e} rad/s \
+                 ({:.3e} Hz), so stable steps are below {:.3e} s",
                 dt,
                 value,
                 limit,
