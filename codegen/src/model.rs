@@ -25,7 +25,7 @@ use crate::fem::{
 use crate::parse::{parse_expr, Binding, Scope, RESERVED};
 use crate::scene::{
     parse_scene_file, AxisDef, ComponentDef, ConstraintDef, ConstraintEnd, EndStiffnessDef,
-    FrameDef, ParameterDef, SScalar, Scalar, ScalarList, SceneDef, SceneFile,
+    FrameDef, MaterialDef, ParameterDef, SScalar, Scalar, ScalarList, SceneDef, SceneFile,
 };
 
 /// A generalized coordinate.
@@ -885,6 +885,45 @@ impl<'a> Builder<'a> {
         Ok(v as usize)
     }
 
+    /// A material: `E`, `poisson` or `shear_modulus`, density; constants.
+    fn material(&mut self, material: &Spanned<MaterialDef>, ctx: &str) -> Result<Material, Error> {
+        let m = material.get_ref();
+        let e = self.constant_positive(&m.youngs_modulus, ctx, "Young's modulus")?;
+        let rho = self.constant_positive(&m.density, ctx, "density")?;
+        match (&m.poisson, &m.shear_modulus) {
+            (Some(nu_s), None) => {
+                let nu = self.constant_value(nu_s, ctx, "Poisson's ratio")?;
+                if !(nu > -1.0 && nu < 0.5) {
+                    return Err(self.err(
+                        nu_s.span().start,
+                        Some(ctx),
+                        format!("Poisson's ratio must lie in (-1, 0.5), found {nu}"),
+                    ));
+                }
+                Material::new(e, nu, rho)
+            }
+            (None, Some(g_s)) => {
+                let g = self.constant_positive(g_s, ctx, "shear modulus")?;
+                Material::with_shear_modulus(e, g, rho)
+            }
+            (Some(_), Some(g_s)) => {
+                return Err(self.err(
+                    g_s.span().start,
+                    Some(ctx),
+                    "give either `poisson` or `shear_modulus`, not both",
+                ))
+            }
+            (None, None) => {
+                return Err(self.err(
+                    material.span().start,
+                    Some(ctx),
+                    "the material needs `poisson` or `shear_modulus`",
+                ))
+            }
+        }
+        .map_err(|e| self.err(material.span().start, Some(ctx), e))
+    }
+
     /// Reads a `flexible_link` component, builds its finite-element model
     /// and modes, and appends its modal coordinates `<name>_eta<j>`.
     fn flexible_link(
@@ -929,42 +968,7 @@ impl<'a> Builder<'a> {
             return Err(need(self, "boundary"));
         };
 
-        // Material.
-        let m = material.get_ref();
-        let e = self.constant_positive(&m.youngs_modulus, ctx, "Young's modulus")?;
-        let rho = self.constant_positive(&m.density, ctx, "density")?;
-        let material = match (&m.poisson, &m.shear_modulus) {
-            (Some(nu_s), None) => {
-                let nu = self.constant_value(nu_s, ctx, "Poisson's ratio")?;
-                if !(nu > -1.0 && nu < 0.5) {
-                    return Err(self.err(
-                        nu_s.span().start,
-                        Some(ctx),
-                        format!("Poisson's ratio must lie in (-1, 0.5), found {nu}"),
-                    ));
-                }
-                Material::new(e, nu, rho)
-            }
-            (None, Some(g_s)) => {
-                let g = self.constant_positive(g_s, ctx, "shear modulus")?;
-                Material::with_shear_modulus(e, g, rho)
-            }
-            (Some(_), Some(g_s)) => {
-                return Err(self.err(
-                    g_s.span().start,
-                    Some(ctx),
-                    "give either `poisson` or `shear_modulus`, not both",
-                ))
-            }
-            (None, None) => {
-                return Err(self.err(
-                    material.span().start,
-                    Some(ctx),
-                    "the material needs `poisson` or `shear_modulus`",
-                ))
-            }
-        }
-        .map_err(|e| self.err(material.span().start, Some(ctx), e))?;
+        let material = self.material(material, ctx)?;
 
         // Section.
         let sd = section.get_ref();
@@ -1738,12 +1742,22 @@ impl<'a> Builder<'a> {
             "spring" => &["stiffness", "expression", "rest"],
             "damper" => &["damping", "expression"],
             "flexible_link" => FLEXIBLE_LINK_FIELDS,
+            "flexible_joint" => &[
+                "mass",
+                "position",
+                "frame",
+                "length",
+                "material",
+                "axis",
+                "expression",
+                "stiffness",
+            ],
             _ => {
                 return Err(self.err(
                     c.kind.span().start,
                     Some(&ctx),
                     format!(
-                        "unknown component type `{kind}` (known: energy, point_mass, rod, rigid_body, spring, damper, flexible_link)"
+                        "unknown component type `{kind}` (known: energy, point_mass, rod, rigid_body, spring, damper, flexible_link, flexible_joint)"
                     ),
                 ))
             }
@@ -1832,14 +1846,10 @@ impl<'a> Builder<'a> {
                     },
                 };
                 let inertia = self.inertia(c, &ctx)?;
-                let v2 = self.dot(com.velocity, com.velocity);
-                let w = frame.omega;
-                let iw = self.rotate(&inertia, w);
-                let wiw = self.dot(w, iw);
-                let mv2 = self.graph.mul(m, v2);
-                let total = self.graph.add(mv2, wiw);
-                kinetic = self.graph.scale(total, 0.5);
-                potential = self.gravity_potential(m, com.position);
+                (kinetic, potential) = self.body_energies(m, &com, &frame, &inertia);
+            }
+            "flexible_joint" => {
+                (kinetic, potential) = self.flexible_joint(c, &ctx)?;
             }
             "spring" => {
                 let k = self.positive(&stiffness?, &ctx, "stiffness", false)?;
@@ -1884,9 +1894,110 @@ impl<'a> Builder<'a> {
         })
     }
 
+    /// Kinetic energy `(m v.v + w.I w) / 2` and gravity potential of a rigid
+    /// body of mass `m` with centre of mass `com`, turning with `frame`,
+    /// inertia about its centre in frame axes.
+    fn body_energies(
+        &mut self,
+        m: Id,
+        com: &Point,
+        frame: &Frame,
+        inertia: &[[Id; 3]; 3],
+    ) -> (Id, Id) {
+        let v2 = self.dot(com.velocity, com.velocity);
+        let w = frame.omega;
+        let iw = self.rotate(inertia, w);
+        let wiw = self.dot(w, iw);
+        let mv2 = self.graph.mul(m, v2);
+        let total = self.graph.add(mv2, wiw);
+        let kinetic = self.graph.scale(total, 0.5);
+        (kinetic, self.gravity_potential(m, com.position))
+    }
+
+    /// A flexible joint (the paper's): a joint member, a solid circular
+    /// shaft of mass `m`, length `l` and `material`, turning with `frame`
+    /// about its `axis`, with a linear torsion spring on its twist
+    /// `expression`. Radius from `A = m / (rho l)`, inertia `m r^2 / 2` about
+    /// the axis and `m (3 r^2 + l^2) / 12` across it, stiffness
+    /// `G Ip / l` (`fem::shaft_joint_stiffness`) unless `stiffness` is given.
+    fn flexible_joint(&mut self, c: &ComponentDef, ctx: &str) -> Result<(Id, Id), Error> {
+        let kind_at = c.kind.span().start;
+        let need = |b: &Self, field: &str| {
+            b.err(
+                kind_at,
+                Some(ctx),
+                format!("a `flexible_joint` component needs `{field}`"),
+            )
+        };
+        let (Some(frame_name), Some(mass), Some(length), Some(material), Some(axis), Some(twist)) = (
+            &c.frame,
+            &c.mass,
+            &c.length,
+            &c.material,
+            &c.axis,
+            &c.expression,
+        ) else {
+            let missing = [
+                ("frame", c.frame.is_none()),
+                ("mass", c.mass.is_none()),
+                ("length", c.length.is_none()),
+                ("material", c.material.is_none()),
+                ("axis", c.axis.is_none()),
+                ("expression", c.expression.is_none()),
+            ];
+            let field = missing.iter().find(|m| m.1).map_or("frame", |m| m.0);
+            return Err(need(self, field));
+        };
+        let a = match axis.get_ref().as_str() {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            other => {
+                return Err(self.err(
+                    axis.span().start,
+                    Some(ctx),
+                    format!("axis must be `x`, `y` or `z`, found `{other}`"),
+                ))
+            }
+        };
+        let m = self.constant_positive(mass, ctx, "mass")?;
+        let l = self.constant_positive(length, ctx, "length")?;
+        let material = self.material(material, ctx)?;
+        let shaft = crate::fem::shaft_joint_stiffness(&material, m, l)
+            .map_err(|e| self.err(kind_at, Some(ctx), e))?;
+        let r2 = m / (material.density * l * std::f64::consts::PI);
+        let mut inertia = [[self.graph.constant(0.0); 3]; 3];
+        for (i, row) in inertia.iter_mut().enumerate() {
+            row[i] = self.graph.constant(if i == a {
+                m * r2 / 2.0
+            } else {
+                m * (3.0 * r2 + l * l) / 12.0
+            });
+        }
+        let frame = self.lookup_frame(frame_name, ctx)?;
+        let com = match &c.position {
+            Some(p) => self.point(c, p, ctx)?,
+            None => Point {
+                position: frame.origin,
+                velocity: frame.velocity,
+            },
+        };
+        let m_id = self.graph.constant(m);
+        let (kinetic, gravity) = self.body_energies(m_id, &com, &frame, &inertia);
+        let k = match &c.stiffness {
+            Some(k) => self.positive(k, ctx, "stiffness", true)?,
+            None => self.graph.constant(shaft.torsional),
+        };
+        let e = self.scalar(twist, Some(ctx), false)?;
+        let e2 = self.graph.powi(e, 2);
+        let ke2 = self.graph.mul(k, e2);
+        let spring = self.graph.scale(ke2, 0.5);
+        Ok((kinetic, self.graph.add(gravity, spring)))
+    }
+
     fn check_fields(&self, c: &ComponentDef, allowed: &[&str], ctx: &str) -> Result<(), Error> {
         let span = |s: &Option<SScalar>| s.as_ref().map(|s| s.span().start);
-        let present: [(&str, Option<usize>); 23] = [
+        let present: [(&str, Option<usize>); 24] = [
             ("kinetic", c.kinetic.as_ref().map(|s| s.span().start)),
             ("potential", c.potential.as_ref().map(|s| s.span().start)),
             (
@@ -1903,6 +2014,7 @@ impl<'a> Builder<'a> {
             ("damping", c.damping.as_ref().map(|s| s.span().start)),
             ("expression", c.expression.as_ref().map(|s| s.span().start)),
             ("rest", c.rest.as_ref().map(|s| s.span().start)),
+            ("axis", c.axis.as_ref().map(|s| s.span().start)),
             ("length", span(&c.length)),
             ("material", c.material.as_ref().map(|s| s.span().start)),
             ("section", c.section.as_ref().map(|s| s.span().start)),

@@ -181,7 +181,7 @@ pub struct ComponentDef {
     /// Name for messages and reports.
     pub name: Option<Spanned<String>>,
     /// `energy`, `point_mass`, `rod`, `rigid_body`, `spring`, `damper`,
-    /// `flexible_link`.
+    /// `flexible_link`, `flexible_joint`.
     #[serde(rename = "type")]
     pub kind: Spanned<String>,
     /// Kinetic energy (`energy`).
@@ -211,6 +211,8 @@ pub struct ComponentDef {
     pub expression: Option<SScalar>,
     /// Rest value of a spring's expression.
     pub rest: Option<SScalar>,
+    /// Shaft axis of a flexible joint in its frame: `x`, `y` or `z`.
+    pub axis: Option<Spanned<String>>,
     /// Length of a flexible link (m).
     pub length: Option<SScalar>,
     /// Material of a flexible link.
