@@ -173,3 +173,31 @@ fn flexible_joint_errors_are_located() {
         assert!(e.line > 0, "{msg}");
     }
 }
+
+/// The robot scenes pass the joint stiffness as runtime parameters `kj1`,
+/// `kj2` (so that it can be overridden at run time): their nominal values
+/// must be the `G Ip / l` that the component derives from the same scene's
+/// joint-member parameters, computed here by the textbook formula.
+#[test]
+fn robot_joint_stiffness_parameters_equal_the_derived_shaft_stiffness() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    for scene in ["parallel_robot_flexible", "parallel_robot_flexible_joints"] {
+        let model = Model::load(&root.join(format!("scenes/{scene}.toml"))).unwrap();
+        let p = |k: &str| model.parameters[k];
+        let g = p("Ej") / (2.0 * (1.0 + p("nuj")));
+        let area = p("mj") / (p("rhoj") * p("lj"));
+        let derived = g * area * area / (2.0 * std::f64::consts::PI) / p("lj");
+        for k in ["kj1", "kj2"] {
+            let nominal = model
+                .runtime_parameters
+                .iter()
+                .find(|r| r.name == k)
+                .unwrap_or_else(|| panic!("{scene}: no runtime parameter {k}"))
+                .value;
+            assert!(
+                (nominal / derived - 1.0).abs() < 1e-7,
+                "{scene}: {k} = {nominal}, derived {derived}"
+            );
+        }
+    }
+}

@@ -704,6 +704,7 @@ const COMPONENT_TYPES: &[&str] = &[
     "spring",
     "damper",
     "flexible_link",
+    "flexible_joint",
 ];
 
 const COMPONENT_FIELDS: &[&str] = &[
@@ -720,6 +721,7 @@ const COMPONENT_FIELDS: &[&str] = &[
     "damping",
     "expression",
     "rest",
+    "axis",
     "length",
     "material",
     "section",
@@ -788,6 +790,11 @@ fn component_field(g: &mut Gen, field: &str, names: &[String], frames: &[String]
             s.push_str(" }");
             s
         }
+        "axis" => toml_string(if junk {
+            g.pick(&["w", "X", "", "z y"])
+        } else {
+            g.pick(&["x", "y", "z"])
+        }),
         "boundary" => {
             let b = if junk {
                 g.pick(&["hinged", "pinned_pinned_elastic", "free_free"])
@@ -969,6 +976,15 @@ fn scene_document(g: &mut Gen) -> String {
                 "modes",
                 "damping_ratio",
                 "geometric_stiffening",
+            ],
+            "flexible_joint" => &[
+                "frame",
+                "axis",
+                "mass",
+                "length",
+                "material",
+                "expression",
+                "stiffness",
             ],
             _ => &["mass"],
         };
