@@ -24,7 +24,8 @@ variant records:
   compile column.
 
 ``--plot PATH`` draws the table as a PNG (needs matplotlib: see
-``benches/requirements.txt``).
+``benches/requirements.txt``). ``--every-scene`` measures the same columns
+for every shipped scene instead (one row per file in ``scenes/``).
 
 Usage (from the repository root, after ``cargo build --release``):
 
@@ -117,9 +118,9 @@ fn main() {{
 """
 
 
-def generate(binary: Path, text: str, work: Path) -> tuple[float, int, int, Path]:
-    scene = work / "parallel_robot_flexible_links.toml"
-    scene.write_text(text)
+def generate(binary: Path, scene: Path, work: Path) -> tuple[float, int, int, Path]:
+    """Generate `scene` into `work/gen` three times: median time (ms), total
+    ops, ops of dynamics_terms, and the module written."""
     out = work / "gen"
     out.mkdir(exist_ok=True)
     times = []
@@ -128,15 +129,32 @@ def generate(binary: Path, text: str, work: Path) -> tuple[float, int, int, Path
                              capture_output=True, text=True)
         if run.returncode != 0:
             raise SystemExit(f"flexdyn generate failed:\n{run.stderr}")
-        times.append(float(re.search(r"in ([0-9.]+) ms", run.stdout + run.stderr).group(1)))
-    module = out / "parallel_robot_flexible_links.rs"
+        found = re.search(r"^(\w+): .* in ([0-9.]+) ms", run.stdout + run.stderr, re.M)
+        name, ms = found.group(1), float(found.group(2))
+        times.append(ms)
+    module = out / f"{name}.rs"
     header = module.read_text()
 
-    def ops(name: str) -> int:
-        m = re.search(rf"^//\s+{name}\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d+)", header, re.M)
+    def ops(function: str) -> int:
+        m = re.search(rf"^//\s+{function}\s+(\d+)\s+(\d+)\s+(\d+)\s+(\d+)", header, re.M)
         return sum(int(x) for x in m.groups())
 
     return statistics.median(times), ops("total"), ops("dynamics_terms"), module
+
+
+def every_scene(binary: Path, crate: Path, tmp: Path) -> None:
+    """Generation, ops, compile and evaluation time of every shipped scene."""
+    print("| scene | coordinates | generate | ops (all) | ops (dynamics_terms) | compile "
+          "| dynamics_terms call |")
+    print("|---|---|---|---|---|---|---|")
+    for scene in sorted((REPO / "scenes").glob("*.toml")):
+        ms, total, fused, module = generate(binary, scene, tmp)
+        nq = int(re.search(r"pub const NQ: usize = (\d+);", module.read_text()).group(1))
+        secs = compile_time(crate, module)
+        ns = eval_time(crate)
+        print(f"| {module.stem} | {nq} | {ms:.1f} ms | {total} | {fused} | {secs:.1f} s "
+              f"| {ns / 1e3:.3f} us |", flush=True)
+        module.unlink()
 
 
 def cargo(crate: Path, *what: str) -> None:
@@ -205,6 +223,9 @@ def main() -> int:
     ap.add_argument("--flexdyn", default=str(REPO / "target/release/flexdyn"))
     ap.add_argument("--csv", help="also write the table as CSV")
     ap.add_argument("--plot", help="also draw the table as a PNG (needs matplotlib)")
+    ap.add_argument("--every-scene", action="store_true",
+                    help="instead, one row per shipped scene (scenes/*.toml): generation, ops, "
+                         "compile and evaluation time")
     args = ap.parse_args()
     binary = Path(args.flexdyn)
     if not binary.exists():
@@ -229,6 +250,9 @@ def main() -> int:
         (crate / "Cargo.lock").write_text((REPO / "Cargo.lock").read_text())
         (crate / "src/lib.rs").write_text("")
         cargo(crate, "--lib")
+        if args.every_scene:
+            every_scene(binary, crate, tmp)
+            return 0
         variants = [(m, ELEMENTS_AT) for m in MODES] + \
                    [(MODES_AT, e) for e in ELEMENTS if e != ELEMENTS_AT]
         print("| modes/link | elements/link | coordinates | generate | ops (all) "
@@ -237,7 +261,9 @@ def main() -> int:
         for modes, elements in variants:
             text = re.sub(r"^modes = \d+", f"modes = {modes}", base, flags=re.M)
             text = re.sub(r"^elements = \d+", f"elements = {elements}", text, flags=re.M)
-            ms, total, fused, module = generate(binary, text, tmp)
+            variant = tmp / SCENE.name
+            variant.write_text(text)
+            ms, total, fused, module = generate(binary, variant, tmp)
             nq = int(re.search(r"pub const NQ: usize = (\d+);", module.read_text()).group(1))
             secs = compile_time(crate, module)
             ns = eval_time(crate)

@@ -537,18 +537,31 @@ fn stiffer_links_converge_to_the_rigid_robot() {
     assert!(text.contains("E3 = 2.07e11"));
     let stiff: TapeModel<ParallelRobotFlexibleLinks, 33, 12> =
         TapeModel::from_text(&text.replace("E3 = 2.07e11", "E3 = 2.07e15"));
+    let stiffer: TapeModel<ParallelRobotFlexibleLinks, 33, 12> =
+        TapeModel::from_text(&text.replace("E3 = 2.07e11", "E3 = 2.07e13"));
     let nominal_tau = servo_torques(&ParallelRobotFlexibleLinks, 2.0, &times).0;
+    let stiffer_tau = servo_torques(&stiffer, 2.0, &times).0;
     let stiff_tau = servo_torques(&stiff, 2.0, &times).0;
-    let (d_nominal, d_stiff) = (
+    let (d_nominal, d_stiffer, d_stiff) = (
         max_diff(&nominal_tau[SETTLED..], &rigid[SETTLED..]),
+        max_diff(&stiffer_tau[SETTLED..], &rigid[SETTLED..]),
         max_diff(&stiff_tau[SETTLED..], &rigid[SETTLED..]),
     );
-    println!("max |tau - tau_rigid|: nominal E {d_nominal:.3e} N m, E x 1e4 {d_stiff:.3e} N m");
+    println!(
+        "max |tau - tau_rigid|: nominal E {d_nominal:.3e} N m, E x 1e2 {d_stiffer:.3e} N m, \
+         E x 1e4 {d_stiff:.3e} N m"
+    );
     assert!(
         d_nominal > 1e-5,
         "the nominal links should differ visibly: {d_nominal}"
     );
-    assert!(d_stiff < d_nominal / 10.0, "{d_stiff} vs {d_nominal}");
+    // The elastic correction scales as 1 / E: 100x stiffer links bring the
+    // torques at least 20x closer (measured 57x); beyond that the servo
+    // integration's own error (about 5e-7 N m here) is the floor.
+    assert!(
+        d_stiffer < d_nominal / 20.0 && d_stiff < d_nominal / 20.0,
+        "{d_stiffer}, {d_stiff} vs {d_nominal}"
+    );
     // Path: the rigid torques plus the PD loop, compared after the loop has
     // settled the start (the runs start at the static equilibrium, not at the
     // rigid robot's, so they begin a few micrometres apart).
@@ -559,8 +572,10 @@ fn stiffer_links_converge_to_the_rigid_robot() {
     println!(
         "max |p - p_rigid| after 0.25 s: nominal E {dev_nominal:.3e} m, E x 1e4 {dev_stiff:.3e} m"
     );
+    // The path deviation is a static deflection, also 1 / E: at least 100x
+    // smaller at E x 1e4 (measured 315x).
     assert!(
-        dev_stiff < dev_nominal / 3.0,
+        dev_stiff < dev_nominal / 100.0,
         "{dev_stiff} vs {dev_nominal}"
     );
 }
