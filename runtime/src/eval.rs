@@ -55,6 +55,18 @@ pub(crate) struct Terms<const NQ: usize, const NC: usize> {
     pub gamma: SVector<f64, NC>,
 }
 
+impl<const NQ: usize, const NC: usize> Terms<NQ, NC> {
+    /// All zero.
+    pub(crate) fn zeros() -> Self {
+        Terms {
+            m: SMatrix::zeros(),
+            h: SVector::zeros(),
+            phi_q: SMatrix::zeros(),
+            gamma: SVector::zeros(),
+        }
+    }
+}
+
 /// [`Terms`] with every output checked.
 pub(crate) fn dynamics_terms<
     M: Model<NQ, NC, NU>,
@@ -67,18 +79,29 @@ pub(crate) fn dynamics_terms<
     qd: &SVector<f64, NQ>,
     t: f64,
 ) -> Result<Terms<NQ, NC>, Error> {
-    let mut o = Terms {
-        m: SMatrix::zeros(),
-        h: SVector::zeros(),
-        phi_q: SMatrix::zeros(),
-        gamma: SVector::zeros(),
-    };
+    let mut o = Terms::zeros();
+    dynamics_terms_into(model, q, qd, t, &mut o)?;
+    Ok(o)
+}
+
+/// [`dynamics_terms`] written into `o` (no copy of the terms on return).
+pub(crate) fn dynamics_terms_into<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
+    model: &M,
+    q: &SVector<f64, NQ>,
+    qd: &SVector<f64, NQ>,
+    t: f64,
+    o: &mut Terms<NQ, NC>,
+) -> Result<(), Error> {
     model.dynamics_terms(q, qd, t, &mut o.m, &mut o.h, &mut o.phi_q, &mut o.gamma);
     check(&o.m, Quantity::MassMatrix, t)?;
     check(&o.h, Quantity::Bias, t)?;
     check(&o.phi_q, Quantity::ConstraintJacobian, t)?;
-    check(&o.gamma, Quantity::ConstraintRhs, t)?;
-    Ok(o)
+    check(&o.gamma, Quantity::ConstraintRhs, t)
 }
 
 /// `B`.

@@ -715,7 +715,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         let mut qd = self.scatter(v);
         let mut qdd = self.scatter(a);
         let gamma;
-        let terms;
+        let mut terms = eval::Terms::zeros();
         let jacobian_condition;
         // X = J_f^-1 J_p on the fast path.
         let mut x = SMatrix::<f64, NC, NP>::zeros();
@@ -727,7 +727,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             }
             x = inv * jp;
             self.scatter_free(&(-(inv * phi_t) - x * v), &mut qd);
-            terms = eval::dynamics_terms(model, &q, &qd, t)?;
+            eval::dynamics_terms_into(model, &q, &qd, t, &mut terms)?;
             gamma = terms.gamma;
             self.scatter_free(&(inv * gamma - x * a), &mut qdd);
         } else {
@@ -736,7 +736,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             let mut qd_f = SVector::<f64, NQ>::zeros();
             jsvd.solve_transpose(&(-phi_t - phi_q * qd), nf, &mut qd_f);
             qd += qd_f;
-            terms = eval::dynamics_terms(model, &q, &qd, t)?;
+            eval::dynamics_terms_into(model, &q, &qd, t, &mut terms)?;
             gamma = terms.gamma;
             let mut qdd_f = SVector::<f64, NQ>::zeros();
             jsvd.solve_transpose(&(gamma - phi_q * qdd), nf, &mut qdd_f);
