@@ -419,18 +419,20 @@ fn flyball_explicit_scheme_is_refused_at_a_coarse_step() {
                 dt: d,
                 value,
                 limit,
-                ..
+                rate: Some(named),
             } = e.kind
             else {
-                panic!("expected StepTooLarge, got {e}");
+                panic!("expected StepTooLarge with a rate, got {e}");
             };
             assert_eq!((d, e.t), (dt, 0.0));
             assert!(value > limit);
-            // The stage estimate measures the same spectral radius.
+            // The stage estimate measures the same spectral radius, and the
+            // refusal's power iteration names it to 2 %.
             assert!(
                 value > 0.3 * dt * rate && value < 3.0 * dt * rate,
                 "{value}"
             );
+            assert!((named / rate - 1.0).abs() < 0.02, "{named} vs {rate}");
             assert_eq!(s, s0, "state must be unchanged after a refused step");
         }
     }
@@ -641,10 +643,18 @@ fn extreme_ratios_implicit_run_tracks_the_rigid_limit() {
         .step(&model, &mut s, &SVector::<f64, 1>::zeros(), dt)
         .unwrap_err();
     println!("extreme ratios RK4 dt {dt}: {e}");
-    let ErrorKind::StepTooLarge { value, limit, .. } = e.kind else {
-        panic!("expected StepTooLarge, got {e}");
+    let ErrorKind::StepTooLarge {
+        value,
+        limit,
+        rate: Some(named),
+        ..
+    } = e.kind
+    else {
+        panic!("expected StepTooLarge with a rate, got {e}");
     };
     assert!(value > limit && value > 0.3 * dt * w_max && value < 3.0 * dt * w_max);
+    // The refusal names the fastest mode of the hand-written model to 2 %.
+    assert!((named / w_max - 1.0).abs() < 0.02, "{named} vs {w_max}");
 
     // The rigid limit (stiff joint locked, light part negligible): one
     // compound pendulum, I th'' = -g S sin th.

@@ -22,10 +22,10 @@ use nalgebra::SVector;
 /// [`ErrorKind::StepTooLarge`] before the state is touched. The stages see
 /// only the modes the state excites (a stiff mode at rest goes unseen until
 /// it grows), so on refusal a bounded power iteration on the model
-/// linearised at the state (48 accelerations) finds the fastest mode; the
-/// error carries the larger of the two as `rate` (rad/s), and its message
-/// names it (rad/s and Hz) with the largest step that could be stable,
-/// `limit / rate`.
+/// linearised at the state (at most 96 accelerations) finds the fastest mode; the
+/// error carries it as `rate` (rad/s; the stage estimate `value / dt` when
+/// the iteration fails), and its message names it (rad/s and Hz) with the
+/// largest step that could be stable, `limit / rate`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rk4 {
     /// Shared settings.
@@ -109,7 +109,8 @@ where
     Ok((State { q, qd, t: t + h }, estimate))
 }
 
-/// Power iterations of [`spectral_radius`]: each costs two accelerations.
+/// Power iterations of [`spectral_radius`]: each costs at most four
+/// accelerations.
 const RATE_ITERATIONS: usize = 24;
 
 /// Spectral radius of the Jacobian `J` of `(q, qd) -> (qd, qdd)` at `s`, by
@@ -130,21 +131,28 @@ where
 {
     let a0 = qdd_at(model, dynamics, &s.q, &s.qd, s.t, input).ok()?;
     let eps = 1e-7 * (1.0 + s.q.amax() + s.qd.amax());
-    // J (dq, dv) = (dv, (qdd(q + e dq, qd + e dv) - qdd(q, qd)) / e).
-    let apply = |dq: &SVector<f64, NQ>, dv: &SVector<f64, NQ>| {
-        let a = qdd_at(
-            model,
-            dynamics,
-            &(s.q + dq * eps),
-            &(s.qd + dv * eps),
-            s.t,
-            input,
-        )
-        .ok()?;
-        Some((*dv, (a - a0) / eps))
-    };
     let norm =
         |x: &SVector<f64, NQ>, y: &SVector<f64, NQ>| sqrt(x.norm_squared() + y.norm_squared());
+    // J (dq, dv) = (dv, A dq + B dv) with A = dqdd/dq, B = dqdd/dqd, each
+    // product by a one-sided difference whose step moves q or qd by eps
+    // whatever the size of dq or dv (the model is linearised, not probed far
+    // away, and a small part is not lost to rounding next to a large one).
+    let apply = |dq: &SVector<f64, NQ>, dv: &SVector<f64, NQ>| {
+        let mut jv = SVector::<f64, NQ>::zeros();
+        for (x, along_q) in [(dq, true), (dv, false)] {
+            let n = sqrt(x.norm_squared());
+            if n > 0.0 {
+                let h = eps / n;
+                let (q, qd) = if along_q {
+                    (s.q + x * h, s.qd)
+                } else {
+                    (s.q, s.qd + x * h)
+                };
+                jv += (qdd_at(model, dynamics, &q, &qd, s.t, input).ok()? - a0) / h;
+            }
+        }
+        Some((*dv, jv))
+    };
     // A start with a component along every coordinate and velocity.
     let mut dq = SVector::<f64, NQ>::from_fn(|i, _| 1.0 + 0.37 * i as f64);
     let mut dv = SVector::<f64, NQ>::from_fn(|i, _| 1.0 - 0.23 * i as f64);
@@ -179,15 +187,15 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
         let dynamics = &self.settings.dynamics;
         let (mut next, estimate) = rk4_raw(model, dynamics, state, input, dt, self.stability_limit)
             .map_err(|mut e| {
-                // The stages see only the modes the state excites: name the
-                // fastest mode of the linearised model instead when that is
-                // faster.
+                // The stages see only the modes the state excites (and, far
+                // beyond the limit, their estimate is no longer accurate):
+                // name the fastest mode of the linearised model instead.
                 if let ErrorKind::StepTooLarge {
                     rate: Some(rate), ..
                 } = &mut e.kind
                 {
                     if let Some(rho) = spectral_radius(model, dynamics, state, input) {
-                        *rate = rate.max(rho);
+                        *rate = rho;
                     }
                 }
                 e
