@@ -155,11 +155,10 @@ pub fn scatter_plot(
     front: &[(f64, f64)],
 ) -> Result<(), String> {
     register();
-    let keep = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0;
     let all: Vec<(f64, f64)> = groups
         .iter()
         .flat_map(|(_, p)| p.iter().copied())
-        .filter(keep)
+        .filter(on_log_axes)
         .collect();
     if all.is_empty() {
         return Err("nothing to plot: no positive finite points".into());
@@ -195,6 +194,11 @@ pub fn scatter_plot(
 
 type Bounds = ((f64, f64), (f64, f64));
 
+/// Whether a point can be drawn on log-log axes.
+fn on_log_axes(&(x, y): &(f64, f64)) -> bool {
+    x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0
+}
+
 fn draw_scatter<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     labels: &Labels,
@@ -202,7 +206,6 @@ fn draw_scatter<DB: DrawingBackend>(
     front: &[(f64, f64)],
     ((x0, x1), (y0, y1)): Bounds,
 ) -> Result<(), String> {
-    let keep = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0;
     let err = |e: &dyn std::fmt::Display| format!("plotting failed: {e}");
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let mut chart = ChartBuilder::on(&root)
@@ -222,7 +225,7 @@ fn draw_scatter<DB: DrawingBackend>(
         .map_err(|e| err(&e))?;
     for (k, (label, pts)) in groups.iter().enumerate() {
         let color = COLORS[k % COLORS.len()];
-        let pts: Vec<(f64, f64)> = pts.iter().copied().filter(keep).collect();
+        let pts: Vec<(f64, f64)> = pts.iter().copied().filter(on_log_axes).collect();
         let style = color.filled();
         let anno = match k / COLORS.len() {
             0 => chart.draw_series(pts.iter().map(|&p| Circle::new(p, 5, style).into_dyn())),
@@ -244,7 +247,7 @@ fn draw_scatter<DB: DrawingBackend>(
                 _ => Cross::new((x + 10, y), 5, color.stroke_width(2)).into_dyn(),
             });
     }
-    let line: Vec<(f64, f64)> = front.iter().copied().filter(keep).collect();
+    let line: Vec<(f64, f64)> = front.iter().copied().filter(on_log_axes).collect();
     chart
         .draw_series(LineSeries::new(line, BLACK.stroke_width(1)))
         .map_err(|e| err(&e))?

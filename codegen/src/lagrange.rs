@@ -129,9 +129,12 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     // The bias Jacobians (a Newton matrix, which need not be exact) are
     // those of the exact bias forces: pruning bounds the forces, not their
     // derivatives.
-    let exact_bias: Vec<Id> = (0..n)
-        .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
-        .collect();
+    let bias_of = |g: &mut Graph, parts: [&[Id]; 3]| -> Vec<Id> {
+        (0..n)
+            .map(|i| g.sum(&[parts[0][i], parts[1][i], parts[2][i]]))
+            .collect()
+    };
+    let exact_bias = bias_of(g, [&coriolis, &potential_forces, &damping_forces]);
     if let Some(tol) = model.drop_below {
         crate::reduce::prune(
             g,
@@ -139,18 +142,12 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
             &model.runtime_parameters,
             tol,
             &mut mass,
-            &mut coriolis,
-            &mut potential_forces,
-            &mut damping_forces,
+            &exact_bias,
+            [&mut coriolis, &mut potential_forces, &mut damping_forces],
         );
     }
-    let bias: Vec<Id> = if model.drop_below.is_some() {
-        (0..n)
-            .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
-            .collect()
-    } else {
-        exact_bias.clone()
-    };
+    // Hash-consed: the same nodes as `exact_bias` when nothing was pruned.
+    let bias = bias_of(g, [&coriolis, &potential_forces, &damping_forces]);
     let kinetic_energy = g.sum(&kinetic);
     let potential_energy = g.sum(&potential);
 

@@ -1929,24 +1929,23 @@ impl<'a> Builder<'a> {
                 format!("a `flexible_joint` component needs `{field}`"),
             )
         };
-        let (Some(frame_name), Some(mass), Some(length), Some(material), Some(axis), Some(twist)) = (
-            &c.frame,
-            &c.mass,
-            &c.length,
-            &c.material,
-            &c.axis,
-            &c.expression,
-        ) else {
-            let missing = [
-                ("frame", c.frame.is_none()),
-                ("mass", c.mass.is_none()),
-                ("length", c.length.is_none()),
-                ("material", c.material.is_none()),
-                ("axis", c.axis.is_none()),
-                ("expression", c.expression.is_none()),
-            ];
-            let field = missing.iter().find(|m| m.1).map_or("frame", |m| m.0);
-            return Err(need(self, field));
+        let Some(frame_name) = &c.frame else {
+            return Err(need(self, "frame"));
+        };
+        let Some(mass) = &c.mass else {
+            return Err(need(self, "mass"));
+        };
+        let Some(length) = &c.length else {
+            return Err(need(self, "length"));
+        };
+        let Some(material) = &c.material else {
+            return Err(need(self, "material"));
+        };
+        let Some(axis) = &c.axis else {
+            return Err(need(self, "axis"));
+        };
+        let Some(twist) = &c.expression else {
+            return Err(need(self, "expression"));
         };
         let a = match axis.get_ref().as_str() {
             "x" => 0,

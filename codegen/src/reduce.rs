@@ -304,15 +304,6 @@ impl Samples {
     }
 }
 
-/// What pruning removed.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Pruned {
-    /// Summands dropped.
-    pub dropped: usize,
-    /// Summands looked at.
-    pub total: usize,
-}
-
 /// The summands of a node: the terms of a sum (its constant is kept), or the
 /// node itself.
 fn summands(g: &Graph, e: Id) -> (Vec<(Id, f64)>, f64) {
@@ -331,7 +322,6 @@ fn prune_entries(
     budget: &[f64],
     samples: &Samples,
     params: &[RuntimeParameter],
-    tally: &mut Pruned,
 ) {
     let parts: Vec<(Vec<(Id, f64)>, f64)> = entries.iter().map(|&e| summands(g, e)).collect();
     let roots: Vec<Id> = parts
@@ -347,7 +337,6 @@ fn prune_entries(
             .map(|(j, &(_, c))| (c.abs() * size[at + j], j))
             .collect();
         at += terms.len();
-        tally.total += terms.len();
         order.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut spent = 0.0;
         let mut drop = vec![false; terms.len()];
@@ -358,9 +347,7 @@ fn prune_entries(
             spent += s;
             drop[j] = true;
         }
-        let dropped = drop.iter().filter(|&&d| d).count();
-        if dropped > 0 {
-            tally.dropped += dropped;
+        if drop.contains(&true) {
             let kept: Vec<(Id, f64)> = terms
                 .into_iter()
                 .zip(&drop)
@@ -372,8 +359,9 @@ fn prune_entries(
     }
 }
 
-/// Prune the mass matrix and the parts of the bias forces of a model whose
-/// `drop_below` is `tol`:
+/// Prune the mass matrix and the parts (Coriolis, potential, damping) of the
+/// bias forces of a model whose `drop_below` is `tol`, given the exact bias
+/// forces `bias` (their sum):
 ///
 /// * bias forces `h = c + g + d`: each entry of each part may lose summands
 ///   whose largest magnitudes over the samples add up to at most
@@ -388,31 +376,25 @@ fn prune_entries(
 ///
 /// The samples are states drawn from the declared ranges; the bound holds at
 /// them, and the CasADi validation checks it at other states.
-#[allow(clippy::too_many_arguments)]
 pub fn prune(
     g: &mut Graph,
     coordinates: &[Coordinate],
     params: &[RuntimeParameter],
     tol: f64,
     mass: &mut [Vec<Id>],
-    coriolis: &mut [Id],
-    potential: &mut [Id],
-    damping: &mut [Id],
-) -> Pruned {
+    bias: &[Id],
+    parts: [&mut [Id]; 3],
+) {
     let samples = Samples::new(coordinates);
     let n = coordinates.len();
-    let mut tally = Pruned::default();
 
-    let h: Vec<Id> = (0..n)
-        .map(|i| g.sum(&[coriolis[i], potential[i], damping[i]]))
-        .collect();
     let scale = samples
-        .max_abs(g, &h, params)
+        .max_abs(g, bias, params)
         .into_iter()
         .fold(1.0f64, f64::max);
     let budget = vec![tol / 3.0 * scale; n];
-    for part in [coriolis, potential, damping] {
-        prune_entries(g, part, &budget, &samples, params, &mut tally);
+    for part in parts {
+        prune_entries(g, part, &budget, &samples, params);
     }
 
     // Smallest diagonal entries over the samples.
@@ -432,7 +414,7 @@ pub fn prune(
             budget.push(if b.is_finite() { tol * b } else { 0.0 });
         }
     }
-    prune_entries(g, &mut upper, &budget, &samples, params, &mut tally);
+    prune_entries(g, &mut upper, &budget, &samples, params);
     let mut it = upper.into_iter();
     let pairs: Vec<(usize, usize)> = (0..n)
         .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
@@ -442,5 +424,4 @@ pub fn prune(
         mass[i][j] = e;
         mass[j][i] = e;
     }
-    tally
 }
