@@ -944,29 +944,12 @@ impl<'a> Builder<'a> {
         let ctx = ctx.as_str();
         self.check_fields(c, FLEXIBLE_LINK_FIELDS, ctx)?;
         let kind_at = c.kind.span().start;
-        let need = |b: &Self, field: &str| {
-            b.err(
-                kind_at,
-                Some(ctx),
-                format!("a `{kind}` component needs `{field}`"),
-            )
-        };
-        let Some(frame) = &c.frame else {
-            return Err(need(self, "frame"));
-        };
-        let length = match &c.length {
-            Some(l) => self.constant_positive(l, ctx, "length")?,
-            None => return Err(need(self, "length")),
-        };
-        let Some(material) = &c.material else {
-            return Err(need(self, "material"));
-        };
-        let Some(section) = &c.section else {
-            return Err(need(self, "section"));
-        };
-        let Some(boundary) = &c.boundary else {
-            return Err(need(self, "boundary"));
-        };
+        let frame = self.required(c, &c.frame, ctx, "frame")?;
+        let length = self.required(c, &c.length, ctx, "length")?;
+        let length = self.constant_positive(length, ctx, "length")?;
+        let material = self.required(c, &c.material, ctx, "material")?;
+        let section = self.required(c, &c.section, ctx, "section")?;
+        let boundary = self.required(c, &c.boundary, ctx, "boundary")?;
 
         let material = self.material(material, ctx)?;
 
@@ -1914,6 +1897,24 @@ impl<'a> Builder<'a> {
         (kinetic, self.gravity_potential(m, com.position))
     }
 
+    /// The value of a required field of component `c`, or an error at its
+    /// `type` naming the field.
+    fn required<'c, T>(
+        &self,
+        c: &ComponentDef,
+        value: &'c Option<T>,
+        ctx: &str,
+        field: &str,
+    ) -> Result<&'c T, Error> {
+        value.as_ref().ok_or_else(|| {
+            self.err(
+                c.kind.span().start,
+                Some(ctx),
+                format!("a `{}` component needs `{field}`", c.kind.get_ref()),
+            )
+        })
+    }
+
     /// A flexible joint (the paper's): a joint member, a solid circular
     /// shaft of mass `m`, length `l` and `material`, turning with `frame`
     /// about its `axis`, with a linear torsion spring on its twist
@@ -1921,32 +1922,12 @@ impl<'a> Builder<'a> {
     /// the axis and `m (3 r^2 + l^2) / 12` across it, stiffness
     /// `G Ip / l` (`fem::shaft_joint_stiffness`) unless `stiffness` is given.
     fn flexible_joint(&mut self, c: &ComponentDef, ctx: &str) -> Result<(Id, Id), Error> {
-        let kind_at = c.kind.span().start;
-        let need = |b: &Self, field: &str| {
-            b.err(
-                kind_at,
-                Some(ctx),
-                format!("a `flexible_joint` component needs `{field}`"),
-            )
-        };
-        let Some(frame_name) = &c.frame else {
-            return Err(need(self, "frame"));
-        };
-        let Some(mass) = &c.mass else {
-            return Err(need(self, "mass"));
-        };
-        let Some(length) = &c.length else {
-            return Err(need(self, "length"));
-        };
-        let Some(material) = &c.material else {
-            return Err(need(self, "material"));
-        };
-        let Some(axis) = &c.axis else {
-            return Err(need(self, "axis"));
-        };
-        let Some(twist) = &c.expression else {
-            return Err(need(self, "expression"));
-        };
+        let frame_name = self.required(c, &c.frame, ctx, "frame")?;
+        let mass = self.required(c, &c.mass, ctx, "mass")?;
+        let length = self.required(c, &c.length, ctx, "length")?;
+        let material = self.required(c, &c.material, ctx, "material")?;
+        let axis = self.required(c, &c.axis, ctx, "axis")?;
+        let twist = self.required(c, &c.expression, ctx, "expression")?;
         let a = match axis.get_ref().as_str() {
             "x" => 0,
             "y" => 1,
@@ -1963,7 +1944,7 @@ impl<'a> Builder<'a> {
         let l = self.constant_positive(length, ctx, "length")?;
         let material = self.material(material, ctx)?;
         let shaft = crate::fem::shaft_joint_stiffness(&material, m, l)
-            .map_err(|e| self.err(kind_at, Some(ctx), e))?;
+            .map_err(|e| self.err(c.kind.span().start, Some(ctx), e))?;
         let r2 = m / (material.density * l * std::f64::consts::PI);
         let mut inertia = [[self.graph.constant(0.0); 3]; 3];
         for (i, row) in inertia.iter_mut().enumerate() {
