@@ -49,7 +49,9 @@
 
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
-use crate::linalg::{all_finite, first_non_finite, invert_in_place, norm_squared, Svd};
+use crate::linalg::{
+    all_finite, first_non_finite, invert_in_place, mul_vec_acc, norm_squared, tr_mul_vec_acc, Svd,
+};
 use crate::math::sqrt;
 use crate::model::Model;
 use crate::state::inf_norm;
@@ -310,7 +312,10 @@ fn finish_forces<const NQ: usize, const NC: usize, const NU: usize>(
 ) -> Result<ForceSolution<NC, NU>, Error> {
     eval::check_result(&tau, Quantity::Input, t)?;
     eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
-    let residual = inf_norm(&(phi_q.tr_mul(&lambda) + b * tau - r));
+    let mut res = -r;
+    tr_mul_vec_acc(phi_q, lambda.as_slice(), res.as_mut_slice());
+    mul_vec_acc(b, tau.as_slice(), res.as_mut_slice());
+    let residual = inf_norm(&res);
     Ok((
         tau,
         lambda,
@@ -379,6 +384,17 @@ fn svd<const R: usize, const C: usize>(
 ) -> Result<Svd<R, C>, Error> {
     Svd::new(a, max_sweeps)
         .map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))
+}
+
+/// What [`InverseDynamics::free_inverse`] found besides the inverse.
+#[derive(Clone, Copy)]
+struct FreeInverse {
+    /// `|J_f|_F |J_f^-1|_F`.
+    condition: f64,
+    /// `|J_f|_F^2`.
+    jf_norm2: f64,
+    /// `|J_f^-1|_F^2`.
+    inv_norm2: f64,
 }
 
 /// Which inverse of `J_f` the chord steps use.
@@ -515,31 +531,36 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     }
 
     /// Writes `J_f^-1` to `inv` and returns the bound `|J_f|_F |J_f^-1|_F` of
-    /// its condition, if `J_f` is invertible and the bound is within `limit`
-    /// (call only when [`Self::square`]).
+    /// its condition with the squared norms, if `J_f` is invertible and the
+    /// bound is within `limit` (call only when [`Self::square`]).
     fn free_inverse(
         &self,
         phi_q: &SMatrix<f64, NC, NQ>,
         limit: f64,
         inv: &mut SMatrix<f64, NC, NC>,
-    ) -> Option<f64> {
-        for k in 0..NC {
-            inv.set_column(k, &phi_q.column(self.free[k]));
+    ) -> Option<FreeInverse> {
+        // Column copies through the slices (nalgebra's column views copy
+        // element by element).
+        let (from, to) = (phi_q.as_slice(), inv.as_mut_slice());
+        for (k, col) in to.chunks_exact_mut(NC.max(1)).enumerate() {
+            let i = self.free[k];
+            col.copy_from_slice(&from[i * NC..(i + 1) * NC]);
         }
-        let norm2 = norm_squared(inv);
+        let jf_norm2 = norm_squared(inv);
         if !invert_in_place(inv) {
             return None;
         }
+        let inv_norm2 = norm_squared(inv);
         let condition = if NC == 0 {
             1.0
         } else {
-            sqrt(norm2 * norm_squared(inv))
+            sqrt(jf_norm2 * inv_norm2)
         };
-        if condition <= limit {
-            Some(condition)
-        } else {
-            None
-        }
+        (condition <= limit).then_some(FreeInverse {
+            condition,
+            jf_norm2,
+            inv_norm2,
+        })
     }
 
     /// Newton starting point for prescribed positions `p` at `t`: the last
@@ -684,7 +705,9 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 Chord::None => None,
             };
             if let Some(inv) = inv {
-                self.scatter_free(&-(inv * phi), &mut dq);
+                let mut step = SVector::<f64, NC>::zeros();
+                mul_vec_acc(inv, (-phi).as_slice(), step.as_mut_slice());
+                self.scatter_free(&step, &mut dq);
             }
             let q_new = q + dq;
             eval::check_result(&q_new, Quantity::Position, t)?;
@@ -719,17 +742,30 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         let jacobian_condition;
         // X = J_f^-1 J_p on the fast path.
         let mut x = SMatrix::<f64, NC, NP>::zeros();
-        if let Some(condition) = fast {
-            jacobian_condition = condition;
-            let mut jp = SMatrix::<f64, NC, NP>::zeros();
+        let mut jp_norm2 = 0.0;
+        if let Some(f) = fast {
+            jacobian_condition = f.condition;
+            // X = J_f^-1 J_p column by column, and w = Phi_t + J_p v, so that
+            // qd_f = -J_f^-1 w and qdd_f = J_f^-1 (gamma - J_p a).
+            let mut w = phi_t;
+            let mut u = SVector::<f64, NC>::zeros();
             for (k, &i) in self.prescribed.iter().enumerate() {
-                jp.set_column(k, &phi_q.column(i));
+                let jp = &phi_q.as_slice()[i * NC..(i + 1) * NC];
+                jp_norm2 += jp.iter().map(|e| e * e).sum::<f64>();
+                mul_vec_acc(&inv, jp, &mut x.as_mut_slice()[k * NC..(k + 1) * NC]);
+                for ((w, u), e) in w.iter_mut().zip(u.iter_mut()).zip(jp) {
+                    *w += e * v[k];
+                    *u -= e * a[k];
+                }
             }
-            x = inv * jp;
-            self.scatter_free(&(-(inv * phi_t) - x * v), &mut qd);
+            let mut qd_f = SVector::<f64, NC>::zeros();
+            mul_vec_acc(&inv, w.as_slice(), qd_f.as_mut_slice());
+            self.scatter_free(&-qd_f, &mut qd);
             eval::dynamics_terms_into(model, &q, &qd, t, &mut terms)?;
             gamma = terms.gamma;
-            self.scatter_free(&(inv * gamma - x * a), &mut qdd);
+            let mut qdd_f = SVector::<f64, NC>::zeros();
+            mul_vec_acc(&inv, (u + gamma).as_slice(), qdd_f.as_mut_slice());
+            self.scatter_free(&qdd_f, &mut qdd);
         } else {
             let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
             jacobian_condition = check_condition(&jsvd, nf, cfg.max_condition, t)?;
@@ -750,9 +786,19 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         eval::check_result(&qdd, Quantity::Acceleration, t)?;
         // 3. Forces.
         let b = eval::actuator_map(model, t)?;
-        let r = terms.m * qdd + terms.h;
+        let mut r = terms.h;
+        mul_vec_acc(&terms.m, qdd.as_slice(), r.as_mut_slice());
         let fast_forces = match fast {
-            Some(_) => self.forces_eliminated(&cfg, &inv, &x, &phi_q, &b, &r, t)?,
+            Some(f) => self.forces_eliminated(
+                &cfg,
+                &inv,
+                &x,
+                (f.jf_norm2 + jp_norm2) * f.inv_norm2,
+                &phi_q,
+                &b,
+                &r,
+                t,
+            )?,
             None => None,
         };
         let (tau, lambda, force_report) = match fast_forces {
@@ -763,8 +809,8 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             iterations,
             factorizations,
             position_residual: res,
-            velocity_residual: inf_norm(&(phi_q * qd + phi_t)),
-            acceleration_residual: inf_norm(&(phi_q * qdd - gamma)),
+            velocity_residual: residual_norm(&phi_q, &qd, &phi_t),
+            acceleration_residual: residual_norm(&phi_q, &qdd, &-gamma),
             jacobian_condition,
             kinematics: if fast.is_some() {
                 SolvePath::Elimination
@@ -795,6 +841,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         cfg: &InverseConfig,
         inv: &SMatrix<f64, NC, NC>,
         x: &SMatrix<f64, NC, NP>,
+        phi_q_inv_norm2: f64,
         phi_q: &SMatrix<f64, NC, NQ>,
         b: &SMatrix<f64, NQ, NU>,
         r: &SVector<f64, NQ>,
@@ -812,8 +859,16 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 b_f[(k, j)] = b[(i, j)];
             }
         }
-        let xt_b = x.tr_mul(&b_f);
-        let xt_r = x.tr_mul(&r_f);
+        let mut xt_b = SMatrix::<f64, NP, NU>::zeros();
+        for (b_col, out) in b_f
+            .as_slice()
+            .chunks_exact(NC.max(1))
+            .zip(xt_b.as_mut_slice().chunks_exact_mut(NP.max(1)))
+        {
+            tr_mul_vec_acc(x, b_col, out);
+        }
+        let mut xt_r = SVector::<f64, NP>::zeros();
+        tr_mul_vec_acc(x, r_f.as_slice(), xt_r.as_mut_slice());
         // G = B_p - X^T B_f and g = r_p - X^T r_f (NP x NP since NU == NP).
         let mut g = SMatrix::<f64, NP, NP>::zeros();
         let mut rhs = SVector::<f64, NP>::zeros();
@@ -827,7 +882,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         if !invert_in_place(&mut g_inv) {
             return Ok(None);
         }
-        let full_rank = sqrt(norm_squared(phi_q) * norm_squared(inv)) * cfg.rank_tolerance < 1.0;
+        let full_rank = sqrt(phi_q_inv_norm2) * cfg.rank_tolerance < 1.0;
         let actuation_condition = if NP == 0 {
             1.0
         } else {
@@ -845,7 +900,10 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         for j in 0..NU {
             tau[j] = tau_p[j];
         }
-        let lambda = inv.tr_mul(&(r_f - b_f * tau));
+        let mut f = r_f;
+        mul_vec_acc(&b_f, (-tau).as_slice(), f.as_mut_slice());
+        let mut lambda = SVector::<f64, NC>::zeros();
+        tr_mul_vec_acc(inv, f.as_slice(), lambda.as_mut_slice());
         finish_forces(
             phi_q,
             b,
@@ -859,6 +917,17 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         )
         .map(Some)
     }
+}
+
+/// `max |a x + c|`.
+fn residual_norm<const R: usize, const C: usize>(
+    a: &SMatrix<f64, R, C>,
+    x: &SVector<f64, C>,
+    c: &SVector<f64, R>,
+) -> f64 {
+    let mut y = *c;
+    mul_vec_acc(a, x.as_slice(), y.as_mut_slice());
+    inf_norm(&y)
 }
 
 /// Checks that the leading `needed` singular values are well conditioned.
