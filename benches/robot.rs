@@ -68,10 +68,11 @@ fn robot(c: &mut Criterion) {
         }
         println!("2000 calls: Newton iterations histogram {iterations:?}, factorisations {factorizations:?}");
     }
-    // The model evaluations one call makes (Newton: `iterations + 1` times
-    // Phi; then Phi_q, Phi_t, gamma, M, h, B once), timed alone: the rest
-    // of `inverse_dynamics_call` is the linear algebra.
-    let phi_evals = report.iterations + 1;
+    // The model evaluations one call makes, timed alone: Newton evaluates
+    // Phi at its starting point and Phi with Phi_q (one fused program) at
+    // each of its `iterations` iterates; then Phi_t, the fused
+    // `dynamics_terms` (M, h, Phi_q, gamma) and B once. The rest of
+    // `inverse_dynamics_call` is the linear algebra and the checks.
     println!(
         "inverse_dynamics_call: {} Newton iterations in the last call, {:?}",
         report.iterations, report
@@ -85,14 +86,20 @@ fn robot(c: &mut Criterion) {
         let mut h = SVector::<f64, 12>::zeros();
         let mut bm = SMatrix::<f64, 12, 3>::zeros();
         b.iter(|| {
-            for _ in 0..phi_evals {
-                model.constraints(black_box(&q), 0.0, &mut phi);
+            model.constraints(black_box(&q), 0.0, &mut phi);
+            for _ in 0..report.iterations {
+                model.constraints_and_jacobian(black_box(&q), 0.0, &mut phi, &mut j);
             }
-            model.constraint_jacobian(black_box(&q), 0.0, &mut j);
             model.constraint_time_derivative(black_box(&q), 0.0, &mut pt);
-            model.constraint_rhs(black_box(&q), black_box(&qd), 0.0, &mut g);
-            model.mass_matrix(black_box(&q), 0.0, &mut m);
-            model.bias(black_box(&q), black_box(&qd), 0.0, &mut h);
+            model.dynamics_terms(
+                black_box(&q),
+                black_box(&qd),
+                0.0,
+                &mut m,
+                &mut h,
+                &mut j,
+                &mut g,
+            );
             model.actuator_map(&mut bm);
             black_box((&phi, &j, &pt, &g, &m, &h, &bm));
         })
@@ -134,6 +141,28 @@ fn robot(c: &mut Criterion) {
     group.bench_function("constraint_rhs", |b| {
         let mut g = SVector::<f64, 9>::zeros();
         b.iter(|| model.constraint_rhs(black_box(&q), black_box(&qd), 0.0, &mut g))
+    });
+    group.bench_function("constraints_and_jacobian", |b| {
+        let mut phi = SVector::<f64, 9>::zeros();
+        let mut j = SMatrix::<f64, 9, 12>::zeros();
+        b.iter(|| model.constraints_and_jacobian(black_box(&q), 0.0, &mut phi, &mut j))
+    });
+    group.bench_function("dynamics_terms", |b| {
+        let mut m = SMatrix::<f64, 12, 12>::zeros();
+        let mut h = SVector::<f64, 12>::zeros();
+        let mut j = SMatrix::<f64, 9, 12>::zeros();
+        let mut g = SVector::<f64, 9>::zeros();
+        b.iter(|| {
+            model.dynamics_terms(
+                black_box(&q),
+                black_box(&qd),
+                0.0,
+                &mut m,
+                &mut h,
+                &mut j,
+                &mut g,
+            )
+        })
     });
     group.finish();
 }

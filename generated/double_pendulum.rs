@@ -6,6 +6,7 @@
 //   constraint_jacobian               0      0      0      0
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    0      0      0      0
+//   constraints_and_jacobian          0      0      0      0
 //   dynamics_terms                    8     26      0      2
 //   kinetic_energy                    4     14      0      2
 //   potential_energy                  2      2      0      2
@@ -14,7 +15,8 @@
 //   damping_forces                    0      0      0      0
 //   coriolis_matrix                   2     10      0      2
 //   total                            29    100      0     16
-// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
+// (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
+// dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -96,6 +98,15 @@ impl flexdyn_runtime::Model<2, 0, 2> for DoublePendulum {
         _qd: &SVector<f64, 2>,
         _t: f64,
         _gamma: &mut SVector<f64, 0>,
+    ) {}
+    ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        _q: &SVector<f64, 2>,
+        _t: f64,
+        _phi: &mut SVector<f64, 0>,
+        _phi_q: &mut SMatrix<f64, 0, 2>,
     ) {}
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]

@@ -6,6 +6,7 @@
 //   constraint_jacobian               4      8      0      4
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    6     24      0      4
+//   constraints_and_jacobian         11     16      0      4
 //   dynamics_terms                   32     84      0      4
 //   kinetic_energy                   15     40      0      4
 //   potential_energy                  3      4      0      4
@@ -13,8 +14,9 @@
 //   potential_forces                  0      4      0      4
 //   damping_forces                    0      0      0      0
 //   bias_jacobians                   38    112      0      4
-//   total                           143    408      0     44
-// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
+//   total                           154    424      0     48
+// (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
+// dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -145,6 +147,30 @@ impl flexdyn_runtime::Model<4, 2, 2> for FiveBar {
             - 0.25 * v3 * qd[1] * qd[1] - 0.35 * v7 * qd[3] * qd[3];
         gamma[1] = 0.25 * v0 * qd[0] * qd[0] + 0.35 * v4 * qd[2] * qd[2]
             - 0.25 * v2 * qd[1] * qd[1] - 0.35 * v6 * qd[3] * qd[3];
+    }
+    ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        q: &SVector<f64, 4>,
+        _t: f64,
+        phi: &mut SVector<f64, 2>,
+        phi_q: &mut SMatrix<f64, 2, 4>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let (v4, v5) = math::sin_cos(q[2]);
+        let (v6, v7) = math::sin_cos(q[3]);
+        phi[0] = 0.25 * v1 + 0.35 * v5 - 0.2 - 0.25 * v3 - 0.35 * v7;
+        phi[1] = 0.25 * v0 + 0.35 * v4 - 0.25 * v2 - 0.35 * v6;
+        phi_q[(0, 0)] = -0.25 * v0;
+        phi_q[(0, 1)] = 0.25 * v2;
+        phi_q[(0, 2)] = -0.35 * v4;
+        phi_q[(0, 3)] = 0.35 * v6;
+        phi_q[(1, 0)] = 0.25 * v1;
+        phi_q[(1, 1)] = -0.25 * v3;
+        phi_q[(1, 2)] = 0.35 * v5;
+        phi_q[(1, 3)] = -0.35 * v7;
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]

@@ -6,6 +6,7 @@
 //   constraint_jacobian               0      0      0      0
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    0      0      0      0
+//   constraints_and_jacobian          0      0      0      0
 //   dynamics_terms                   31     66      8      4
 //   kinetic_energy                    5     16      0      2
 //   potential_energy                 13     15      0      4
@@ -13,7 +14,8 @@
 //   potential_forces                 18     26      4      4
 //   damping_forces                   17     38      4      2
 //   total                           118    245     24     24
-// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
+// (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
+// dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -112,6 +114,15 @@ impl flexdyn_runtime::Model<4, 0, 1> for FlyballGovernor {
         _qd: &SVector<f64, 4>,
         _t: f64,
         _gamma: &mut SVector<f64, 0>,
+    ) {}
+    ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        _q: &SVector<f64, 4>,
+        _t: f64,
+        _phi: &mut SVector<f64, 0>,
+        _phi_q: &mut SMatrix<f64, 0, 4>,
     ) {}
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]

@@ -6,14 +6,16 @@
 //   constraint_jacobian               3      0      0      3
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    4     12      0      3
+//   constraints_and_jacobian          8      0      0      3
 //   dynamics_terms                   18     35      0      3
 //   kinetic_energy                    8     18      0      2
 //   potential_energy                  2      3      0      3
 //   coriolis_forces                   8     24      0      2
 //   potential_forces                  0      3      0      3
 //   damping_forces                    0      0      0      0
-//   total                            59    126      0     27
-// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
+//   total                            67    126      0     30
+// (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
+// dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -126,6 +128,27 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let (v4, v5) = math::sin_cos(q[2]);
         gamma[0] = v1 * qd[0] * qd[0] + v5 * qd[2] * qd[2] - v3 * qd[1] * qd[1];
         gamma[1] = v0 * qd[0] * qd[0] + v4 * qd[2] * qd[2] - v2 * qd[1] * qd[1];
+    }
+    ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        q: &SVector<f64, 3>,
+        _t: f64,
+        phi: &mut SVector<f64, 2>,
+        phi_q: &mut SMatrix<f64, 2, 3>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let (v4, v5) = math::sin_cos(q[2]);
+        phi[0] = v1 + v5 - 1.0 - v3;
+        phi[1] = v0 + v4 - v2;
+        phi_q[(0, 0)] = -v0;
+        phi_q[(0, 1)] = v2;
+        phi_q[(0, 2)] = -v4;
+        phi_q[(1, 0)] = v1;
+        phi_q[(1, 1)] = -v3;
+        phi_q[(1, 2)] = v5;
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]

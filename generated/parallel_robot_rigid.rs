@@ -6,11 +6,13 @@
 //   constraint_jacobian              18     39      0      9
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                   24    117      0      9
+//   constraints_and_jacobian         46     68      0      9
 //   dynamics_terms                  246    666      0      9
 //   kinetic_energy                   62    150      0      9
 //   potential_energy                  9     13      0      9
-//   total                           609   1647      0     72
-// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
+//   total                           655   1715      0     81
+// (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
+// dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -393,6 +395,77 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         gamma[8] = 0.4 * v8 * qd[6] * qd[6] + 0.1 * v10 * qd[7] * qd[7]
             + 0.8 * v10 * qd[7] * qd[7] * v17 + 1.6 * v11 * qd[7] * v16 * qd[8]
             + 0.8 * v10 * v17 * qd[8] * qd[8];
+    }
+    ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        q: &SVector<f64, 12>,
+        _t: f64,
+        phi: &mut SVector<f64, 9>,
+        phi_q: &mut SMatrix<f64, 9, 12>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let (v4, v5) = math::sin_cos(q[3]);
+        let (v6, v7) = math::sin_cos(q[4]);
+        let (v8, v9) = math::sin_cos(q[6]);
+        let (v10, v11) = math::sin_cos(q[7]);
+        let (v12, v13) = math::sin_cos(q[2]);
+        let v14 = v3 * v13;
+        let v15 = v2 * v13;
+        let (v16, v17) = math::sin_cos(q[5]);
+        let v18 = v7 * v17;
+        let v19 = v6 * v17;
+        let (v20, v21) = math::sin_cos(q[8]);
+        let v22 = v11 * v21;
+        let v23 = v10 * v21;
+        *phi_q = SMatrix::zeros();
+        phi[0] = 0.4 * v1 + 0.1 * v3 + 0.8 * v14 + 0.30000000000000004 - q[9];
+        phi[1] = 0.8 * v12 - q[10];
+        phi[2] = 0.4 * v0 + 0.1 * v2 + 0.8 * v15 - q[11];
+        phi[3] = 0.4 * v5 + 0.1 * v7 + 0.8 * v18 + 0.4999999999999998 * q[9]
+            + 0.30000000000000004 - 0.8660254037844387 * q[10];
+        phi[4] = 0.8 * v16 + 0.8660254037844387 * q[9] + 0.4999999999999998 * q[10];
+        phi[5] = 0.4 * v4 + 0.1 * v6 + 0.8 * v19 - q[11];
+        phi[6] = 0.4 * v9 + 0.1 * v11 + 0.8 * v22 + 0.5000000000000004 * q[9]
+            + 0.8660254037844384 * q[10] + 0.30000000000000004;
+        phi[7] = 0.8 * v20 + 0.5000000000000004 * q[10] - 0.8660254037844384 * q[9];
+        phi[8] = 0.4 * v8 + 0.1 * v10 + 0.8 * v23 - q[11];
+        phi_q[(0, 0)] = -0.4 * v0;
+        phi_q[(0, 1)] = -0.1 * v2 - 0.8 * v15;
+        phi_q[(0, 2)] = -0.8 * v3 * v12;
+        phi_q[(0, 9)] = -1.0;
+        phi_q[(1, 2)] = 0.8 * v13;
+        phi_q[(1, 10)] = -1.0;
+        phi_q[(2, 0)] = 0.4 * v1;
+        phi_q[(2, 1)] = 0.1 * v3 + 0.8 * v14;
+        phi_q[(2, 2)] = -0.8 * v2 * v12;
+        phi_q[(2, 11)] = -1.0;
+        phi_q[(3, 3)] = -0.4 * v4;
+        phi_q[(3, 4)] = -0.1 * v6 - 0.8 * v19;
+        phi_q[(3, 5)] = -0.8 * v7 * v16;
+        phi_q[(3, 9)] = 0.4999999999999998;
+        phi_q[(3, 10)] = -0.8660254037844387;
+        phi_q[(4, 5)] = 0.8 * v17;
+        phi_q[(4, 9)] = 0.8660254037844387;
+        phi_q[(4, 10)] = 0.4999999999999998;
+        phi_q[(5, 3)] = 0.4 * v5;
+        phi_q[(5, 4)] = 0.1 * v7 + 0.8 * v18;
+        phi_q[(5, 5)] = -0.8 * v6 * v16;
+        phi_q[(5, 11)] = -1.0;
+        phi_q[(6, 6)] = -0.4 * v8;
+        phi_q[(6, 7)] = -0.1 * v10 - 0.8 * v23;
+        phi_q[(6, 8)] = -0.8 * v11 * v20;
+        phi_q[(6, 9)] = 0.5000000000000004;
+        phi_q[(6, 10)] = 0.8660254037844384;
+        phi_q[(7, 8)] = 0.8 * v21;
+        phi_q[(7, 9)] = -0.8660254037844384;
+        phi_q[(7, 10)] = 0.5000000000000004;
+        phi_q[(8, 6)] = 0.4 * v9;
+        phi_q[(8, 7)] = 0.1 * v11 + 0.8 * v22;
+        phi_q[(8, 8)] = -0.8 * v10 * v20;
+        phi_q[(8, 11)] = -1.0;
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]

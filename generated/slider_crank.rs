@@ -6,6 +6,7 @@
 //   constraint_jacobian               3      4      0      2
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    2     12      0      2
+//   constraints_and_jacobian          6      8      0      2
 //   dynamics_terms                   15     42      0      2
 //   kinetic_energy                    8     22      0      2
 //   potential_energy                  1      2      0      2
@@ -13,8 +14,9 @@
 //   potential_forces                  1      2      0      2
 //   damping_forces                    0      0      0      0
 //   bias_jacobians                   16     56      0      2
-//   total                            66    206      0     22
-// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
+//   total                            72    214      0     24
+// (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
+// dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -123,6 +125,26 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let (v2, v3) = math::sin_cos(q[1]);
         gamma[0] = 0.1 * v1 * qd[0] * qd[0] + 0.3 * v3 * qd[1] * qd[1];
         gamma[1] = 0.1 * v0 * qd[0] * qd[0] - 0.3 * v2 * qd[1] * qd[1];
+    }
+    ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        q: &SVector<f64, 3>,
+        _t: f64,
+        phi: &mut SVector<f64, 2>,
+        phi_q: &mut SMatrix<f64, 2, 3>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        *phi_q = SMatrix::zeros();
+        phi[0] = 0.1 * v1 + 0.3 * v3 - q[2];
+        phi[1] = 0.1 * v0 - 0.3 * v2;
+        phi_q[(0, 0)] = -0.1 * v0;
+        phi_q[(0, 1)] = -0.3 * v2;
+        phi_q[(0, 2)] = -1.0;
+        phi_q[(1, 0)] = 0.1 * v1;
+        phi_q[(1, 1)] = -0.3 * v3;
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]

@@ -6,11 +6,13 @@
 //   constraint_jacobian               0      0      0      0
 //   constraint_time_derivative        3      5      0      1
 //   constraint_rhs                    1      3      0      1
+//   constraints_and_jacobian          6      8      0      1
 //   dynamics_terms                    6     22      0      1
 //   kinetic_energy                    9     20      0      0
 //   potential_energy                  3      8      0      0
-//   total                            33     85      0      4
-// (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)
+//   total                            39     93      0      5
+// (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
+// dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
 use flexdyn_runtime::math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -126,6 +128,23 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeamLinear {
     ) {
         let v0 = math::cos(0.41887902047863906 * t);
         gamma[0] = 0.4 * self.phase * (1.0 - v0);
+    }
+    ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        q: &SVector<f64, 5>,
+        t: f64,
+        phi: &mut SVector<f64, 1>,
+        phi_q: &mut SMatrix<f64, 1, 5>,
+    ) {
+        let v0 = math::cos(0.41887902047863906 * t);
+        *phi_q = SMatrix::zeros();
+        phi[0] = q[0]
+            - 0.4 * self.phase
+                * (0.5 * t * t + 5.699316579881501 * v0 - 5.699316579881501)
+            - (1.0 - self.phase) * (6.0 * t - 45.0);
+        phi_q[(0, 0)] = 1.0;
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]

@@ -36,6 +36,8 @@ pub trait DynModel {
     fn constraint_time_derivative(&self, q: &[f64], t: f64) -> DVector<f64>;
     /// Acceleration right-hand side.
     fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64>;
+    /// `(Phi, Phi_q)` from the fused `constraints_and_jacobian` program.
+    fn constraints_and_jacobian(&self, q: &[f64], t: f64) -> (DVector<f64>, DMatrix<f64>);
     /// `(M, h, Phi_q, gamma)` from the fused `dynamics_terms` program.
     fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64) -> Fused;
     /// Actuator map.
@@ -125,6 +127,16 @@ where
         let mut g = SVector::<f64, NC>::zeros();
         self.0.constraint_rhs(&vector(q), &vector(qd), t, &mut g);
         DVector::from_column_slice(g.as_slice())
+    }
+    fn constraints_and_jacobian(&self, q: &[f64], t: f64) -> (DVector<f64>, DMatrix<f64>) {
+        let mut phi = SVector::<f64, NC>::zeros();
+        let mut j = SMatrix::<f64, NC, NQ>::zeros();
+        self.0
+            .constraints_and_jacobian(&vector(q), t, &mut phi, &mut j);
+        (
+            DVector::from_column_slice(phi.as_slice()),
+            DMatrix::from_column_slice(NC, NQ, j.as_slice()),
+        )
     }
     fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64) -> Fused {
         let mut m = SMatrix::<f64, NQ, NQ>::zeros();

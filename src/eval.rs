@@ -46,6 +46,11 @@ pub struct Terms {
     pub constraint_rhs: Vec<f64>,
     /// Actuator map.
     pub actuator_map: Vec<Vec<f64>>,
+    /// `Phi` as the fused `constraints_and_jacobian` computes it (what the
+    /// Newton iterations use).
+    pub fused_constraints: Vec<f64>,
+    /// `Phi_q` from `constraints_and_jacobian`.
+    pub fused_position_constraint_jacobian: Vec<Vec<f64>>,
     /// `M` as the fused `dynamics_terms` computes it (what the solvers use).
     pub fused_mass_matrix: Vec<Vec<f64>>,
     /// `h` from `dynamics_terms`.
@@ -116,6 +121,7 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
     }
     let vec = |v: nalgebra::DVector<f64>| v.as_slice().to_vec();
     let jacobians = model.bias_jacobians(&s.q, &s.qd, s.t);
+    let (fused_phi, fused_position_phi_q) = model.constraints_and_jacobian(&s.q, s.t);
     let (fused_m, fused_h, fused_phi_q, fused_gamma) = model.dynamics_terms(&s.q, &s.qd, s.t);
     Ok(Terms {
         mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
@@ -128,6 +134,8 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
             .to_vec(),
         constraint_rhs: model.constraint_rhs(&s.q, &s.qd, s.t).as_slice().to_vec(),
         actuator_map: rows(&model.actuator_map()),
+        fused_constraints: vec(fused_phi),
+        fused_position_constraint_jacobian: rows(&fused_position_phi_q),
         fused_mass_matrix: rows(&fused_m),
         fused_bias: vec(fused_h),
         fused_constraint_jacobian: rows(&fused_phi_q),

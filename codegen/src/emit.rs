@@ -573,6 +573,17 @@ pub fn emit_perturbed(
         ),
         &[Output::vector("gamma", &eq.gamma)],
     );
+    let phi_and_q = e.function(
+        Signature::new(
+            "constraints_and_jacobian",
+            "`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).",
+            false,
+        ),
+        &[
+            Output::vector("phi", &eq.phi),
+            Output::matrix("phi_q", &eq.phi_q, false),
+        ],
+    );
     let fused = e.function(
         Signature::new(
             "dynamics_terms",
@@ -763,6 +774,7 @@ pub fn emit_perturbed(
             #phi_q
             #phi_t
             #gamma
+            #phi_and_q
             #fused
             #[inline]
             fn actuator_map(&self, #b_arg: &mut SMatrix<f64, #nq_l, #nu_l>) {
@@ -791,7 +803,8 @@ pub fn emit_perturbed(
     }
     header.push_str(&format!(
         "//   {:<28} {:>6} {:>6} {:>6} {:>6}\n\
-         // (dynamics_terms computes mass_matrix, bias, constraint_jacobian and constraint_rhs in one program)\n\n",
+         // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,\n\
+         // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)\n\n",
         "total", total.adds, total.muls, total.divs, total.calls
     ));
     if let (Some(c), true) = (perturbation, e.perturbed) {

@@ -151,11 +151,52 @@ pub(crate) fn constraint_jacobian<
     t: f64,
 ) -> Result<SMatrix<f64, NC, NQ>, Error> {
     let mut j = SMatrix::<f64, NC, NQ>::zeros();
-    if NC > 0 {
-        model.constraint_jacobian(q, t, &mut j);
-        check(&j, Quantity::ConstraintJacobian, t)?;
-    }
+    constraint_jacobian_into(model, q, t, &mut j)?;
     Ok(j)
+}
+
+/// [`constraint_jacobian`] written into `phi_q`.
+pub(crate) fn constraint_jacobian_into<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
+    model: &M,
+    q: &SVector<f64, NQ>,
+    t: f64,
+    phi_q: &mut SMatrix<f64, NC, NQ>,
+) -> Result<(), Error> {
+    phi_q.as_mut_slice().fill(0.0);
+    if NC > 0 {
+        model.constraint_jacobian(q, t, phi_q);
+        check(phi_q, Quantity::ConstraintJacobian, t)?;
+    }
+    Ok(())
+}
+
+/// `Phi(q, t)` and `Phi_q(q, t)` from the model's fused
+/// [`Model::constraints_and_jacobian`], written into `phi` and `phi_q`.
+pub(crate) fn constraints_and_jacobian<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
+    model: &M,
+    q: &SVector<f64, NQ>,
+    t: f64,
+    phi: &mut SVector<f64, NC>,
+    phi_q: &mut SMatrix<f64, NC, NQ>,
+) -> Result<(), Error> {
+    phi.as_mut_slice().fill(0.0);
+    phi_q.as_mut_slice().fill(0.0);
+    if NC > 0 {
+        model.constraints_and_jacobian(q, t, phi, phi_q);
+        check(phi, Quantity::Constraints, t)?;
+        check(phi_q, Quantity::ConstraintJacobian, t)?;
+    }
+    Ok(())
 }
 
 /// `Phi_t(q, t)`.

@@ -661,6 +661,12 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         let mut factorizations = 1u32;
         let mut phi = eval::constraints(model, &q, t)?;
         let mut res = inf_norm(&phi);
+        // Iterates after the first are evaluated with their Jacobian (one
+        // program for both): the last one's is the Jacobian at the solution.
+        // `jacobians[current]` is at `q` when `have_jacobian`.
+        let mut jacobians = [SMatrix::<f64, NC, NQ>::zeros(); 2];
+        let mut current = 0;
+        let mut have_jacobian = false;
         // The inverse for chord steps: the previous call's (at the guess), or
         // one computed at an iterate into `local`.
         let mut local = SMatrix::<f64, NC, NC>::zeros();
@@ -686,15 +692,19 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             let fresh = chord == Chord::None;
             if fresh {
                 factorizations += 1;
-                let phi_q = eval::constraint_jacobian(model, &q, t)?;
+                if !have_jacobian {
+                    eval::constraint_jacobian_into(model, &q, t, &mut jacobians[current])?;
+                    have_jacobian = true;
+                }
+                let phi_q = &jacobians[current];
                 if square
                     && self
-                        .free_inverse(&phi_q, cfg.max_condition, &mut local)
+                        .free_inverse(phi_q, cfg.max_condition, &mut local)
                         .is_some()
                 {
                     chord = Chord::Local;
                 } else {
-                    let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
+                    let jsvd = svd(&self.free_jacobian(phi_q).transpose(), cfg.max_sweeps, t)?;
                     check_condition(&jsvd, nf, cfg.max_condition, t)?;
                     jsvd.solve_transpose(&(-phi), nf, &mut dq);
                 }
@@ -712,7 +722,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             let q_new = q + dq;
             eval::check_result(&q_new, Quantity::Position, t)?;
             iterations += 1;
-            let phi_new = eval::constraints(model, &q_new, t)?;
+            let mut phi_new = SVector::<f64, NC>::zeros();
+            eval::constraints_and_jacobian(
+                model,
+                &q_new,
+                t,
+                &mut phi_new,
+                &mut jacobians[1 - current],
+            )?;
             let res_new = inf_norm(&phi_new);
             if !fresh && !(res_new <= CHORD_CONTRACTION * res) {
                 // The old inverse no longer contracts well: refresh it, and
@@ -725,9 +742,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             q = q_new;
             phi = phi_new;
             res = res_new;
+            current = 1 - current;
+            have_jacobian = true;
         }
         // 2. Velocities and accelerations.
-        let phi_q = eval::constraint_jacobian(model, &q, t)?;
+        if !have_jacobian {
+            eval::constraint_jacobian_into(model, &q, t, &mut jacobians[current])?;
+        }
+        let phi_q = &jacobians[current];
         let phi_t = eval::constraint_time_derivative(model, &q, t)?;
         let mut inv = local;
         let fast = if square {

@@ -141,6 +141,22 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
         false
     }
 
+    /// `Phi` and `Phi_q` at one position, in one call (what a Newton
+    /// iteration on the constraints needs at its last iterate). Generated
+    /// models override it with one program that computes the trigonometric
+    /// functions of the coordinates once for both; the default calls the two
+    /// methods.
+    fn constraints_and_jacobian(
+        &self,
+        q: &SVector<f64, NQ>,
+        t: f64,
+        phi: &mut SVector<f64, NC>,
+        phi_q: &mut SMatrix<f64, NC, NQ>,
+    ) {
+        self.constraints(q, t, phi);
+        self.constraint_jacobian(q, t, phi_q);
+    }
+
     /// `M`, `h`, `Phi_q` and `gamma` at one state, in one call. Generated
     /// models override it with a single program that shares the common
     /// subexpressions of all four (the trigonometric functions of the
@@ -166,7 +182,8 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
 /// Inside an `impl Model<NQ, NC, NU> for Wrapper` block, forwards the items a
 /// wrapper model usually leaves alone to the wrapped model `$M` stored in
 /// field `$inner` (by value or by reference): the names, `mass_matrix`, the
-/// four constraint terms, `actuator_map` and the two energies. The wrapper
+/// four constraint terms with `constraints_and_jacobian`, `actuator_map` and
+/// the two energies. The wrapper
 /// writes `bias` (and, where it changes them, `dynamics_terms` and the other
 /// provided methods) itself. `$NQ`, `$NC`, `$NU` are the impl's dimensions.
 #[macro_export]
@@ -198,6 +215,15 @@ macro_rules! forward_model {
             phi_q: &mut $crate::nalgebra::SMatrix<f64, $NC, $NQ>,
         ) {
             self.$inner.constraint_jacobian(q, t, phi_q)
+        }
+        fn constraints_and_jacobian(
+            &self,
+            q: &$crate::nalgebra::SVector<f64, $NQ>,
+            t: f64,
+            phi: &mut $crate::nalgebra::SVector<f64, $NC>,
+            phi_q: &mut $crate::nalgebra::SMatrix<f64, $NC, $NQ>,
+        ) {
+            self.$inner.constraints_and_jacobian(q, t, phi, phi_q)
         }
         fn constraint_time_derivative(
             &self,

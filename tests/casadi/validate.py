@@ -573,10 +573,13 @@ BASE_TERMS = [
 ]
 FORCE_TERMS = ["coriolis_forces", "potential_forces", "damping_forces"]
 JACOBIAN_TERMS = ["bias_jacobian_q", "bias_jacobian_qd"]
-# The fused `dynamics_terms` program (what the solvers call) computes M, h,
-# Phi_q and gamma again, sharing subexpressions: each is compared with the
-# same CasADi reference as the separate function.
-FUSED_TERMS = {"fused_mass_matrix": "mass_matrix", "fused_bias": "bias",
+# The fused programs (what the solvers call) compute terms again, sharing
+# subexpressions: `constraints_and_jacobian` Phi and Phi_q, `dynamics_terms`
+# M, h, Phi_q and gamma. Each is compared with the same CasADi reference as
+# the separate function.
+FUSED_TERMS = {"fused_constraints": "constraints",
+               "fused_position_constraint_jacobian": "constraint_jacobian",
+               "fused_mass_matrix": "mass_matrix", "fused_bias": "bias",
                "fused_constraint_jacobian": "constraint_jacobian",
                "fused_constraint_rhs": "constraint_rhs"}
 
