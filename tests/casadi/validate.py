@@ -730,12 +730,12 @@ def print_scene(report: dict) -> None:
         f"{report['constraints']} constraints, {report['nodes']} export nodes; "
         f"{report['random_states']} random states{extra}"
     )
-    header = f"  {'term':<28} {'shape':>7} {'max |err|':>10} {'scale':>10} {'tolerance':>10}  {'worst at':<22} result"
+    header = f"  {'term':<34} {'shape':>7} {'max |err|':>10} {'scale':>10} {'tolerance':>10}  {'worst at':<22} result"
     print(header)
     print("  " + "-" * (len(header) - 2))
     for r in report["terms"]:
         if r["missing"]:
-            print(f"  {r['term']:<28} {r['shape']:>7} {'-':>10} {'-':>10} {'-':>10}  {'-':<22} "
+            print(f"  {r['term']:<34} {r['shape']:>7} {'-':>10} {'-':>10} {'-':>10}  {'-':<22} "
                   f"FAIL (missing from flexdyn eval output)")
             continue
         if r["state"] is None or r["max_abs_error"] == 0.0:
@@ -746,7 +746,7 @@ def print_scene(report: dict) -> None:
                 where += f" [{r['entry']}]"
         verdict = "PASS" if r["passed"] else "FAIL"
         note = f" ({r['nonfinite']} non-finite entries agree)" if r["nonfinite"] else ""
-        print(f"  {r['term']:<28} {r['shape']:>7} {r['max_abs_error']:>10.3e} {r['scale']:>10.3e} "
+        print(f"  {r['term']:<34} {r['shape']:>7} {r['max_abs_error']:>10.3e} {r['scale']:>10.3e} "
               f"{r['tolerance']:>10.3e}  {where:<22} {verdict}{note}")
     if report["unchecked_keys"]:
         print(f"  note: eval keys not validated: {', '.join(report['unchecked_keys'])}")
