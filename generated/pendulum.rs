@@ -7,13 +7,13 @@
 //   constraint_time_derivative        0      0      0      0
 //   constraint_rhs                    0      0      0      0
 //   constraints_and_jacobian          0      0      0      0
-//   dynamics_terms                    1      6      0      1
+//   dynamics_terms                    1      5      0      1
 //   kinetic_energy                    0      5      0      0
 //   potential_energy                  1      3      0      1
 //   coriolis_forces                   0      0      0      0
 //   potential_forces                  0      3      0      1
 //   damping_forces                    0      1      0      0
-//   total                             3     24      0      4
+//   total                             3     23      0      4
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -122,8 +122,9 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         _gamma: &mut SVector<f64, 0>,
     ) {
         let v0 = math::sin(q[0]);
-        m[(0, 0)] = self.m * self.l * self.l;
-        h[0] = 9.81 * self.m * self.l * v0 + qd[0] * self.c;
+        let v1 = self.l * self.m;
+        m[(0, 0)] = self.l * v1;
+        h[0] = 9.81 * v0 * v1 + qd[0] * self.c;
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 1, 1>) {

@@ -3,7 +3,8 @@
 //! Data flow, one module per arrow:
 //! scene file ([`scene`]) -> parsed expressions ([`parse`]) -> component
 //! energies ([`model`]) -> derived terms ([`lagrange`]) -> optimised
-//! straight-line program ([`program`]) -> emitted Rust ([`emit`]), driven by
+//! straight-line program ([`program`], with repeated pairs of factors and
+//! terms shared by `share`) -> emitted Rust ([`emit`]), driven by
 //! the [`Builder`]. A derived scene is reduced ([`reduce`]: modes dropped,
 //! coordinates frozen, negligible terms pruned) on the way.
 
@@ -20,6 +21,7 @@ pub mod parse;
 pub mod program;
 pub mod reduce;
 pub mod scene;
+mod share;
 
 pub use builder::{generate_scene, write_if_changed, Builder, Generated, Report};
 pub use error::Error;
