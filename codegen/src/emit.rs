@@ -189,6 +189,13 @@ impl<'a> Output<'a> {
     }
 }
 
+/// Programs with at most this many statements are emitted as one `let` per
+/// statement (see `Emitter::stmts`).
+const FLAT_STATEMENTS: usize = 512;
+
+/// Variables per declaration in longer programs.
+const DECLARATION_GROUP: usize = 64;
+
 /// Precedence classes for parenthesising.
 const SUM: u8 = 1;
 const PRODUCT: u8 = 2;
@@ -312,20 +319,51 @@ impl Emitter<'_> {
         out
     }
 
+    /// The statements of a program: one `let` each, or, in programs longer
+    /// than [`FLAT_STATEMENTS`], variables declared up front in groups of
+    /// [`DECLARATION_GROUP`] (`let [v0, v1, ...]: [f64; 64];`) and then
+    /// assigned. Every `let` opens a lexical
+    /// scope nested in the previous one, and LLVM builds the debug
+    /// information of nested scopes recursively: a 4282-statement function
+    /// overflowed rustc's stack in debug builds.
     fn stmts(&self, p: &Program) -> TokenStream {
         let mut out = TokenStream::new();
+        let flat = p.stmts.len() <= FLAT_STATEMENTS;
+        if !flat {
+            let vars: Vec<proc_macro2::Ident> = p
+                .stmts
+                .iter()
+                .flat_map(|s| match s {
+                    Stmt::Let { var, .. } => vec![*var],
+                    Stmt::SinCos { sin, cos, .. } => vec![*sin, *cos],
+                })
+                .map(|v| format_ident!("v{}", v))
+                .collect();
+            for group in vars.chunks(DECLARATION_GROUP) {
+                let n = usize_lit(group.len());
+                out.extend(quote!(let [#(#group),*]: [f64; #n];));
+            }
+        }
         for s in &p.stmts {
             out.extend(match s {
                 Stmt::Let { var, value } => {
                     let v = format_ident!("v{}", var);
                     let e = self.code(value, SUM);
-                    quote!(let #v = #e;)
+                    if flat {
+                        quote!(let #v = #e;)
+                    } else {
+                        quote!(#v = #e;)
+                    }
                 }
                 Stmt::SinCos { sin, cos, arg } => {
                     let s = format_ident!("v{}", sin);
                     let c = format_ident!("v{}", cos);
                     let a = self.code(arg, SUM);
-                    quote!(let (#s, #c) = math::sin_cos(#a);)
+                    if flat {
+                        quote!(let (#s, #c) = math::sin_cos(#a);)
+                    } else {
+                        quote!((#s, #c) = math::sin_cos(#a);)
+                    }
                 }
             });
         }

@@ -753,7 +753,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         let phi_t = eval::constraint_time_derivative(model, &q, t)?;
         let mut inv = local;
         let fast = if square {
-            self.free_inverse(&phi_q, cfg.max_condition, &mut inv)
+            self.free_inverse(phi_q, cfg.max_condition, &mut inv)
         } else {
             None
         };
@@ -789,7 +789,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             mul_vec_acc(&inv, (u + gamma).as_slice(), qdd_f.as_mut_slice());
             self.scatter_free(&qdd_f, &mut qdd);
         } else {
-            let jsvd = svd(&self.free_jacobian(&phi_q).transpose(), cfg.max_sweeps, t)?;
+            let jsvd = svd(&self.free_jacobian(phi_q).transpose(), cfg.max_sweeps, t)?;
             jacobian_condition = check_condition(&jsvd, nf, cfg.max_condition, t)?;
             let mut qd_f = SVector::<f64, NQ>::zeros();
             jsvd.solve_transpose(&(-phi_t - phi_q * qd), nf, &mut qd_f);
@@ -816,7 +816,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 &inv,
                 &x,
                 (f.jf_norm2 + jp_norm2) * f.inv_norm2,
-                &phi_q,
+                phi_q,
                 &b,
                 &r,
                 t,
@@ -825,14 +825,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         };
         let (tau, lambda, force_report) = match fast_forces {
             Some(solution) => solution,
-            None => forces_from(&cfg, &phi_q, &b, &r, t)?,
+            None => forces_from(&cfg, phi_q, &b, &r, t)?,
         };
         let report = InverseReport {
             iterations,
             factorizations,
             position_residual: res,
-            velocity_residual: residual_norm(&phi_q, &qd, &phi_t),
-            acceleration_residual: residual_norm(&phi_q, &qdd, &-gamma),
+            velocity_residual: residual_norm(phi_q, &qd, &phi_t),
+            acceleration_residual: residual_norm(phi_q, &qdd, &-gamma),
             jacobian_condition,
             kinematics: if fast.is_some() {
                 SolvePath::Elimination
