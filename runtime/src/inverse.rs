@@ -14,15 +14,19 @@
 //! **Fast path** (the common, well-posed case, e.g. a non-redundant parallel
 //! robot): when the Jacobian of the free coordinates `J_f` (the columns of
 //! `Phi_q` of the coordinates that are not prescribed) is square, it is
-//! inverted once per call by Gauss–Jordan elimination with partial pivoting
-//! (`N^3` multiply-adds on the stack), and everything reuses that inverse:
+//! inverted once per call on the stack (`invert_in_place`: small diagonal
+//! blocks, such as one 3 x 3 block per chain of a parallel robot, in closed
+//! form, anything else by Gauss–Jordan elimination with partial pivoting),
+//! and everything reuses that inverse:
 //!
 //! * Newton runs as a chord (simplified Newton) iteration with the inverse
 //!   from the previous call, i.e. at the previous solution; it re-factors at
 //!   the current iterate whenever the residual does not shrink by a factor 4
-//!   per step (the residual test keeps it exact);
+//!   per step (the residual test keeps it exact). Its iterates after the
+//!   first are evaluated with [`Model::constraints_and_jacobian`], so the
+//!   Jacobian at the solution comes with its last residual;
 //! * with `X = J_f^-1 J_p` (`J_p`: the prescribed columns),
-//!   `qd_f = -J_f^-1 Phi_t - X v` and `qdd_f = J_f^-1 gamma - X a`;
+//!   `qd_f = -J_f^-1 (Phi_t + J_p v)` and `qdd_f = J_f^-1 (gamma - J_p a)`;
 //! * the forces: the null space of `Phi_q` is spanned by the columns of
 //!   `N = [-X; I]` (free rows; prescribed rows), and `N^T Phi_q^T = 0`, so
 //!   `G tau = r_p - X^T r_f` with `G = N^T B = B_p - X^T B_f` (`NP x NU`,
@@ -72,7 +76,7 @@ pub struct InverseConfig {
     pub max_condition: f64,
     /// Cap on Jacobi SVD sweeps.
     pub max_sweeps: u32,
-    /// Try the fast path (square systems inverted by Gauss–Jordan elimination,
+    /// Try the fast path (square systems inverted on the stack,
     /// see the module docs) before the SVDs. `false` forces the SVD path
     /// everywhere (reference results, diagnostics).
     pub fast_path: bool,
@@ -124,8 +128,9 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Default for InverseSolut
 /// Which method solved a linear system (see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SolvePath {
-    /// Fast path: a square system inverted by Gauss–Jordan elimination with
-    /// partial pivoting; the reported conditions are upper bounds of the
+    /// Fast path: a square system inverted on the stack (small diagonal
+    /// blocks in closed form, otherwise Gauss–Jordan elimination with
+    /// partial pivoting); the reported conditions are upper bounds of the
     /// 2-norm conditions the SVD path would report.
     #[default]
     Elimination,
@@ -181,7 +186,7 @@ pub struct ForceReport {
 /// `(tau, lambda, report)`.
 ///
 /// When [`InverseConfig::fast_path`] is set and `[Phi_q^T B]` is square
-/// (`NC + NU = NQ`), it is inverted by Gauss–Jordan elimination and the
+/// (`NC + NU = NQ`), it is inverted on the stack (as `J_f` is) and the
 /// result is used if `Phi_q` has full rank and the actuation is well
 /// conditioned by the bounds of the module docs (here: `|Phi_q|_F |S|_F <
 /// 1 / rank_tolerance` and `|B|_F |T|_F <= max_condition`, with `S` and `T`
