@@ -344,26 +344,19 @@ impl Emitter<'_> {
                 out.extend(quote!(let [#(#group),*]: [f64; #n];));
             }
         }
+        let bind = if flat { quote!(let) } else { quote!() };
         for s in &p.stmts {
             out.extend(match s {
                 Stmt::Let { var, value } => {
                     let v = format_ident!("v{}", var);
                     let e = self.code(value, SUM);
-                    if flat {
-                        quote!(let #v = #e;)
-                    } else {
-                        quote!(#v = #e;)
-                    }
+                    quote!(#bind #v = #e;)
                 }
                 Stmt::SinCos { sin, cos, arg } => {
                     let s = format_ident!("v{}", sin);
                     let c = format_ident!("v{}", cos);
                     let a = self.code(arg, SUM);
-                    if flat {
-                        quote!(let (#s, #c) = math::sin_cos(#a);)
-                    } else {
-                        quote!((#s, #c) = math::sin_cos(#a);)
-                    }
+                    quote!(#bind (#s, #c) = math::sin_cos(#a);)
                 }
             });
         }

@@ -60,6 +60,23 @@ enum Pair {
 }
 
 impl Pair {
+    /// The pair of factors `a b`.
+    fn product(a: Leaf, b: Leaf) -> Pair {
+        Pair::Prod(a.min(b), a.max(b))
+    }
+
+    /// The pair of terms `ca a + cb b`, with the coefficient it takes out
+    /// (that of its first leaf); `None` when the ratio is not usable.
+    fn sum(a: Leaf, ca: f64, b: Leaf, cb: f64) -> Option<(Pair, f64)> {
+        let ((x, cx), (y, cy)) = if a < b {
+            ((a, ca), (b, cb))
+        } else {
+            ((b, cb), (a, ca))
+        };
+        let r = cy / cx;
+        (r.is_finite() && r != 0.0 && x != y).then_some((Pair::Sum(x, y, r.to_bits()), cx))
+    }
+
     /// The shared expression.
     fn code(self) -> Code {
         match self {
@@ -91,7 +108,7 @@ fn pairs_of(c: &Code) -> Vec<(Pair, usize, usize, f64)> {
             }
             for (k, &(i, a)) in leaves.iter().enumerate() {
                 for &(j, b) in &leaves[k + 1..] {
-                    out.push((Pair::Prod(a.min(b), a.max(b)), i, j, 1.0));
+                    out.push((Pair::product(a, b), i, j, 1.0));
                 }
             }
         }
@@ -109,14 +126,8 @@ fn pairs_of(c: &Code) -> Vec<(Pair, usize, usize, f64)> {
             }
             for (k, &(i, ci, a)) in leaves.iter().enumerate() {
                 for &(j, cj, b) in &leaves[k + 1..] {
-                    let ((x, cx), (y, cy)) = if a < b {
-                        ((a, ci), (b, cj))
-                    } else {
-                        ((b, cj), (a, ci))
-                    };
-                    let r = cy / cx;
-                    if r.is_finite() && r != 0.0 && x != y {
-                        out.push((Pair::Sum(x, y, r.to_bits()), i, j, cx));
+                    if let Some((pair, cx)) = Pair::sum(a, ci, b, cj) {
+                        out.push((pair, i, j, cx));
                     }
                 }
             }
@@ -196,23 +207,14 @@ fn existing_pairs(stmts: &[Stmt]) -> HashMap<Pair, (u32, f64)> {
         match value {
             Code::Prod { num, den } if den.is_empty() && num.len() == 2 => {
                 if let (Some(a), Some(b)) = (Leaf::of(&num[0]), Leaf::of(&num[1])) {
-                    found
-                        .entry(Pair::Prod(a.min(b), a.max(b)))
-                        .or_insert((*var, 1.0));
+                    found.entry(Pair::product(a, b)).or_insert((*var, 1.0));
                 }
             }
             Code::Sum { constant, terms } if *constant == 0.0 && terms.len() == 2 => {
-                if let (Some(a), Some(b)) = (Leaf::of(&terms[0].1), Leaf::of(&terms[1].1)) {
-                    let ((x, cx), (y, cy)) = if a < b {
-                        ((a, terms[0].0), (b, terms[1].0))
-                    } else {
-                        ((b, terms[1].0), (a, terms[0].0))
-                    };
-                    let r = cy / cx;
-                    if r.is_finite() && r != 0.0 && x != y {
-                        found
-                            .entry(Pair::Sum(x, y, r.to_bits()))
-                            .or_insert((*var, cx));
+                let [(ca, a), (cb, b)] = [&terms[0], &terms[1]];
+                if let (Some(a), Some(b)) = (Leaf::of(a), Leaf::of(b)) {
+                    if let Some((pair, cx)) = Pair::sum(a, *ca, b, *cb) {
+                        found.entry(pair).or_insert((*var, cx));
                     }
                 }
             }

@@ -332,8 +332,8 @@ impl<const N: usize> Lu<N> {
 /// 3 x 3 matrix) is inverted block by block in closed form, adjugate over
 /// determinant. Elimination is one long chain of dependent divisions and
 /// updates; the closed-form blocks are short independent chains that the
-/// processor overlaps (the rigid robot's inverse-dynamics call went from
-/// 1.69 to 1.60 us with it, `benches/robot.rs`). Anything
+/// processor overlaps (with the slice kernels of this module, the rigid
+/// robot's inverse-dynamics call went from 1.78 to 1.60 us). Anything
 /// else, and a block whose determinant is zero or not finite (e.g. by
 /// underflow), goes to [`gauss_jordan`].
 pub(crate) fn invert_in_place<const N: usize>(m: &mut SMatrix<f64, N, N>) -> bool {
@@ -415,13 +415,13 @@ impl<const N: usize> SmallBlocks<N> {
             let size = bit_indices(rows, &mut r);
             bit_indices(cols, &mut c);
             // The inverse's block sits at the transposed place: (c, r).
+            let b = |i: usize, j: usize| a[(r[i], c[j])];
             let ok = match size {
                 1 => {
-                    inv[(c[0], r[0])] = 1.0 / a[(r[0], c[0])];
+                    inv[(c[0], r[0])] = 1.0 / b(0, 0);
                     true
                 }
                 2 => {
-                    let b = |i: usize, j: usize| a[(r[i], c[j])];
                     let det = b(0, 0) * b(1, 1) - b(0, 1) * b(1, 0);
                     let s = 1.0 / det;
                     inv[(c[0], r[0])] = b(1, 1) * s;
@@ -431,7 +431,6 @@ impl<const N: usize> SmallBlocks<N> {
                     det != 0.0 && s.is_finite()
                 }
                 _ => {
-                    let b = |i: usize, j: usize| a[(r[i], c[j])];
                     // Cofactors of the first row, the determinant, then the
                     // adjugate (transposed cofactors) over it.
                     let c00 = b(1, 1) * b(2, 2) - b(1, 2) * b(2, 1);
