@@ -43,6 +43,8 @@ pub enum Quantity {
     ActuatorMap,
     /// Constraint forces (Lagrange multipliers) `lambda`.
     ConstraintForces,
+    /// Prescribed outputs of a servo: `y(q)`, `Y_q(q)` or `(dY_q/dt) qd`.
+    Outputs,
 }
 
 impl Quantity {
@@ -66,6 +68,7 @@ impl Quantity {
             Quantity::ConstraintRhs => "constraint acceleration rhs gamma",
             Quantity::ActuatorMap => "actuator map B",
             Quantity::ConstraintForces => "constraint forces lambda",
+            Quantity::Outputs => "servo outputs y, Y_q or (dY_q/dt) qd",
         }
     }
 }
@@ -126,6 +129,17 @@ pub enum ErrorKind {
     SingularActuation {
         /// Condition estimate of the actuation matrix projected onto the
         /// free motion directions.
+        condition: f64,
+        /// The limit it exceeded.
+        limit: f64,
+    },
+    /// The prescribed outputs of a servo do not determine the actuator
+    /// inputs at this state: the servo matrix `Y_q P B` (the outputs'
+    /// acceleration per unit input along the motions the constraints admit,
+    /// see [`crate::control`]) is singular or too ill-conditioned.
+    SingularServo {
+        /// 2-norm condition of the row- and column-equilibrated servo matrix
+        /// (`f64::INFINITY` when exactly singular).
         condition: f64,
         /// The limit it exceeded.
         limit: f64,
@@ -195,8 +209,31 @@ pub enum ErrorKind {
         /// Part of the interval covered before giving up.
         reached: f64,
     },
-    /// Invalid solver set-up (e.g. prescribed coordinate indices out of range
-    /// or repeated, or too few constraints to determine the free coordinates).
+    /// An index in a solver's set-up (a prescribed coordinate, the
+    /// coordinate an actuator's feedback acts on) is out of range or repeated.
+    InvalidIndex {
+        /// What the indices select.
+        what: &'static str,
+        /// Position of the offending entry in the caller's list.
+        entry: usize,
+        /// The offending index.
+        index: usize,
+        /// Number of valid indices (`0..len`); an index below it is a repeat
+        /// of an earlier entry.
+        len: usize,
+    },
+    /// A set-up parameter (e.g. a feedback gain) is outside its valid range.
+    InvalidParameter {
+        /// Which parameter, with its valid range.
+        what: &'static str,
+        /// Index of the offending entry.
+        index: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// Invalid solver set-up (e.g. too few constraints to determine the free
+    /// coordinates, or a servo with more or fewer prescribed outputs than
+    /// actuator inputs).
     InvalidConfiguration {
         /// What is wrong.
         reason: &'static str,
@@ -223,6 +260,31 @@ impl Error {
     pub const fn new(kind: ErrorKind, t: f64) -> Self {
         Error { kind, t }
     }
+}
+
+/// Checks that every entry of `indices` is below `len` and, if `distinct`,
+/// that none repeats an earlier one ([`ErrorKind::InvalidIndex`] naming the
+/// first offender).
+pub(crate) fn check_indices(
+    what: &'static str,
+    indices: &[usize],
+    len: usize,
+    distinct: bool,
+) -> Result<(), Error> {
+    for (entry, &index) in indices.iter().enumerate() {
+        if index >= len || (distinct && indices[..entry].contains(&index)) {
+            return Err(Error::new(
+                ErrorKind::InvalidIndex {
+                    what,
+                    entry,
+                    index,
+                    len,
+                },
+                0.0,
+            ));
+        }
+    }
+    Ok(())
 }
 
 impl fmt::Display for ErrorKind {
@@ -258,6 +320,12 @@ impl fmt::Display for ErrorKind {
             ErrorKind::SingularActuation { condition, limit } => write!(
                 f,
                 "actuation singular: condition estimate {:e} > limit {:e}",
+                condition, limit
+            ),
+            ErrorKind::SingularServo { condition, limit } => write!(
+                f,
+                "the prescribed outputs do not determine the actuator inputs here: servo matrix \
+                 Y_q P B singular or ill-conditioned (condition estimate {:e} > limit {:e})",
                 condition, limit
             ),
             ErrorKind::NewtonNotConverged { iterations, residual } => write!(
@@ -311,6 +379,29 @@ impl fmt::Display for ErrorKind {
                 "adaptive integration used its {} substeps after covering {:e} of the interval",
                 substeps, reached
             ),
+            ErrorKind::InvalidIndex {
+                what,
+                entry,
+                index,
+                len,
+            } => {
+                if index >= len {
+                    write!(
+                        f,
+                        "invalid {} index: entry {} is {}, outside 0..{}",
+                        what, entry, index, len
+                    )
+                } else {
+                    write!(
+                        f,
+                        "invalid {} index: entry {} repeats index {}",
+                        what, entry, index
+                    )
+                }
+            }
+            ErrorKind::InvalidParameter { what, index, value } => {
+                write!(f, "invalid {} [{}] = {}", what, index, value)
+            }
             ErrorKind::InvalidConfiguration { reason } => write!(f, "invalid configuration: {}", reason),
         }
     }

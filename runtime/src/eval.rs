@@ -8,7 +8,7 @@ use crate::model::Model;
 use nalgebra::{SMatrix, SVector};
 
 #[inline]
-fn check<const R: usize, const C: usize>(
+pub(crate) fn check<const R: usize, const C: usize>(
     m: &SMatrix<f64, R, C>,
     quantity: Quantity,
     t: f64,
@@ -98,6 +98,14 @@ pub(crate) fn dynamics_terms_into<
     o: &mut Terms<NQ, NC>,
 ) -> Result<(), Error> {
     model.dynamics_terms(q, qd, t, &mut o.m, &mut o.h, &mut o.phi_q, &mut o.gamma);
+    check_terms(o, t)
+}
+
+/// Checks every term of `o` (evaluated at time `t`).
+pub(crate) fn check_terms<const NQ: usize, const NC: usize>(
+    o: &Terms<NQ, NC>,
+    t: f64,
+) -> Result<(), Error> {
     check(&o.m, Quantity::MassMatrix, t)?;
     check(&o.h, Quantity::Bias, t)?;
     check(&o.phi_q, Quantity::ConstraintJacobian, t)?;

@@ -442,33 +442,17 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     /// Creates the solver for the coordinates `prescribed` (indices into `q`),
     /// starting the first position solve from `initial_guess`.
     ///
-    /// Fails with [`ErrorKind::InvalidConfiguration`] if an index is out of
-    /// range or repeated, or if there are fewer constraints than free
-    /// coordinates (`NC < NQ - NP`, the motion would be under-determined);
+    /// Fails with [`ErrorKind::InvalidIndex`] if an index is out of range or
+    /// repeated, with [`ErrorKind::InvalidConfiguration`] if there are fewer
+    /// constraints than free coordinates (`NC < NQ - NP`, the motion would be
+    /// under-determined);
     /// with [`ErrorKind::NonFiniteState`] if the guess is not finite.
     pub fn new(
         prescribed: [usize; NP],
         initial_guess: SVector<f64, NQ>,
         config: InverseConfig,
     ) -> Result<Self, Error> {
-        for (k, &i) in prescribed.iter().enumerate() {
-            if i >= NQ {
-                return Err(Error::new(
-                    ErrorKind::InvalidConfiguration {
-                        reason: "prescribed coordinate index out of range",
-                    },
-                    0.0,
-                ));
-            }
-            if prescribed[..k].contains(&i) {
-                return Err(Error::new(
-                    ErrorKind::InvalidConfiguration {
-                        reason: "prescribed coordinate index repeated",
-                    },
-                    0.0,
-                ));
-            }
-        }
+        crate::error::check_indices("prescribed coordinate", &prescribed, NQ, true)?;
         if NP > NQ || NC < NQ - NP {
             return Err(Error::new(
                 ErrorKind::InvalidConfiguration {

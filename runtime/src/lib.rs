@@ -9,6 +9,9 @@
 //!   Gauss–Legendre (order 4), generalized-α; all in place, state unchanged on error.
 //! * [`InverseDynamics`]: prescribed motion to actuator inputs and
 //!   constraint forces, one bounded call per control tick.
+//! * [`control`]: state feedback, joint PD and servo constraints (prescribed
+//!   outputs, inputs chosen to follow them, the other coordinates
+//!   integrated) for any scene, as wrapper models.
 //!
 //! Every fallible call returns [`Error`], a small `Copy` value saying what went
 //! wrong ([`ErrorKind`]) and at which time. Loops are bounded by iteration
@@ -23,6 +26,7 @@
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
 )]
 
+pub mod control;
 mod dynamics;
 mod error;
 mod eval;

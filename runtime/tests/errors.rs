@@ -649,14 +649,32 @@ fn adaptive_step_failures() {
 fn invalid_configuration() {
     let q = V::<3>::zeros();
     let cfg = InverseConfig::default();
-    for e in [
-        InverseDynamics::<3, 2, 1, 1>::new([3], q, cfg).expect_err("out of range"),
-        InverseDynamics::<3, 2, 1, 2>::new([1, 1], q, cfg).expect_err("repeated"),
-        InverseDynamics::<3, 2, 1, 0>::new([], q, cfg).expect_err("under-determined"),
-    ] {
-        assert!(
-            matches!(e.kind, ErrorKind::InvalidConfiguration { .. }),
-            "{e}"
-        );
-    }
+    let e = InverseDynamics::<3, 2, 1, 1>::new([3], q, cfg).expect_err("out of range");
+    assert_eq!(
+        e.kind,
+        ErrorKind::InvalidIndex {
+            what: "prescribed coordinate",
+            entry: 0,
+            index: 3,
+            len: 3
+        },
+        "{e}"
+    );
+    let e = InverseDynamics::<3, 2, 1, 2>::new([1, 1], q, cfg).expect_err("repeated");
+    assert_eq!(
+        e.kind,
+        ErrorKind::InvalidIndex {
+            what: "prescribed coordinate",
+            entry: 1,
+            index: 1,
+            len: 3
+        },
+        "{e}"
+    );
+    assert!(e.to_string().contains("entry 1 repeats index 1"), "{e}");
+    let e = InverseDynamics::<3, 2, 1, 0>::new([], q, cfg).expect_err("under-determined");
+    assert!(
+        matches!(e.kind, ErrorKind::InvalidConfiguration { .. }),
+        "{e}"
+    );
 }
