@@ -119,6 +119,13 @@ impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
         }
     }
 
+    /// `sqrt(v^T M^-1 v)`.
+    pub(crate) fn inverse_mass_norm(&self, v: &SVector<f64, NQ>) -> f64 {
+        let mut z = *v;
+        solve_lower(&self.l, &mut z);
+        z.norm()
+    }
+
     /// Solves `M x - Phi_q^T mu = f`, `Phi_q x = c`.
     pub(crate) fn solve(
         &self,

@@ -138,8 +138,9 @@ pub enum ErrorKind {
     /// acceleration per unit input along the motions the constraints admit,
     /// see [`crate::control`]) is singular or too ill-conditioned.
     SingularServo {
-        /// 2-norm condition of the row- and column-equilibrated servo matrix
-        /// (`f64::INFINITY` when exactly singular).
+        /// Servo condition `1 / sigma_min` of the servo matrix normalised by
+        /// the inverse-mass norms of the output gradients and actuator
+        /// columns (`f64::INFINITY` when exactly singular).
         condition: f64,
         /// The limit it exceeded.
         limit: f64,

@@ -192,3 +192,19 @@ fn spring_chain_and_elastic_pendulum_are_consistent() {
         0.0,
     );
 }
+
+#[test]
+fn control_test_models_are_consistent() {
+    check_model(
+        &RotatingArm::default(),
+        &V::<2>::new(0.4, 0.55),
+        &V::<2>::new(2.5, -0.3),
+        0.0,
+    );
+    check_model(
+        &CrossedCarts::default(),
+        &V::<2>::new(0.4, -0.2),
+        &V::<2>::new(1.5, -0.7),
+        0.0,
+    );
+}

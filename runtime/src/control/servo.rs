@@ -28,13 +28,18 @@
 //! ```
 //!
 //! The `NP x NU` servo matrix `Y_q P B` is the outputs' acceleration per
-//! unit input. It is square (construction requires `NP == NU`: more outputs
-//! over-determine the inputs, fewer leave them undetermined), equilibrated
-//! (rows, then columns, scaled to unit largest entry, so that the measure is
-//! independent of the units of outputs and inputs) and decomposed by a
-//! Jacobi SVD; its 2-norm condition above [`ServoConfig::max_condition`] is
-//! [`ErrorKind::SingularServo`]: the prescription does not determine the
-//! inputs there (the actuators do not move the outputs, e.g. a slider-crank
+//! unit input. Construction requires `NP == NU` (more outputs over-determine
+//! the inputs, fewer leave them undetermined). With `a_i = |y_i,q|_{M^-1}`
+//! and `b_j = |B[:, j]|_{M^-1}` (norms in the inverse mass metric), the
+//! normalised matrix `S~_ij = (Y_q P B)_ij / (a_i b_j)` has entries of
+//! magnitude at most 1 (`P` is a projector in that metric), with 1 for an
+//! actuator driving its output coordinate directly in an unconstrained model
+//! with a diagonal mass matrix; it is
+//! independent of the units of outputs and inputs. It is solved by a Jacobi
+//! SVD, and `1 / sigma_min(S~)`, the servo condition, above
+//! [`ServoConfig::max_condition`] is [`ErrorKind::SingularServo`]: the
+//! prescription does not determine the inputs there (the actuators cannot
+//! accelerate the outputs along the admissible motions, e.g. a slider-crank
 //! at dead centre with the slider prescribed and the crank driven).
 //!
 //! As a [`Model`], [`Servo`] has the bias forces `h - B u(q, qd, t)`: any
@@ -51,7 +56,7 @@ use crate::error::{check_indices, Error, ErrorKind, Quantity};
 use crate::eval::{self, Terms};
 use crate::input::Linear;
 use crate::integrate::Integrator;
-use crate::linalg::{max_abs, Svd};
+use crate::linalg::Svd;
 use crate::model::Model;
 use crate::state::{Drift, State};
 use core::cell::Cell;
@@ -119,7 +124,8 @@ pub struct ServoConfig {
     /// Stabilisation and conditioning limit of the closure constraints:
     /// must be the integrator's [`crate::StepSettings::dynamics`].
     pub dynamics: DynamicsConfig,
-    /// Largest accepted condition of the equilibrated servo matrix.
+    /// Largest accepted servo condition `1 / sigma_min` of the normalised
+    /// servo matrix (module docs).
     pub max_condition: f64,
     /// Cap on Jacobi SVD sweeps of the servo matrix.
     pub max_sweeps: u32,
@@ -147,7 +153,8 @@ pub struct ServoSolution<const NQ: usize, const NC: usize, const NU: usize> {
     pub qdd: SVector<f64, NQ>,
     /// Constraint forces (multipliers).
     pub lambda: SVector<f64, NC>,
-    /// Condition of the equilibrated servo matrix `Y_q P B`.
+    /// Servo condition: `1 / sigma_min` of the normalised servo matrix
+    /// (module docs).
     pub condition: f64,
 }
 
@@ -319,11 +326,17 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
             + (target.velocity - y_q * qd) * (2.0 * gains.alpha)
             + (target.position - y) * (gains.beta * gains.beta)
             - convective;
-        let (tau, condition) = solve_equilibrated(
+        // Scales: the M^-1-norms of the output gradients and of the
+        // actuator columns.
+        let rows =
+            SVector::<f64, NP>::from_fn(|i, _| kkt.inverse_mass_norm(&y_q.row(i).transpose()));
+        let cols =
+            SVector::<f64, NU>::from_fn(|j, _| kkt.inverse_mass_norm(&b.column(j).into_owned()));
+        let (tau, condition) = solve_normalised(
             &(y_q * xb),
             &(s - y_q * x0),
-            self.config.max_condition,
-            self.config.max_sweeps,
+            (&rows, &cols),
+            &self.config,
             t,
         )?;
         let qdd = x0 + xb * tau;
@@ -339,47 +352,42 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
     }
 }
 
-/// Solves the square system `a x = rhs` after scaling the rows, then the
-/// columns, of `a` to unit largest entry; returns `x` and the 2-norm
-/// condition of the scaled matrix, or [`ErrorKind::SingularServo`] when that
-/// exceeds `limit` (a zero row or column: infinite).
-fn solve_equilibrated<const NP: usize, const NU: usize>(
+/// Solves the square system `a x = rhs` with `a` normalised to
+/// `a~ = diag(1 / rows) a diag(1 / cols)`; returns `x` and `1 / sigma_min(a~)`,
+/// or [`ErrorKind::SingularServo`] when that exceeds `limit` (a zero row or
+/// column scale: infinite).
+fn solve_normalised<const NP: usize, const NU: usize>(
     a: &SMatrix<f64, NP, NU>,
     rhs: &SVector<f64, NP>,
-    limit: f64,
-    max_sweeps: u32,
+    (rows, cols): (&SVector<f64, NP>, &SVector<f64, NU>),
+    config: &ServoConfig,
     t: f64,
 ) -> Result<(SVector<f64, NU>, f64), Error> {
-    eval::check_result(a, Quantity::Input, t)?;
+    let limit = config.max_condition;
     let singular = |condition: f64| Error::new(ErrorKind::SingularServo { condition, limit }, t);
+    if !(rows.iter().chain(cols.iter()).all(|s| *s > 0.0)) {
+        return Err(singular(f64::INFINITY));
+    }
     let mut scaled = *a;
-    let mut row_scale = SVector::<f64, NP>::zeros();
-    for i in 0..NP {
-        let m = max_abs(&scaled.row(i).into_owned());
-        if !(m > 0.0) {
-            return Err(singular(f64::INFINITY));
-        }
-        row_scale[i] = 1.0 / m;
-        scaled.row_mut(i).scale_mut(row_scale[i]);
-    }
-    let mut col_scale = SVector::<f64, NU>::zeros();
     for j in 0..NU {
-        let m = max_abs(&scaled.column(j).into_owned());
-        if !(m > 0.0) {
-            return Err(singular(f64::INFINITY));
+        for i in 0..NP {
+            scaled[(i, j)] /= rows[i] * cols[j];
         }
-        col_scale[j] = 1.0 / m;
-        scaled.column_mut(j).scale_mut(col_scale[j]);
     }
-    let svd = Svd::new(&scaled, max_sweeps)
+    eval::check_result(&scaled, Quantity::Input, t)?;
+    let svd = Svd::new(&scaled, config.max_sweeps)
         .map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))?;
-    let condition = svd.condition_of_leading(NU);
+    let condition = if NU == 0 {
+        1.0
+    } else {
+        1.0 / svd.sigma_sorted(NU - 1)
+    };
     if !(condition <= limit) {
         return Err(singular(condition));
     }
     let mut z = SVector::<f64, NU>::zeros();
-    svd.solve(&rhs.component_mul(&row_scale), NU, &mut z);
-    let x = z.component_mul(&col_scale);
+    svd.solve(&rhs.component_div(rows), NU, &mut z);
+    let x = z.component_div(cols);
     eval::check_result(&x, Quantity::Input, t)?;
     Ok((x, condition))
 }
@@ -445,7 +453,7 @@ pub struct ServoSample<const NQ: usize, const NU: usize> {
 pub struct ServoSummary {
     /// Steps taken.
     pub steps: usize,
-    /// Largest condition of the equilibrated servo matrix seen.
+    /// Largest servo condition seen.
     pub max_condition: f64,
     /// Largest constraint drift after any step.
     pub max_drift: Drift,

@@ -543,6 +543,102 @@ impl Model<2, 0, 1> for ElasticPendulum {
 }
 
 // ---------------------------------------------------------------------------
+// Rotating arm in a horizontal plane: hub inertia j, angle theta (torque
+// input), carrying a slider of mass m on a radial spring (stiffness k, rest
+// radius r0, viscous damping c along the arm) at radius r. q = (theta, r).
+// The slider is the "elastic" coordinate of a servo test: with theta(t)
+// prescribed it obeys m r'' + c r' + k (r - r0) = m r theta'^2.
+// ---------------------------------------------------------------------------
+#[derive(Clone, Copy, Debug)]
+pub struct RotatingArm {
+    pub j: f64,
+    pub m: f64,
+    pub k: f64,
+    pub r0: f64,
+    pub c: f64,
+}
+
+impl Default for RotatingArm {
+    fn default() -> Self {
+        RotatingArm {
+            j: 0.5,
+            m: 1.0,
+            k: 400.0,
+            r0: 0.5,
+            c: 0.0,
+        }
+    }
+}
+
+impl Model<2, 0, 1> for RotatingArm {
+    const NAME: &'static str = "rotating_arm";
+    const COORDINATES: [&'static str; 2] = ["theta", "r"];
+    const ACTUATORS: [&'static str; 1] = ["hub_torque"];
+    fn mass_matrix(&self, q: &V<2>, _t: f64, m: &mut Mat<2, 2>) {
+        *m = Mat::<2, 2>::new(self.j + self.m * q[1] * q[1], 0.0, 0.0, self.m);
+    }
+    fn bias(&self, q: &V<2>, qd: &V<2>, _t: f64, h: &mut V<2>) {
+        let r = q[1];
+        h[0] = 2.0 * self.m * r * qd[1] * qd[0];
+        h[1] = -self.m * r * qd[0] * qd[0] + self.k * (r - self.r0) + self.c * qd[1];
+    }
+    fn constraints(&self, _q: &V<2>, _t: f64, _phi: &mut V<0>) {}
+    fn constraint_jacobian(&self, _q: &V<2>, _t: f64, _j: &mut Mat<0, 2>) {}
+    fn constraint_time_derivative(&self, _q: &V<2>, _t: f64, _p: &mut V<0>) {}
+    fn constraint_rhs(&self, _q: &V<2>, _qd: &V<2>, _t: f64, _g: &mut V<0>) {}
+    fn actuator_map(&self, b: &mut Mat<2, 1>) {
+        *b = Mat::<2, 1>::new(1.0, 0.0);
+    }
+    fn kinetic_energy(&self, q: &V<2>, qd: &V<2>, _t: f64) -> f64 {
+        0.5 * (self.j + self.m * q[1] * q[1]) * qd[0] * qd[0] + 0.5 * self.m * qd[1] * qd[1]
+    }
+    fn potential_energy(&self, q: &V<2>, _t: f64) -> f64 {
+        0.5 * self.k * (q[1] - self.r0) * (q[1] - self.r0)
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Two free carts of masses m0, m1 on a line, with crossed actuators:
+// actuator 0 pushes cart 1, actuator 1 pushes cart 0 (B = [[0, 1], [1, 0]]).
+// ---------------------------------------------------------------------------
+#[derive(Clone, Copy, Debug)]
+pub struct CrossedCarts {
+    pub m0: f64,
+    pub m1: f64,
+}
+
+impl Default for CrossedCarts {
+    fn default() -> Self {
+        CrossedCarts { m0: 2.0, m1: 0.5 }
+    }
+}
+
+impl Model<2, 0, 2> for CrossedCarts {
+    const NAME: &'static str = "crossed_carts";
+    const COORDINATES: [&'static str; 2] = ["x0", "x1"];
+    const ACTUATORS: [&'static str; 2] = ["push_1", "push_0"];
+    fn mass_matrix(&self, _q: &V<2>, _t: f64, m: &mut Mat<2, 2>) {
+        *m = Mat::<2, 2>::new(self.m0, 0.0, 0.0, self.m1);
+    }
+    fn bias(&self, _q: &V<2>, _qd: &V<2>, _t: f64, h: &mut V<2>) {
+        h.fill(0.0);
+    }
+    fn constraints(&self, _q: &V<2>, _t: f64, _phi: &mut V<0>) {}
+    fn constraint_jacobian(&self, _q: &V<2>, _t: f64, _j: &mut Mat<0, 2>) {}
+    fn constraint_time_derivative(&self, _q: &V<2>, _t: f64, _p: &mut V<0>) {}
+    fn constraint_rhs(&self, _q: &V<2>, _qd: &V<2>, _t: f64, _g: &mut V<0>) {}
+    fn actuator_map(&self, b: &mut Mat<2, 2>) {
+        *b = Mat::<2, 2>::new(0.0, 1.0, 1.0, 0.0);
+    }
+    fn kinetic_energy(&self, _q: &V<2>, qd: &V<2>, _t: f64) -> f64 {
+        0.5 * (self.m0 * qd[0] * qd[0] + self.m1 * qd[1] * qd[1])
+    }
+    fn potential_energy(&self, _q: &V<2>, _t: f64) -> f64 {
+        0.0
+    }
+}
+
+// ---------------------------------------------------------------------------
 // Pendulum in Cartesian coordinates (x, y) with the constraint
 // x^2 + y^2 - L^2 = 0; its Jacobian vanishes at the origin. Force input on x.
 // ---------------------------------------------------------------------------

@@ -1,0 +1,587 @@
+//! Servo constraints ([`Servo`], [`servo_run`]) against independent
+//! references: the pendulum's closed-form inverse dynamics, the rigid
+//! inverse-dynamics solver on a slider-crank (prescribed coordinate and a
+//! general output), a rotating arm whose radial spring-mass is not
+//! prescribed and must follow its own ODE; and the set-up and singularity
+//! errors.
+
+mod models;
+
+use flexdyn_runtime::control::{
+    servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, Target,
+};
+use flexdyn_runtime::{
+    Error, ErrorKind, GeneralizedAlpha, InverseConfig, InverseDynamics, InverseSolution, Quantity,
+    Rk4, State, StepSettings,
+};
+use models::*;
+
+/// The error of a set-up or solve that must fail.
+fn rejected<T>(r: Result<T, Error>) -> Error {
+    match r {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e,
+    }
+}
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol * b.abs().max(1.0)
+}
+
+// ---------------------------------------------------------------------------
+// Pendulum with a prescribed angle: tau = m l^2 th'' + m g l sin th + c th'.
+// ---------------------------------------------------------------------------
+
+fn pendulum() -> Pendulum {
+    Pendulum {
+        m: 1.3,
+        l: 0.7,
+        g: 9.81,
+        c: 0.3,
+    }
+}
+
+fn swing(t: f64) -> Target<1> {
+    let (s, c) = (2.0 * t).sin_cos();
+    Target {
+        position: V::<1>::new(0.2 + 0.4 * s),
+        velocity: V::<1>::new(0.8 * c),
+        acceleration: V::<1>::new(-1.6 * s),
+    }
+}
+
+/// The pendulum's torque for acceleration `a` at `(th, thd)`.
+fn pendulum_torque(p: &Pendulum, th: f64, thd: f64, a: f64) -> f64 {
+    p.m * p.l * p.l * a + p.m * p.g * p.l * th.sin() + p.c * thd
+}
+
+#[test]
+fn pendulum_servo_torque_is_the_closed_form_inverse_dynamics() {
+    let p = pendulum();
+    let config = ServoConfig::default();
+    let servo = Servo::new(&p, Coordinates([0]), swing, config).expect("servo");
+    for t in [0.0, 0.3, 1.1, 2.5] {
+        let d = swing(t);
+        // On the path: exactly the prescribed acceleration.
+        let (th, thd) = (d.position[0], d.velocity[0]);
+        let sol = servo
+            .solve(&V::<1>::new(th), &V::<1>::new(thd), t)
+            .expect("solve");
+        let expected = pendulum_torque(&p, th, thd, d.acceleration[0]);
+        assert!(
+            close(sol.tau[0], expected, 1e-13),
+            "t = {t}: {} vs {expected}",
+            sol.tau[0]
+        );
+        assert!(close(sol.qdd[0], d.acceleration[0], 1e-13));
+        assert!(close(sol.condition, 1.0, 1e-14), "{}", sol.condition);
+        // Off the path: the stabilised acceleration a + 2 alpha e' + beta^2 e.
+        let (th, thd) = (th + 0.05, thd - 0.1);
+        let sol = servo
+            .solve(&V::<1>::new(th), &V::<1>::new(thd), t)
+            .expect("solve");
+        let (al, be) = (config.output_gains.alpha, config.output_gains.beta);
+        let a =
+            d.acceleration[0] + 2.0 * al * (d.velocity[0] - thd) + be * be * (d.position[0] - th);
+        let expected = pendulum_torque(&p, th, thd, a);
+        assert!(
+            close(sol.tau[0], expected, 1e-13),
+            "t = {t}: {} vs {expected}",
+            sol.tau[0]
+        );
+    }
+}
+
+#[test]
+fn pendulum_servo_run_follows_the_path_with_the_closed_form_torque() {
+    let p = pendulum();
+    let servo = Servo::new(&p, Coordinates([0]), swing, ServoConfig::default()).expect("servo");
+    let d = swing(0.0);
+    let mut state = State::new(d.position, d.velocity, 0.0);
+    let mut integrator = GeneralizedAlpha::<1, 0>::default();
+    let (mut path_error, mut torque_error, mut samples) = (0.0f64, 0.0f64, 0);
+    let summary = servo_run(&servo, &mut integrator, &mut state, 1e-3, 2000, |s| {
+        let d = swing(s.state.t);
+        path_error = path_error.max((s.state.q[0] - d.position[0]).abs());
+        let expected = pendulum_torque(&p, d.position[0], d.velocity[0], d.acceleration[0]);
+        torque_error = torque_error.max((s.tau[0] - expected).abs());
+        samples += 1;
+    })
+    .expect("servo run");
+    println!("pendulum: path error {path_error:.3e} rad, torque error {torque_error:.3e} N m");
+    assert_eq!((summary.steps, samples), (2000, 2001));
+    assert!(close(state.t, 2.0, 1e-12));
+    assert!(path_error < 5e-7, "{path_error:e}");
+    assert!(torque_error < 1e-5, "{torque_error:e}");
+}
+
+// ---------------------------------------------------------------------------
+// Slider-crank (q = crank, rod, slider; crank torque) against the rigid
+// inverse-dynamics solver.
+// ---------------------------------------------------------------------------
+
+/// Slider position 0.3 + 0.05 sin(3 t) (between the dead centres at 0.2 and
+/// 0.4).
+fn slider_path(t: f64) -> Target<1> {
+    let (s, c) = (3.0 * t).sin_cos();
+    Target {
+        position: V::<1>::new(0.3 + 0.05 * s),
+        velocity: V::<1>::new(0.15 * c),
+        acceleration: V::<1>::new(-0.45 * s),
+    }
+}
+
+/// The rigid inverse dynamics of the slider-crank with coordinate `index`
+/// following `path`, at `t`.
+struct Rigid {
+    solver: InverseDynamics<3, 2, 1, 1>,
+}
+
+impl Rigid {
+    fn new(index: usize) -> Self {
+        let guess = SliderCrank::default().consistent_state(1.4, 0.0).q;
+        let solver =
+            InverseDynamics::new([index], guess, InverseConfig::default()).expect("set-up");
+        Rigid { solver }
+    }
+    fn at(&mut self, path: impl Fn(f64) -> Target<1>, t: f64) -> InverseSolution<3, 2, 1> {
+        let d = path(t);
+        let mut out = InverseSolution::default();
+        self.solver
+            .solve(
+                &SliderCrank::default(),
+                t,
+                &d.position,
+                &d.velocity,
+                &d.acceleration,
+                &mut out,
+            )
+            .expect("rigid inverse dynamics");
+        out
+    }
+}
+
+#[test]
+fn slider_crank_servo_matches_the_rigid_inverse_dynamics() {
+    let model = SliderCrank::default();
+    let servo = Servo::new(
+        &model,
+        Coordinates([2]),
+        slider_path,
+        ServoConfig::default(),
+    )
+    .expect("servo");
+    let mut rigid = Rigid::new(2);
+    for k in 0..20 {
+        let t = 0.1 * k as f64;
+        let reference = rigid.at(slider_path, t);
+        let sol = servo
+            .solve(&reference.q, &reference.qd, t)
+            .expect("servo solve");
+        assert!(
+            close(sol.tau[0], reference.tau[0], 1e-10),
+            "t = {t}: {} vs {}",
+            sol.tau[0],
+            reference.tau[0]
+        );
+        for i in 0..3 {
+            assert!(
+                close(sol.qdd[i], reference.qdd[i], 1e-9),
+                "qdd[{i}] at t = {t}"
+            );
+        }
+        for i in 0..2 {
+            assert!(
+                close(sol.lambda[i], reference.lambda[i], 1e-9),
+                "lambda[{i}] at t = {t}"
+            );
+        }
+        assert!(
+            sol.condition > 1.0 && sol.condition < 10.0,
+            "{}",
+            sol.condition
+        );
+    }
+}
+
+#[test]
+fn rigid_servo_run_reproduces_the_rigid_inverse_dynamics() {
+    let model = SliderCrank::default();
+    let servo = Servo::new(
+        &model,
+        Coordinates([2]),
+        slider_path,
+        ServoConfig::default(),
+    )
+    .expect("servo");
+    let mut rigid = Rigid::new(2);
+    let start = rigid.at(slider_path, 0.0);
+    let mut state = State::new(start.q, start.qd, 0.0);
+    let mut integrator =
+        GeneralizedAlpha::<3, 2>::new(StepSettings::with_projection(), Default::default());
+    let mut samples: Vec<ServoSample<3, 1>> = Vec::new();
+    servo_run(&servo, &mut integrator, &mut state, 2e-3, 1000, |s| {
+        samples.push(*s)
+    })
+    .expect("servo run");
+    let (mut torque_error, mut path_error, mut scale) = (0.0f64, 0.0f64, 0.0f64);
+    for s in &samples {
+        let reference = rigid.at(slider_path, s.state.t);
+        torque_error = torque_error.max((s.tau[0] - reference.tau[0]).abs());
+        scale = scale.max(reference.tau[0].abs());
+        path_error = path_error.max((s.state.q - reference.q).amax());
+    }
+    println!(
+        "slider-crank: torque error {torque_error:.3e} of {scale:.3e} N m, path {path_error:.3e}"
+    );
+    assert_eq!(samples.len(), 1001);
+    assert!(torque_error < 1e-5 * scale, "{torque_error:e}");
+    assert!(path_error < 5e-6, "{path_error:e}");
+}
+
+/// The crank pin's height `y = r sin(theta)`: a general output.
+struct CrankPinHeight(f64);
+
+impl Outputs<3, 1> for CrankPinHeight {
+    fn evaluate(
+        &self,
+        q: &V<3>,
+        qd: &V<3>,
+        y: &mut V<1>,
+        y_q: &mut Mat<1, 3>,
+        convective: &mut V<1>,
+    ) {
+        let (s, c) = q[0].sin_cos();
+        y[0] = self.0 * s;
+        *y_q = Mat::<1, 3>::new(self.0 * c, 0.0, 0.0);
+        convective[0] = -self.0 * s * qd[0] * qd[0];
+    }
+}
+
+/// Crank angle 0.8 + 0.3 sin(2 t).
+fn crank_path(t: f64) -> Target<1> {
+    let (s, c) = (2.0 * t).sin_cos();
+    Target {
+        position: V::<1>::new(0.8 + 0.3 * s),
+        velocity: V::<1>::new(0.6 * c),
+        acceleration: V::<1>::new(-1.2 * s),
+    }
+}
+
+#[test]
+fn general_output_servo_matches_the_prescribed_coordinate_it_implies() {
+    let model = SliderCrank::default();
+    let r = model.r;
+    // y_d = r sin(theta_d) and its derivatives by the chain rule.
+    let height = move |t: f64| {
+        let d = crank_path(t);
+        let (th, w, a) = (d.position[0], d.velocity[0], d.acceleration[0]);
+        let (s, c) = th.sin_cos();
+        Target {
+            position: V::<1>::new(r * s),
+            velocity: V::<1>::new(r * c * w),
+            acceleration: V::<1>::new(r * (c * a - s * w * w)),
+        }
+    };
+    let servo =
+        Servo::new(&model, CrankPinHeight(r), height, ServoConfig::default()).expect("servo");
+    let mut rigid = Rigid::new(0);
+    for k in 0..15 {
+        let t = 0.13 * k as f64;
+        let reference = rigid.at(crank_path, t);
+        let sol = servo
+            .solve(&reference.q, &reference.qd, t)
+            .expect("servo solve");
+        assert!(
+            close(sol.tau[0], reference.tau[0], 1e-10),
+            "t = {t}: {} vs {}",
+            sol.tau[0],
+            reference.tau[0]
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Rotating arm: hub angle prescribed, the radial spring-mass integrated.
+// ---------------------------------------------------------------------------
+
+fn arm() -> RotatingArm {
+    RotatingArm {
+        c: 0.4,
+        ..RotatingArm::default()
+    }
+}
+
+/// Hub angle 3 t + 0.3 sin(2 t).
+fn spin(t: f64) -> Target<1> {
+    let (s, c) = (2.0 * t).sin_cos();
+    Target {
+        position: V::<1>::new(3.0 * t + 0.3 * s),
+        velocity: V::<1>::new(3.0 + 0.6 * c),
+        acceleration: V::<1>::new(-1.2 * s),
+    }
+}
+
+/// `(r, r')` at `t = k * dt` for `k = 0..=steps` from the slider's own ODE
+/// `m r'' = m r w(t)^2 - c r' - k (r - r0)`, `w = theta_d'`, by classical
+/// RK4 with 100 substeps per interval.
+fn slider_reference(a: &RotatingArm, dt: f64, steps: usize) -> Vec<(f64, f64)> {
+    let f = |t: f64, x: [f64; 2]| {
+        let w = spin(t).velocity[0];
+        [
+            x[1],
+            (a.m * x[0] * w * w - a.c * x[1] - a.k * (x[0] - a.r0)) / a.m,
+        ]
+    };
+    let h = dt / 100.0;
+    let mut x = [a.r0, 0.0];
+    let mut out = vec![(x[0], x[1])];
+    for k in 0..steps {
+        for n in 0..100 {
+            let t = k as f64 * dt + n as f64 * h;
+            let k1 = f(t, x);
+            let k2 = f(
+                t + h / 2.0,
+                [x[0] + h / 2.0 * k1[0], x[1] + h / 2.0 * k1[1]],
+            );
+            let k3 = f(
+                t + h / 2.0,
+                [x[0] + h / 2.0 * k2[0], x[1] + h / 2.0 * k2[1]],
+            );
+            let k4 = f(t + h, [x[0] + h * k3[0], x[1] + h * k3[1]]);
+            for i in 0..2 {
+                x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        out.push((x[0], x[1]));
+    }
+    out
+}
+
+/// Largest deviations of `(r, tau)` from the reference over 2 s at 1 ms.
+fn arm_errors(integrator: &mut (impl flexdyn_runtime::Integrator<2, 0, 1> + Clone)) -> (f64, f64) {
+    let a = arm();
+    let servo = Servo::new(&a, Coordinates([0]), spin, ServoConfig::default()).expect("servo");
+    let (dt, steps) = (1e-3, 2000);
+    let reference = slider_reference(&a, dt, steps);
+    let d = spin(0.0);
+    let mut state = State::new(
+        V::<2>::new(d.position[0], a.r0),
+        V::<2>::new(d.velocity[0], 0.0),
+        0.0,
+    );
+    let (mut r_error, mut tau_error, mut k) = (0.0f64, 0.0f64, 0);
+    servo_run(&servo, integrator, &mut state, dt, steps, |s| {
+        let (r, rd) = reference[k];
+        let d = spin(s.state.t);
+        let (w, alpha) = (d.velocity[0], d.acceleration[0]);
+        let tau = (a.j + a.m * r * r) * alpha + 2.0 * a.m * r * rd * w;
+        r_error = r_error.max((s.state.q[1] - r).abs());
+        tau_error = tau_error.max((s.tau[0] - tau).abs());
+        k += 1;
+    })
+    .expect("servo run");
+    assert_eq!(k, steps + 1);
+    // The slider does move: the centrifugal load stretches the spring.
+    let stretch = reference.iter().map(|x| x.0 - a.r0).fold(0.0, f64::max);
+    assert!(stretch > 0.01, "{stretch}");
+    (r_error, tau_error)
+}
+
+#[test]
+fn unprescribed_elastic_coordinate_follows_its_own_ode() {
+    let (r_ga, tau_ga) = arm_errors(&mut GeneralizedAlpha::<2, 0>::default());
+    let (r_rk, tau_rk) = arm_errors(&mut Rk4::new(StepSettings::default()));
+    println!(
+        "rotating arm, generalized-alpha: r error {r_ga:.3e} m, torque error {tau_ga:.3e} N m"
+    );
+    println!("rotating arm, RK4: r error {r_rk:.3e} m, torque error {tau_rk:.3e} N m");
+    assert!(r_ga < 1e-4 && tau_ga < 5e-3, "{r_ga:e} {tau_ga:e}");
+    assert!(r_rk < 1e-6 && tau_rk < 1e-4, "{r_rk:e} {tau_rk:e}");
+}
+
+// ---------------------------------------------------------------------------
+// Errors.
+// ---------------------------------------------------------------------------
+
+fn still(_t: f64) -> Target<1> {
+    Target {
+        position: V::<1>::new(0.5),
+        velocity: V::<1>::zeros(),
+        acceleration: V::<1>::zeros(),
+    }
+}
+
+#[test]
+fn servo_set_up_errors_say_what_is_wrong() {
+    let two = |_t: f64| Target {
+        position: V::<2>::zeros(),
+        velocity: V::<2>::zeros(),
+        acceleration: V::<2>::zeros(),
+    };
+    // Two outputs, one actuator.
+    let e = rejected(Servo::new(
+        &arm(),
+        Coordinates([0, 1]),
+        two,
+        ServoConfig::default(),
+    ));
+    assert!(
+        matches!(e.kind, ErrorKind::InvalidConfiguration { .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("NP > NU"), "{e}");
+    // One output, two actuators.
+    let e = rejected(Servo::new(
+        &DoublePendulum::default(),
+        Coordinates([0]),
+        still,
+        ServoConfig::default(),
+    ));
+    assert!(e.to_string().contains("NP < NU"), "{e}");
+    // Index out of range, and repeated.
+    let e = rejected(Servo::new(
+        &pendulum(),
+        Coordinates([1]),
+        still,
+        ServoConfig::default(),
+    ));
+    assert_eq!(
+        e.kind,
+        ErrorKind::InvalidIndex {
+            what: "prescribed coordinate",
+            entry: 0,
+            index: 1,
+            len: 1
+        }
+    );
+    let e = rejected(Servo::new(
+        &DoublePendulum::default(),
+        Coordinates([1, 1]),
+        two,
+        ServoConfig::default(),
+    ));
+    assert!(e.to_string().contains("entry 1 repeats index 1"), "{e}");
+}
+
+#[test]
+fn prescription_the_inputs_cannot_drive_is_a_singular_servo() {
+    // The hub torque does not accelerate the slider (only its rate does,
+    // through the centrifugal force): prescribing r cannot determine it.
+    let a = arm();
+    let servo = Servo::new(&a, Coordinates([1]), still, ServoConfig::default()).expect("set-up");
+    let e = rejected(servo.solve(&V::<2>::new(0.0, 0.5), &V::<2>::new(2.0, 0.0), 0.7));
+    assert_eq!(
+        e.kind,
+        ErrorKind::SingularServo {
+            condition: f64::INFINITY,
+            limit: 1e8
+        },
+        "{e}"
+    );
+    assert_eq!(e.t, 0.7);
+    assert!(
+        e.to_string()
+            .contains("do not determine the actuator inputs"),
+        "{e}"
+    );
+    // Slider-crank at dead centre (crank and rod aligned) with the slider
+    // prescribed: the crank torque cannot accelerate the slider.
+    let model = SliderCrank::default();
+    let servo = Servo::new(
+        &model,
+        Coordinates([2]),
+        slider_path,
+        ServoConfig::default(),
+    )
+    .expect("set-up");
+    let dead = model.consistent_state(0.0, 0.0);
+    let e = rejected(servo.solve(&dead.q, &dead.qd, 0.0));
+    assert!(
+        matches!(e.kind, ErrorKind::SingularServo { condition, .. } if condition > 1e8),
+        "{e}"
+    );
+    // Near it the condition grows like 1 / theta.
+    let condition = |th: f64| {
+        let s = model.consistent_state(th, 0.0);
+        servo.solve(&s.q, &s.qd, 0.0).expect("solvable").condition
+    };
+    let ratio = condition(1e-3) / condition(1e-2);
+    assert!((ratio - 10.0).abs() < 0.1, "{ratio}");
+}
+
+#[test]
+fn servo_run_reports_the_servo_failure_inside_a_step() {
+    // The slider pushed towards the outer dead centre (0.4 at t = pi/2):
+    // with a condition limit of 20 the trial step fails there.
+    let model = SliderCrank::default();
+    let towards_dead_centre = |t: f64| {
+        let (s, c) = t.sin_cos();
+        Target {
+            position: V::<1>::new(0.35 + 0.05 * s),
+            velocity: V::<1>::new(0.05 * c),
+            acceleration: V::<1>::new(-0.05 * s),
+        }
+    };
+    let config = ServoConfig {
+        max_condition: 20.0,
+        ..ServoConfig::default()
+    };
+    let servo = Servo::new(&model, Coordinates([2]), towards_dead_centre, config).expect("set-up");
+    let mut rigid = Rigid::new(2);
+    let start = rigid.at(towards_dead_centre, 0.0);
+    let mut state = State::new(start.q, start.qd, 0.0);
+    let mut integrator = Rk4::new(StepSettings::with_projection());
+    let mut last = None;
+    let e = rejected(servo_run(
+        &servo,
+        &mut integrator,
+        &mut state,
+        1e-2,
+        200,
+        |s| last = Some(*s),
+    ));
+    assert!(
+        matches!(e.kind, ErrorKind::SingularServo { condition, limit } if condition > 20.0 && limit == 20.0),
+        "{e}"
+    );
+    let last = last.expect("samples before the failure");
+    assert!(e.t > 0.5 && e.t < 1.6, "{e}");
+    assert_eq!(state, last.state, "the state is the last one recorded");
+    let ok = servo
+        .solve(&last.state.q, &last.state.qd, last.state.t)
+        .expect("last state solvable");
+    assert!(ok.condition <= 20.0);
+}
+
+#[test]
+fn non_finite_path_is_reported_as_such_through_the_integrator() {
+    let p = pendulum();
+    let broken = |t: f64| {
+        let mut d = swing(t);
+        if t > 0.0 {
+            d.acceleration[0] = f64::NAN;
+        }
+        d
+    };
+    let servo = Servo::new(&p, Coordinates([0]), broken, ServoConfig::default()).expect("set-up");
+    let d = swing(0.0);
+    let mut state = State::new(d.position, d.velocity, 0.0);
+    let e = rejected(servo_run(
+        &servo,
+        &mut GeneralizedAlpha::<1, 0>::default(),
+        &mut state,
+        1e-3,
+        10,
+        |_| {},
+    ));
+    assert_eq!(
+        e.kind,
+        ErrorKind::NonFiniteInput {
+            quantity: Quantity::PrescribedAcceleration,
+            index: 0
+        },
+        "{e}"
+    );
+    assert_eq!(state.t, 0.0);
+}
