@@ -8,6 +8,9 @@ mod models;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
+use flexdyn_runtime::control::{
+    servo_run, Coordinates, Feedback, JointPd, Servo, ServoConfig, Target,
+};
 use flexdyn_runtime::{
     run, AdaptiveRk4, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator,
     InverseConfig, InverseDynamics, InverseSolution, Rk4, SemiImplicitEuler, State, StepSettings,
@@ -173,4 +176,76 @@ fn failing_calls_allocate_nothing() {
             .is_err());
     });
     assert_eq!(n, 0);
+}
+
+/// The five-bar's platform on a circle of radius 0.04 about (0, 0.32).
+fn platform_circle(t: f64) -> Target<2> {
+    let w = core::f64::consts::PI;
+    let (s, c) = (w * t).sin_cos();
+    Target {
+        position: V::<2>::new(0.04 * c, 0.32 + 0.04 * s),
+        velocity: V::<2>::new(-0.04 * w * s, 0.04 * w * c),
+        acceleration: V::<2>::new(-0.04 * w * w * c, -0.04 * w * w * s),
+    }
+}
+
+#[test]
+fn control_loops_allocate_nothing() {
+    let model = FiveBar::<2>::default();
+    let q0 = model.assemble(0.04, 0.32);
+    let d = platform_circle(0.0);
+    let mut id =
+        InverseDynamics::<6, 4, 2, 2>::new([4, 5], q0, InverseConfig::default()).expect("set-up");
+    let mut start = InverseSolution::default();
+    id.solve(
+        &model,
+        0.0,
+        &d.position,
+        &d.velocity,
+        &d.acceleration,
+        &mut start,
+    )
+    .expect("start on the circle");
+    let settings = StepSettings::with_projection();
+    // PD on the two base joints towards their starting angles.
+    let (th1, th2) = (start.q[0], start.q[2]);
+    let hold = move |_t: f64| Target {
+        position: V::<2>::new(th1, th2),
+        velocity: V::<2>::zeros(),
+        acceleration: V::<2>::zeros(),
+    };
+    let pd = JointPd::<_, 6, 2>::new([0, 2], [50.0; 2], [5.0; 2], hold).expect("PD");
+    let closed = Feedback::new(&model, pd);
+    let mut s = State::new(start.q, start.qd, 0.0);
+    let mut g = GeneralizedAlpha::<6, 4>::new(settings, GeneralizedAlphaConfig::default());
+    let n = allocations_in(|| {
+        run(
+            &mut g,
+            &closed,
+            &mut s,
+            &V::<2>::zeros(),
+            2e-3,
+            500,
+            |_, _| {},
+        )
+        .expect("PD run");
+    });
+    assert_eq!(n, 0, "PD feedback");
+    // Servo constraints on the platform, and a failing solve.
+    let servo = Servo::new(
+        &model,
+        Coordinates([4, 5]),
+        platform_circle,
+        ServoConfig::default(),
+    )
+    .expect("servo");
+    let mut s = State::new(start.q, start.qd, 0.0);
+    let mut g = GeneralizedAlpha::<6, 4>::new(settings, GeneralizedAlphaConfig::default());
+    let mut samples = 0;
+    let n = allocations_in(|| {
+        servo_run(&servo, &mut g, &mut s, 2e-3, 500, |_| samples += 1).expect("servo run");
+        let bad = V::<6>::from_element(f64::NAN);
+        assert!(servo.solve(&bad, &bad, 0.0).is_err());
+    });
+    assert_eq!((n, samples), (0, 501), "servo run");
 }

@@ -301,6 +301,71 @@ fn general_output_servo_matches_the_prescribed_coordinate_it_implies() {
     }
 }
 
+/// The five-bar's platform on a circle of radius 0.04 about (0, 0.32).
+fn platform_circle(t: f64) -> Target<2> {
+    let w = core::f64::consts::PI;
+    let (s, c) = (w * t).sin_cos();
+    Target {
+        position: V::<2>::new(0.04 * c, 0.32 + 0.04 * s),
+        velocity: V::<2>::new(-0.04 * w * s, 0.04 * w * c),
+        acceleration: V::<2>::new(-0.04 * w * w * c, -0.04 * w * w * s),
+    }
+}
+
+#[test]
+fn parallel_robot_platform_servo_matches_the_rigid_inverse_dynamics() {
+    // The robot's use: a closed-chain mechanism, the platform coordinates
+    // prescribed, one actuator per prescribed coordinate.
+    let model = FiveBar::<2>::default();
+    let servo = Servo::new(
+        &model,
+        Coordinates([4, 5]),
+        platform_circle,
+        ServoConfig::default(),
+    )
+    .expect("servo");
+    let mut rigid = InverseDynamics::<6, 4, 2, 2>::new(
+        [4, 5],
+        model.assemble(0.04, 0.32),
+        InverseConfig::default(),
+    )
+    .expect("set-up");
+    let mut exact = |t: f64| {
+        let d = platform_circle(t);
+        let mut out = InverseSolution::default();
+        rigid
+            .solve(
+                &model,
+                t,
+                &d.position,
+                &d.velocity,
+                &d.acceleration,
+                &mut out,
+            )
+            .expect("rigid inverse dynamics");
+        out
+    };
+    let start = exact(0.0);
+    let mut state = State::new(start.q, start.qd, 0.0);
+    let mut integrator =
+        GeneralizedAlpha::<6, 4>::new(StepSettings::with_projection(), Default::default());
+    let (mut at_state, mut along, mut scale) = (0.0f64, 0.0f64, 0.0f64);
+    servo_run(&servo, &mut integrator, &mut state, 2e-3, 1000, |s| {
+        let reference = exact(s.state.t);
+        scale = scale.max(reference.tau.amax());
+        along = along.max((s.tau - reference.tau).amax());
+        // At the rigid solution's own state the servo is exact.
+        let sol = servo
+            .solve(&reference.q, &reference.qd, reference.t)
+            .expect("servo solve");
+        at_state = at_state.max((sol.tau - reference.tau).amax());
+    })
+    .expect("servo run");
+    println!("five-bar: torque error {along:.3e} along the run, {at_state:.3e} at the same states, of {scale:.3e} N m");
+    assert!(at_state < 1e-10 * scale, "{at_state:e}");
+    assert!(along < 1e-5 * scale, "{along:e}");
+}
+
 // ---------------------------------------------------------------------------
 // Rotating arm: hub angle prescribed, the radial spring-mass integrated.
 // ---------------------------------------------------------------------------

@@ -9,6 +9,9 @@
 //! no_std graph too.
 #![no_std]
 
+use flexdyn_runtime::control::{
+    servo_run, Coordinates, Feedback, JointPd, Servo, ServoConfig, Target,
+};
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
 use flexdyn_runtime::{
     AdaptiveRk4, Error, GaussLegendre4, GeneralizedAlpha, Integrator, InverseConfig, InverseDynamics,
@@ -91,4 +94,34 @@ pub fn torque(x: f64, v: f64, a: f64) -> Result<f64, Error> {
         &mut sol,
     )?;
     Ok(sol.tau[0])
+}
+
+/// `x` held at `x0`.
+fn hold(x0: f64) -> impl Fn(f64) -> Target<1> {
+    move |_t| Target {
+        position: SVector::<f64, 1>::new(x0),
+        velocity: SVector::zeros(),
+        acceleration: SVector::zeros(),
+    }
+}
+
+/// `steps` steps of a PD loop on `x` and of servo constraints on `x`; the
+/// final states and the last servo input.
+pub fn control(steps: usize) -> Result<([State<2>; 2], f64), Error> {
+    let model = CirclePendulum;
+    let s0 = State::new(SVector::<f64, 2>::new(0.6, -0.8), SVector::zeros(), 0.0);
+    let settings = StepSettings::with_projection();
+    let pd = JointPd::<_, 2, 1>::new([0], [10.0], [2.0], hold(0.5))?;
+    let closed = Feedback::new(&model, pd);
+    let mut out = [s0; 2];
+    let mut ga = GeneralizedAlpha::<2, 1>::new(settings, Default::default());
+    for _ in 0..steps {
+        ga.step(&closed, &mut out[0], &SVector::<f64, 1>::zeros(), 1e-3)?;
+    }
+    let servo = Servo::new(&model, Coordinates([0]), hold(0.6), ServoConfig::default())?;
+    let mut last = 0.0;
+    servo_run(&servo, &mut Rk4::new(settings), &mut out[1], 1e-3, steps, |s| {
+        last = s.tau[0]
+    })?;
+    Ok((out, last))
 }
