@@ -178,17 +178,6 @@ fn failing_calls_allocate_nothing() {
     assert_eq!(n, 0);
 }
 
-/// The five-bar's platform on a circle of radius 0.04 about (0, 0.32).
-fn platform_circle(t: f64) -> Target<2> {
-    let w = core::f64::consts::PI;
-    let (s, c) = (w * t).sin_cos();
-    Target {
-        position: V::<2>::new(0.04 * c, 0.32 + 0.04 * s),
-        velocity: V::<2>::new(-0.04 * w * s, 0.04 * w * c),
-        acceleration: V::<2>::new(-0.04 * w * w * c, -0.04 * w * w * s),
-    }
-}
-
 #[test]
 fn control_loops_allocate_nothing() {
     let model = FiveBar::<2>::default();

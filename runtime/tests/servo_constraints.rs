@@ -8,7 +8,7 @@
 mod models;
 
 use flexdyn_runtime::control::{
-    servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, Target,
+    servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, Target, Trajectory,
 };
 use flexdyn_runtime::{
     Error, ErrorKind, GeneralizedAlpha, InverseConfig, InverseDynamics, InverseSolution, Quantity,
@@ -131,8 +131,33 @@ fn slider_path(t: f64) -> Target<1> {
     }
 }
 
+/// The rigid inverse dynamics of `model` along `path` at `t`.
+fn rigid_at<M, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>(
+    solver: &mut InverseDynamics<NQ, NC, NU, NP>,
+    model: &M,
+    path: impl Fn(f64) -> Target<NP>,
+    t: f64,
+) -> InverseSolution<NQ, NC, NU>
+where
+    M: flexdyn_runtime::Model<NQ, NC, NU>,
+{
+    let d = path(t);
+    let mut out = InverseSolution::default();
+    solver
+        .solve(
+            model,
+            t,
+            &d.position,
+            &d.velocity,
+            &d.acceleration,
+            &mut out,
+        )
+        .expect("rigid inverse dynamics");
+    out
+}
+
 /// The rigid inverse dynamics of the slider-crank with coordinate `index`
-/// following `path`, at `t`.
+/// prescribed.
 struct Rigid {
     solver: InverseDynamics<3, 2, 1, 1>,
 }
@@ -144,37 +169,54 @@ impl Rigid {
             InverseDynamics::new([index], guess, InverseConfig::default()).expect("set-up");
         Rigid { solver }
     }
-    fn at(&mut self, path: impl Fn(f64) -> Target<1>, t: f64) -> InverseSolution<3, 2, 1> {
-        let d = path(t);
-        let mut out = InverseSolution::default();
-        self.solver
-            .solve(
-                &SliderCrank::default(),
-                t,
-                &d.position,
-                &d.velocity,
-                &d.acceleration,
-                &mut out,
-            )
-            .expect("rigid inverse dynamics");
-        out
+    fn at(&mut self, path: fn(f64) -> Target<1>, t: f64) -> InverseSolution<3, 2, 1> {
+        rigid_at(&mut self.solver, &SliderCrank::default(), path, t)
     }
+}
+
+/// The slider-crank with its slider following [`slider_path`].
+fn slider_servo(
+    model: &SliderCrank,
+    config: ServoConfig,
+) -> Servo<'_, SliderCrank, Coordinates<1>, fn(f64) -> Target<1>, 1> {
+    Servo::new(
+        model,
+        Coordinates([2]),
+        slider_path as fn(f64) -> Target<1>,
+        config,
+    )
+    .expect("servo")
 }
 
 #[test]
 fn slider_crank_servo_matches_the_rigid_inverse_dynamics() {
     let model = SliderCrank::default();
-    let servo = Servo::new(
-        &model,
-        Coordinates([2]),
-        slider_path,
-        ServoConfig::default(),
-    )
-    .expect("servo");
-    let mut rigid = Rigid::new(2);
-    for k in 0..20 {
-        let t = 0.1 * k as f64;
-        let reference = rigid.at(slider_path, t);
+    let servo = slider_servo(&model, ServoConfig::default());
+    let conditions = matches_rigid(&servo, 2, slider_path, (0..20).map(|k| 0.1 * k as f64));
+    assert!(
+        conditions.0 > 1.0 && conditions.1 < 10.0,
+        "servo conditions {conditions:?}"
+    );
+}
+
+/// Checks the servo's solutions at the states of the rigid inverse dynamics
+/// with coordinate `index` following `path`, at `times`: the same torques,
+/// accelerations and multipliers. Returns the smallest and largest servo
+/// condition.
+fn matches_rigid<O, T>(
+    servo: &Servo<'_, SliderCrank, O, T, 1>,
+    index: usize,
+    path: fn(f64) -> Target<1>,
+    times: impl Iterator<Item = f64>,
+) -> (f64, f64)
+where
+    O: Outputs<3, 1>,
+    T: Trajectory<1>,
+{
+    let mut rigid = Rigid::new(index);
+    let mut conditions = (f64::INFINITY, 0.0f64);
+    for t in times {
+        let reference = rigid.at(path, t);
         let sol = servo
             .solve(&reference.q, &reference.qd, t)
             .expect("servo solve");
@@ -196,24 +238,18 @@ fn slider_crank_servo_matches_the_rigid_inverse_dynamics() {
                 "lambda[{i}] at t = {t}"
             );
         }
-        assert!(
-            sol.condition > 1.0 && sol.condition < 10.0,
-            "{}",
-            sol.condition
+        conditions = (
+            conditions.0.min(sol.condition),
+            conditions.1.max(sol.condition),
         );
     }
+    conditions
 }
 
 #[test]
 fn rigid_servo_run_reproduces_the_rigid_inverse_dynamics() {
     let model = SliderCrank::default();
-    let servo = Servo::new(
-        &model,
-        Coordinates([2]),
-        slider_path,
-        ServoConfig::default(),
-    )
-    .expect("servo");
+    let servo = slider_servo(&model, ServoConfig::default());
     let mut rigid = Rigid::new(2);
     let start = rigid.at(slider_path, 0.0);
     let mut state = State::new(start.q, start.qd, 0.0);
@@ -285,31 +321,7 @@ fn general_output_servo_matches_the_prescribed_coordinate_it_implies() {
     };
     let servo =
         Servo::new(&model, CrankPinHeight(r), height, ServoConfig::default()).expect("servo");
-    let mut rigid = Rigid::new(0);
-    for k in 0..15 {
-        let t = 0.13 * k as f64;
-        let reference = rigid.at(crank_path, t);
-        let sol = servo
-            .solve(&reference.q, &reference.qd, t)
-            .expect("servo solve");
-        assert!(
-            close(sol.tau[0], reference.tau[0], 1e-10),
-            "t = {t}: {} vs {}",
-            sol.tau[0],
-            reference.tau[0]
-        );
-    }
-}
-
-/// The five-bar's platform on a circle of radius 0.04 about (0, 0.32).
-fn platform_circle(t: f64) -> Target<2> {
-    let w = core::f64::consts::PI;
-    let (s, c) = (w * t).sin_cos();
-    Target {
-        position: V::<2>::new(0.04 * c, 0.32 + 0.04 * s),
-        velocity: V::<2>::new(-0.04 * w * s, 0.04 * w * c),
-        acceleration: V::<2>::new(-0.04 * w * w * c, -0.04 * w * w * s),
-    }
+    matches_rigid(&servo, 0, crank_path, (0..15).map(|k| 0.13 * k as f64));
 }
 
 #[test]
@@ -330,21 +342,7 @@ fn parallel_robot_platform_servo_matches_the_rigid_inverse_dynamics() {
         InverseConfig::default(),
     )
     .expect("set-up");
-    let mut exact = |t: f64| {
-        let d = platform_circle(t);
-        let mut out = InverseSolution::default();
-        rigid
-            .solve(
-                &model,
-                t,
-                &d.position,
-                &d.velocity,
-                &d.acceleration,
-                &mut out,
-            )
-            .expect("rigid inverse dynamics");
-        out
-    };
+    let mut exact = |t: f64| rigid_at(&mut rigid, &model, platform_circle, t);
     let start = exact(0.0);
     let mut state = State::new(start.q, start.qd, 0.0);
     let mut integrator =

@@ -5,11 +5,22 @@
 //! independently verified equations.
 #![allow(dead_code)]
 
+use flexdyn_runtime::control::Target;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
 use flexdyn_runtime::{Model, State};
 
 pub type V<const N: usize> = SVector<f64, N>;
 pub type Mat<const R: usize, const C: usize> = SMatrix<f64, R, C>;
+
+/// The four constraint functions of a model without constraints (`NC = 0`).
+macro_rules! unconstrained {
+    ($nq:tt) => {
+        fn constraints(&self, _q: &V<$nq>, _t: f64, _phi: &mut V<0>) {}
+        fn constraint_jacobian(&self, _q: &V<$nq>, _t: f64, _j: &mut Mat<0, $nq>) {}
+        fn constraint_time_derivative(&self, _q: &V<$nq>, _t: f64, _p: &mut V<0>) {}
+        fn constraint_rhs(&self, _q: &V<$nq>, _qd: &V<$nq>, _t: f64, _g: &mut V<0>) {}
+    };
+}
 
 // ---------------------------------------------------------------------------
 // Simple pendulum: point mass m on a massless rod of length l, angle from the
@@ -44,10 +55,7 @@ impl Model<1, 0, 1> for Pendulum {
     fn bias(&self, q: &V<1>, qd: &V<1>, _t: f64, h: &mut V<1>) {
         h[0] = self.m * self.g * self.l * q[0].sin() + self.c * qd[0];
     }
-    fn constraints(&self, _q: &V<1>, _t: f64, _phi: &mut V<0>) {}
-    fn constraint_jacobian(&self, _q: &V<1>, _t: f64, _j: &mut Mat<0, 1>) {}
-    fn constraint_time_derivative(&self, _q: &V<1>, _t: f64, _p: &mut V<0>) {}
-    fn constraint_rhs(&self, _q: &V<1>, _qd: &V<1>, _t: f64, _g: &mut V<0>) {}
+    unconstrained!(1);
     fn actuator_map(&self, b: &mut Mat<1, 1>) {
         b[(0, 0)] = 1.0;
     }
@@ -102,10 +110,7 @@ impl Model<2, 0, 2> for DoublePendulum {
         h[0] = k * s * qd[1] * qd[1] + (self.m1 + self.m2) * self.g * self.l1 * q[0].sin();
         h[1] = -k * s * qd[0] * qd[0] + self.m2 * self.g * self.l2 * q[1].sin();
     }
-    fn constraints(&self, _q: &V<2>, _t: f64, _phi: &mut V<0>) {}
-    fn constraint_jacobian(&self, _q: &V<2>, _t: f64, _j: &mut Mat<0, 2>) {}
-    fn constraint_time_derivative(&self, _q: &V<2>, _t: f64, _p: &mut V<0>) {}
-    fn constraint_rhs(&self, _q: &V<2>, _qd: &V<2>, _t: f64, _g: &mut V<0>) {}
+    unconstrained!(2);
     fn actuator_map(&self, b: &mut Mat<2, 2>) {
         *b = Mat::<2, 2>::new(1.0, -1.0, 0.0, 1.0);
     }
@@ -293,6 +298,18 @@ impl<const NU: usize> FiveBar<NU> {
     }
 }
 
+/// The five-bar's platform on a circle of radius 0.04 about (0, 0.32), once
+/// in two seconds.
+pub fn platform_circle(t: f64) -> Target<2> {
+    let w = core::f64::consts::PI;
+    let (s, c) = (w * t).sin_cos();
+    Target {
+        position: V::<2>::new(0.04 * c, 0.32 + 0.04 * s),
+        velocity: V::<2>::new(-0.04 * w * s, 0.04 * w * c),
+        acceleration: V::<2>::new(-0.04 * w * w * c, -0.04 * w * w * s),
+    }
+}
+
 impl<const NU: usize> Model<6, 4, NU> for FiveBar<NU> {
     const NAME: &'static str = "five_bar";
     const COORDINATES: [&'static str; 6] = ["theta1", "phi1", "theta2", "phi2", "x", "y"];
@@ -453,10 +470,7 @@ impl<const N: usize> Model<N, 0, 1> for SpringChain<N> {
     fn bias(&self, q: &V<N>, qd: &V<N>, _t: f64, h: &mut V<N>) {
         *h = self.stiffness() * q + self.damping() * qd;
     }
-    fn constraints(&self, _q: &V<N>, _t: f64, _phi: &mut V<0>) {}
-    fn constraint_jacobian(&self, _q: &V<N>, _t: f64, _j: &mut Mat<0, N>) {}
-    fn constraint_time_derivative(&self, _q: &V<N>, _t: f64, _p: &mut V<0>) {}
-    fn constraint_rhs(&self, _q: &V<N>, _qd: &V<N>, _t: f64, _g: &mut V<0>) {}
+    unconstrained!(N);
     fn actuator_map(&self, b: &mut Mat<N, 1>) {
         b.fill(0.0);
         if N > 0 {
@@ -527,10 +541,7 @@ impl Model<2, 0, 1> for ElasticPendulum {
         h[0] = -self.m * r * qd[1] * qd[1] + self.k * (r - self.l0) - self.m * self.g * th.cos();
         h[1] = 2.0 * self.m * r * qd[0] * qd[1] + self.m * self.g * r * th.sin();
     }
-    fn constraints(&self, _q: &V<2>, _t: f64, _phi: &mut V<0>) {}
-    fn constraint_jacobian(&self, _q: &V<2>, _t: f64, _j: &mut Mat<0, 2>) {}
-    fn constraint_time_derivative(&self, _q: &V<2>, _t: f64, _p: &mut V<0>) {}
-    fn constraint_rhs(&self, _q: &V<2>, _qd: &V<2>, _t: f64, _g: &mut V<0>) {}
+    unconstrained!(2);
     fn actuator_map(&self, b: &mut Mat<2, 1>) {
         *b = Mat::<2, 1>::new(0.0, 1.0);
     }
@@ -582,10 +593,7 @@ impl Model<2, 0, 1> for RotatingArm {
         h[0] = 2.0 * self.m * r * qd[1] * qd[0];
         h[1] = -self.m * r * qd[0] * qd[0] + self.k * (r - self.r0) + self.c * qd[1];
     }
-    fn constraints(&self, _q: &V<2>, _t: f64, _phi: &mut V<0>) {}
-    fn constraint_jacobian(&self, _q: &V<2>, _t: f64, _j: &mut Mat<0, 2>) {}
-    fn constraint_time_derivative(&self, _q: &V<2>, _t: f64, _p: &mut V<0>) {}
-    fn constraint_rhs(&self, _q: &V<2>, _qd: &V<2>, _t: f64, _g: &mut V<0>) {}
+    unconstrained!(2);
     fn actuator_map(&self, b: &mut Mat<2, 1>) {
         *b = Mat::<2, 1>::new(1.0, 0.0);
     }
@@ -623,10 +631,7 @@ impl Model<2, 0, 2> for CrossedCarts {
     fn bias(&self, _q: &V<2>, _qd: &V<2>, _t: f64, h: &mut V<2>) {
         h.fill(0.0);
     }
-    fn constraints(&self, _q: &V<2>, _t: f64, _phi: &mut V<0>) {}
-    fn constraint_jacobian(&self, _q: &V<2>, _t: f64, _j: &mut Mat<0, 2>) {}
-    fn constraint_time_derivative(&self, _q: &V<2>, _t: f64, _p: &mut V<0>) {}
-    fn constraint_rhs(&self, _q: &V<2>, _qd: &V<2>, _t: f64, _g: &mut V<0>) {}
+    unconstrained!(2);
     fn actuator_map(&self, b: &mut Mat<2, 2>) {
         *b = Mat::<2, 2>::new(0.0, 1.0, 1.0, 0.0);
     }
