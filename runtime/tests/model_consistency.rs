@@ -202,6 +202,12 @@ fn control_test_models_are_consistent() {
         0.0,
     );
     check_model(
+        &AbsorberCrank::default(),
+        &V::<4>::new(0.9, 0.25, 0.35, 0.47),
+        &V::<4>::new(3.0, -1.2, 0.4, -0.6),
+        0.0,
+    );
+    check_model(
         &CrossedCarts::default(),
         &V::<2>::new(0.4, -0.2),
         &V::<2>::new(1.5, -0.7),

@@ -1,9 +1,9 @@
 //! Servo constraints ([`Servo`], [`servo_run`]) against independent
 //! references: the pendulum's closed-form inverse dynamics, the rigid
-//! inverse-dynamics solver on a slider-crank (prescribed coordinate and a
-//! general output), a rotating arm whose radial spring-mass is not
-//! prescribed and must follow its own ODE; and the set-up and singularity
-//! errors.
+//! inverse-dynamics solver (slider-crank with a prescribed coordinate or a
+//! general output, five-bar platform), a rotating arm whose radial
+//! spring-mass and a slider-crank whose absorber mass are not prescribed and
+//! must follow their own ODEs; and the set-up and singularity errors.
 
 mod models;
 
@@ -385,40 +385,48 @@ fn spin(t: f64) -> Target<1> {
     }
 }
 
-/// `(r, r')` at `t = k * dt` for `k = 0..=steps` from the slider's own ODE
-/// `m r'' = m r w(t)^2 - c r' - k (r - r0)`, `w = theta_d'`, by classical
-/// RK4 with 100 substeps per interval.
-fn slider_reference(a: &RotatingArm, dt: f64, steps: usize) -> Vec<(f64, f64)> {
-    let f = |t: f64, x: [f64; 2]| {
-        let w = spin(t).velocity[0];
-        [
-            x[1],
-            (a.m * x[0] * w * w - a.c * x[1] - a.k * (x[0] - a.r0)) / a.m,
-        ]
-    };
+/// Solution `y = (x, x')` of `x'' = accel(t, x, x')` from `y0` at `t = k dt`
+/// for `k = 0..=steps`, by classical RK4 with 100 substeps per interval.
+fn second_order_reference(
+    accel: impl Fn(f64, f64, f64) -> f64,
+    y0: [f64; 2],
+    dt: f64,
+    steps: usize,
+) -> Vec<[f64; 2]> {
+    let f = |t: f64, y: [f64; 2]| [y[1], accel(t, y[0], y[1])];
     let h = dt / 100.0;
-    let mut x = [a.r0, 0.0];
-    let mut out = vec![(x[0], x[1])];
+    let mut y = y0;
+    let mut out = vec![y];
     for k in 0..steps {
         for n in 0..100 {
             let t = k as f64 * dt + n as f64 * h;
-            let k1 = f(t, x);
+            let k1 = f(t, y);
             let k2 = f(
                 t + h / 2.0,
-                [x[0] + h / 2.0 * k1[0], x[1] + h / 2.0 * k1[1]],
+                [y[0] + h / 2.0 * k1[0], y[1] + h / 2.0 * k1[1]],
             );
             let k3 = f(
                 t + h / 2.0,
-                [x[0] + h / 2.0 * k2[0], x[1] + h / 2.0 * k2[1]],
+                [y[0] + h / 2.0 * k2[0], y[1] + h / 2.0 * k2[1]],
             );
-            let k4 = f(t + h, [x[0] + h * k3[0], x[1] + h * k3[1]]);
+            let k4 = f(t + h, [y[0] + h * k3[0], y[1] + h * k3[1]]);
             for i in 0..2 {
-                x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+                y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
             }
         }
-        out.push((x[0], x[1]));
+        out.push(y);
     }
     out
+}
+
+/// `(r, r')` at `t = k * dt` from the slider's own ODE
+/// `m r'' = m r w(t)^2 - c r' - k (r - r0)`, `w = theta_d'`.
+fn slider_reference(a: &RotatingArm, dt: f64, steps: usize) -> Vec<[f64; 2]> {
+    let accel = |t: f64, r: f64, rd: f64| {
+        let w = spin(t).velocity[0];
+        (a.m * r * w * w - a.c * rd - a.k * (r - a.r0)) / a.m
+    };
+    second_order_reference(accel, [a.r0, 0.0], dt, steps)
 }
 
 /// Largest deviations of `(r, tau)` from the reference over 2 s at 1 ms.
@@ -435,7 +443,7 @@ fn arm_errors(integrator: &mut (impl flexdyn_runtime::Integrator<2, 0, 1> + Clon
     );
     let (mut r_error, mut tau_error, mut k) = (0.0f64, 0.0f64, 0);
     servo_run(&servo, integrator, &mut state, dt, steps, |s| {
-        let (r, rd) = reference[k];
+        let [r, rd] = reference[k];
         let d = spin(s.state.t);
         let (w, alpha) = (d.velocity[0], d.acceleration[0]);
         let tau = (a.j + a.m * r * r) * alpha + 2.0 * a.m * r * rd * w;
@@ -446,7 +454,7 @@ fn arm_errors(integrator: &mut (impl flexdyn_runtime::Integrator<2, 0, 1> + Clon
     .expect("servo run");
     assert_eq!(k, steps + 1);
     // The slider does move: the centrifugal load stretches the spring.
-    let stretch = reference.iter().map(|x| x.0 - a.r0).fold(0.0, f64::max);
+    let stretch = reference.iter().map(|x| x[0] - a.r0).fold(0.0, f64::max);
     assert!(stretch > 0.01, "{stretch}");
     (r_error, tau_error)
 }
@@ -461,6 +469,119 @@ fn unprescribed_elastic_coordinate_follows_its_own_ode() {
     println!("rotating arm, RK4: r error {r_rk:.3e} m, torque error {tau_rk:.3e} N m");
     assert!(r_ga < 1e-4 && tau_ga < 5e-3, "{r_ga:e} {tau_ga:e}");
     assert!(r_rk < 1e-6 && tau_rk < 1e-4, "{r_rk:e} {tau_rk:e}");
+}
+
+// ---------------------------------------------------------------------------
+// Slider-crank with an absorber: the crank prescribed, the closure
+// constraints held, the absorber mass integrated (the flexible robot's case
+// in small: constraints plus an unprescribed elastic coordinate).
+// ---------------------------------------------------------------------------
+
+/// Crank angle 2 t + 0.2 sin(3 t): full turns.
+fn turning(t: f64) -> Target<1> {
+    let (s, c) = (3.0 * t).sin_cos();
+    Target {
+        position: V::<1>::new(2.0 * t + 0.2 * s),
+        velocity: V::<1>::new(2.0 + 0.6 * c),
+        acceleration: V::<1>::new(-1.8 * s),
+    }
+}
+
+/// The slider position and velocity for crank angle `th` and rate `w`, in
+/// closed form: `x = r cos th + sqrt(l^2 - r^2 sin^2 th)`.
+fn slider_kinematics(a: &AbsorberCrank, th: f64, w: f64) -> (f64, f64) {
+    let (r, l) = (a.crank.r, a.crank.l);
+    let (s, c) = th.sin_cos();
+    let root = (l * l - r * r * s * s).sqrt();
+    (r * c + root, (-r * s - r * r * s * c / root) * w)
+}
+
+/// `(z, z', z'')` at `t = k dt` from the absorber's base-excited ODE
+/// `m4 z'' = -k (z - x(t) - d0) - c (z' - x'(t))` with the slider's
+/// closed-form motion.
+fn absorber_reference(a: &AbsorberCrank, z0: f64, dt: f64, steps: usize) -> Vec<[f64; 3]> {
+    let accel = |t: f64, z: f64, zd: f64| {
+        let d = turning(t);
+        let (x, xd) = slider_kinematics(a, d.position[0], d.velocity[0]);
+        (-a.k * (z - x - a.d0) - a.c * (zd - xd)) / a.m4
+    };
+    second_order_reference(accel, [z0, 0.0], dt, steps)
+        .iter()
+        .zip(0..)
+        .map(|(y, k)| [y[0], y[1], accel(k as f64 * dt, y[0], y[1])])
+        .collect()
+}
+
+#[test]
+fn constrained_mechanism_with_an_unprescribed_absorber() {
+    // Absorber tuned to 6 rad/s, between the crank's 2 rad/s and its
+    // 4 rad/s harmonic.
+    let a = AbsorberCrank {
+        k: 12.0,
+        c: 0.3,
+        ..AbsorberCrank::default()
+    };
+    let settings = StepSettings::with_projection();
+    let config = ServoConfig {
+        dynamics: settings.dynamics,
+        ..ServoConfig::default()
+    };
+    let servo = Servo::new(&a, Coordinates([0]), turning, config).expect("servo");
+    let (dt, steps) = (1e-3, 2000);
+    // Start at the outer dead centre (x = r + l), the absorber relaxed.
+    let d = turning(0.0);
+    let crank = a.crank.consistent_state(d.position[0], d.velocity[0]);
+    let z0 = crank.q[2] + a.d0;
+    let reference = absorber_reference(&a, z0, dt, steps);
+    let mut state = State::new(
+        V::<4>::new(crank.q[0], crank.q[1], crank.q[2], z0),
+        V::<4>::new(crank.qd[0], crank.qd[1], crank.qd[2], 0.0),
+        0.0,
+    );
+    // Independent torque: the rigid inverse dynamics with the absorber
+    // prescribed to its reference motion as well (one actuator for two
+    // prescribed coordinates: exact when z obeys its ODE).
+    let mut rigid = InverseDynamics::<4, 2, 1, 2>::new([0, 3], state.q, InverseConfig::default())
+        .expect("set-up");
+    let mut integrator = GeneralizedAlpha::<4, 2>::new(settings, Default::default());
+    let (mut z_error, mut slider_error, mut tau_error, mut scale, mut k) =
+        (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0);
+    let summary = servo_run(&servo, &mut integrator, &mut state, dt, steps, |s| {
+        let [z, zd, zdd] = reference[k];
+        let d = turning(s.state.t);
+        let (x, _) = slider_kinematics(&a, d.position[0], d.velocity[0]);
+        z_error = z_error.max((s.state.q[3] - z).abs());
+        slider_error = slider_error.max((s.state.q[2] - x).abs());
+        let path = |_t: f64| Target {
+            position: V::<2>::new(d.position[0], z),
+            velocity: V::<2>::new(d.velocity[0], zd),
+            acceleration: V::<2>::new(d.acceleration[0], zdd),
+        };
+        let exact = rigid_at(&mut rigid, &a, path, s.state.t);
+        tau_error = tau_error.max((s.tau[0] - exact.tau[0]).abs());
+        scale = scale.max(exact.tau[0].abs());
+        k += 1;
+    })
+    .expect("servo run");
+    println!(
+        "absorber crank: z error {z_error:.3e} m, slider error {slider_error:.3e} m, \
+         torque error {tau_error:.3e} of {scale:.3e} N m, drift {:?}",
+        summary.max_drift
+    );
+    assert_eq!(k, steps + 1);
+    // The absorber does swing relative to the slider.
+    let swing = reference
+        .iter()
+        .zip(0..)
+        .map(|(r, k)| {
+            let d = turning(k as f64 * dt);
+            (r[0] - slider_kinematics(&a, d.position[0], d.velocity[0]).0 - a.d0).abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(swing > 0.01, "{swing}");
+    assert!(z_error < 5e-6, "{z_error:e} of a swing of {swing:e}");
+    assert!(slider_error < 2e-7, "{slider_error:e}");
+    assert!(tau_error < 1e-5 * scale, "{tau_error:e}");
 }
 
 // ---------------------------------------------------------------------------

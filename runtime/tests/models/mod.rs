@@ -235,6 +235,89 @@ impl Model<3, 2, 1> for SliderCrank {
 }
 
 // ---------------------------------------------------------------------------
+// Slider-crank carrying an absorber: a mass m4 at position z on the slider's
+// axis, tied to the slider by a spring (stiffness k, rest offset d0) and a
+// dashpot c. q = (theta, phi, x, z); the closure constraints and the crank
+// torque are the slider-crank's; z is unconstrained and unactuated.
+// ---------------------------------------------------------------------------
+#[derive(Clone, Copy, Debug)]
+pub struct AbsorberCrank {
+    pub crank: SliderCrank,
+    pub m4: f64,
+    pub k: f64,
+    pub d0: f64,
+    pub c: f64,
+}
+
+impl Default for AbsorberCrank {
+    fn default() -> Self {
+        AbsorberCrank {
+            crank: SliderCrank::default(),
+            m4: 0.3,
+            k: 270.0,
+            d0: 0.1,
+            c: 0.0,
+        }
+    }
+}
+
+impl AbsorberCrank {
+    fn sub(q: &V<4>) -> V<3> {
+        V::<3>::new(q[0], q[1], q[2])
+    }
+    /// Spring stretch and its rate.
+    fn stretch(&self, q: &V<4>, qd: &V<4>) -> (f64, f64) {
+        (q[3] - q[2] - self.d0, qd[3] - qd[2])
+    }
+}
+
+impl Model<4, 2, 1> for AbsorberCrank {
+    const NAME: &'static str = "absorber_crank";
+    const COORDINATES: [&'static str; 4] = ["theta", "phi", "x", "z"];
+    const ACTUATORS: [&'static str; 1] = ["crank_torque"];
+    fn mass_matrix(&self, q: &V<4>, t: f64, m: &mut Mat<4, 4>) {
+        let mut m3 = Mat::<3, 3>::zeros();
+        self.crank.mass_matrix(&Self::sub(q), t, &mut m3);
+        m.fill(0.0);
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&m3);
+        m[(3, 3)] = self.m4;
+    }
+    fn bias(&self, q: &V<4>, qd: &V<4>, t: f64, h: &mut V<4>) {
+        let mut h3 = V::<3>::zeros();
+        self.crank.bias(&Self::sub(q), &Self::sub(qd), t, &mut h3);
+        let (e, ed) = self.stretch(q, qd);
+        let f = self.k * e + self.c * ed;
+        *h = V::<4>::new(h3[0], h3[1], h3[2] - f, f);
+    }
+    fn constraints(&self, q: &V<4>, t: f64, phi: &mut V<2>) {
+        self.crank.constraints(&Self::sub(q), t, phi);
+    }
+    fn constraint_jacobian(&self, q: &V<4>, t: f64, j: &mut Mat<2, 4>) {
+        let mut j3 = Mat::<2, 3>::zeros();
+        self.crank.constraint_jacobian(&Self::sub(q), t, &mut j3);
+        j.fill(0.0);
+        j.fixed_view_mut::<2, 3>(0, 0).copy_from(&j3);
+    }
+    fn constraint_time_derivative(&self, _q: &V<4>, _t: f64, p: &mut V<2>) {
+        p.fill(0.0);
+    }
+    fn constraint_rhs(&self, q: &V<4>, qd: &V<4>, t: f64, g: &mut V<2>) {
+        self.crank
+            .constraint_rhs(&Self::sub(q), &Self::sub(qd), t, g);
+    }
+    fn actuator_map(&self, b: &mut Mat<4, 1>) {
+        *b = Mat::<4, 1>::new(1.0, 0.0, 0.0, 0.0);
+    }
+    fn kinetic_energy(&self, q: &V<4>, qd: &V<4>, t: f64) -> f64 {
+        self.crank.kinetic_energy(&Self::sub(q), &Self::sub(qd), t) + 0.5 * self.m4 * qd[3] * qd[3]
+    }
+    fn potential_energy(&self, q: &V<4>, t: f64) -> f64 {
+        let (e, _) = self.stretch(q, &V::<4>::zeros());
+        self.crank.potential_energy(&Self::sub(q), t) + 0.5 * self.k * e * e
+    }
+}
+
+// ---------------------------------------------------------------------------
 // Five-bar planar parallel robot in redundant coordinates
 // q = (theta1, phi1, theta2, phi2, x, y): absolute angles of the proximal and
 // distal links of both legs and the platform point. Bases at (-d/2, 0) and
