@@ -31,12 +31,12 @@
 //! unit input. Construction requires `NP == NU` (more outputs over-determine
 //! the inputs, fewer leave them undetermined). With `a_i = |y_i,q|_{M^-1}`
 //! and `b_j = |B[:, j]|_{M^-1}` (norms in the inverse mass metric), the
-//! normalised matrix `S~_ij = (Y_q P B)_ij / (a_i b_j)` has entries of
-//! magnitude at most 1 (`P` is a projector in that metric), with 1 for an
-//! actuator driving its output coordinate directly in an unconstrained model
-//! with a diagonal mass matrix; it is
-//! independent of the units of outputs and inputs. It is solved by a Jacobi
-//! SVD, and `1 / sigma_min(S~)`, the servo condition, above
+//! normalised matrix `S~_ij = (Y_q P B)_ij / (a_i b_j)` is independent of
+//! the units of outputs and inputs and has entries of magnitude at most 1
+//! (`P` is a projector in that metric), exactly 1 for an actuator driving
+//! its output coordinate directly in an unconstrained model with a diagonal
+//! mass matrix. It is solved by a Jacobi SVD, and `1 / sigma_min(S~)`, the
+//! servo condition, above
 //! [`ServoConfig::max_condition`] is [`ErrorKind::SingularServo`]: the
 //! prescription does not determine the inputs there (the actuators cannot
 //! accelerate the outputs along the admissible motions, e.g. a slider-crank
