@@ -5,7 +5,7 @@
 //! `cargo build` whenever the scene or the generator changes. Each module has
 //! a model struct implementing [`flexdyn_runtime::Model`]. [`cli`] holds the
 //! commands of the `flexdyn` binary, for reuse by binaries with scenes of
-//! their own (see `examples/parallel-robot/`).
+//! their own (see `examples/`).
 
 pub mod cli;
 pub mod dynamic;

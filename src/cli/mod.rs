@@ -1,6 +1,6 @@
 //! The `flexdyn` commands, one module each: its `clap` arguments and the
 //! function that runs it. Binaries built on flexdyn (for example the
-//! parallel-robot example) reuse them with their own compiled-in scenes.
+//! examples under `examples/`) reuse them with their own compiled-in scenes.
 
 pub mod eval;
 pub mod export;

@@ -1,4 +1,4 @@
-//! `flexdyn report`: speed against error of the robot's model variants and
+//! `parallel-robot report`: speed against error of the robot's model variants and
 //! integrators, measured on the machine it runs on, written to
 //! `docs/performance.md` with its CSV and plots.
 //!
@@ -724,9 +724,9 @@ pub fn write(results: &Results, ops: &[(usize, usize)], files: &Files) -> Result
     push(
         &mut md,
         &format!(
-            "Written by `flexdyn report` on {} ({}), {}. Every wall time is the median of {} \
+            "Written by `parallel-robot report` on {} ({}), {}. Every wall time is the median of {} \
          repeated runs on this machine (the whole study took {:.0} s); errors do not depend \
-         on the machine. Regenerate with `cargo run --release -- report` (add `--quick` for \
+         on the machine. Regenerate with `cargo run --release -p flexdyn-parallel-robot -- report` (add `--quick` for \
          a small version). The CSV of every run and the plots are in [{dir_name}/]({dir_name}/).",
             today(),
             machine(),
@@ -744,7 +744,7 @@ pub fn write(results: &Results, ops: &[(usize, usize)], files: &Files) -> Result
         "The paper's circle (radius 0.1 m, centre (0, 0, 0.7) m) at omega = {} rad/s for {} s. \
          Forward runs: every model variant under the rigid model's inverse-dynamics torques \
          plus the joint-space PD loop of the full scene (`pd_kp`, `pd_kd`), starting from the \
-         static equilibrium on the path (the `flexdyn simulate --pd` set-up). Path error: the \
+         static equilibrium on the path (the `parallel-robot simulate --pd` set-up). Path error: the \
          largest distance of the platform centre from the reference run on a {} ms grid; the \
          reference is the full model with generalized-alpha at {} ms, which differs from the \
          same run at twice its step by {:.2e} mm. Inverse dynamics: servo constraints on the \

@@ -418,7 +418,7 @@ impl TorqueTable {
 
     /// From the column `t` and three other columns of a table (any three
     /// quantities sampled in time, e.g. the joint angles `th11, th21, th31`
-    /// written by `flexdyn inverse`); times must increase strictly.
+    /// written by `parallel-robot inverse`); times must increase strictly.
     pub fn from_columns(
         table: &flexdyn::table::Table,
         names: [&str; 3],

@@ -4,11 +4,11 @@
 //!
 //! * [`Feedback`]: the model with a state-feedback actuator input
 //!   `tau_fb(q, qd, t)` added to the applied torques (the joint-space PD loop
-//!   [`JointPd`] of `flexdyn simulate --pd`).
+//!   [`JointPd`] of `parallel-robot simulate --pd`).
 //! * [`Servo`]: the model with the actuator torques chosen at every state so
 //!   that the platform centre follows a prescribed path (servo constraints,
 //!   Blajer & Kołodziejczyk): the flexible robot's inverse dynamics with its
-//!   elastic coordinates integrated ([`flexible_inverse`], `flexdyn inverse`
+//!   elastic coordinates integrated ([`flexible_inverse`], `parallel-robot inverse`
 //!   on a flexible scene).
 //!
 //! Both only change the bias forces `h` of the wrapped model (`h - B tau`),
@@ -328,7 +328,7 @@ pub struct ServoSample<const NQ: usize> {
 /// gives the torques `tau_{n+1}` at the end of the step; the step actually
 /// taken is that of the plain model under the torques interpolated linearly
 /// from `tau_n` to `tau_{n+1}`, from the same integrator memory. So the
-/// recorded trajectory is exactly the one that `flexdyn simulate` reproduces
+/// recorded trajectory is exactly the one that `parallel-robot simulate` reproduces
 /// (same scheme and step) from the torque table, and the servo constraints'
 /// stabilisation acts on that trajectory. For a scene with no elastic
 /// coordinates this reproduces the rigid inverse dynamics.

@@ -1,4 +1,4 @@
-//! Issue 7: `flexdyn report` end to end (its quick study), checked against
+//! Issue 7: `parallel-robot report` end to end (its quick study), checked against
 //! what the numerics must show whatever the machine: generalized-alpha's
 //! second-order convergence towards the reference, the explicit scheme's
 //! refusal on the stiff elastic modes, a rigid model whose path error is the

@@ -172,7 +172,7 @@ fn bad_input_gives_clear_errors_and_no_output() {
         None,
     );
     fails_cleanly(
-        &["inverse", "--scene", "scenes/pendulum.toml"],
+        &["inverse", "--scene", "../../scenes/pendulum.toml"],
         "drives the parallel robot",
         None,
     );
@@ -245,7 +245,7 @@ fn bad_input_gives_clear_errors_and_no_output() {
 
 /// `inverse --states` writes consistent working states: the generated
 /// constraints vanish there and the velocities lie in the null space of the
-/// constraint Jacobian (both evaluated by `flexdyn eval`, independently of
+/// constraint Jacobian (both evaluated by `parallel-robot eval`, independently of
 /// the solver that produced the states), for the rigid and a flexible scene.
 #[test]
 fn inverse_states_are_consistent_working_states() {

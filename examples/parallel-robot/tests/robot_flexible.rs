@@ -7,7 +7,7 @@
 //! algebraic inverse dynamics (its own generated model), the codegen's
 //! symbolic terms evaluated by a separate interpreter, energy conservation,
 //! the `1/k` law of a stiff spring's static deflection, and the circle
-//! itself. Run in release mode (`cargo test --release --test robot_flexible`).
+//! itself. Run in release mode (`cargo test --release -p flexdyn-parallel-robot --test robot_flexible`).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -673,7 +673,7 @@ fn free_vibration_conserves_energy_with_the_implicit_scheme() {
 
     // Literally zero torques: released from the same rest pose the robot
     // falls, and folds into a singular pose after 0.85 s (measured with
-    // `flexdyn simulate` and zero torques). Over its first 0.75 s the motion
+    // `parallel-robot simulate` and zero torques). Over its first 0.75 s the motion
     // is large and fast (kinetic energy up to about 45 J), so the
     // trapezoidal rule conserves T + V only to its second-order error:
     // stated tolerance 1e-3 of the scale at the paper's step, and the drift
