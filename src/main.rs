@@ -26,7 +26,7 @@ fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Generate(args) => cli::generate::run(&args),
         Command::Export(args) => cli::export::run(&args),
-        Command::Eval(args) => cli::eval::run(&args, &cli::eval::SCENES),
+        Command::Eval(args) => cli::eval::run(&args, &cli::eval::COMPILED_SCENES),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -44,7 +44,7 @@ pub struct Compiled {
 }
 
 /// The generic scenes of `scenes/`, compiled into this crate.
-pub const SCENES: Compiled = Compiled {
+pub const COMPILED_SCENES: Compiled = Compiled {
     scenes: crate::scenes::SCENES,
     model: crate::scenes::model,
     perturbed_scenes: crate::perturbed_scenes::SCENES,
