@@ -1035,7 +1035,7 @@ fn chain_ik(phi: f64, p: [f64; 3]) -> [f64; 3] {
 
 fn robot(name: &str) -> Model {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../scenes")
+        .join("../examples/parallel-robot/scenes")
         .join(format!("{name}.toml"));
     Model::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }

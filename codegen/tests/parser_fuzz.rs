@@ -333,7 +333,7 @@ const SCENES: &[&str] = &[
     include_str!("../../scenes/double_pendulum.toml"),
     include_str!("../../scenes/five_bar.toml"),
     include_str!("../../scenes/slider_crank.toml"),
-    include_str!("../../scenes/parallel_robot_rigid.toml"),
+    include_str!("../../examples/parallel-robot/scenes/parallel_robot_rigid.toml"),
     include_str!("../../scenes/four_bar.toml"),
     include_str!("../../scenes/flyball_governor.toml"),
     include_str!("../../scenes/extreme_ratios.toml"),

@@ -16,7 +16,8 @@ use flexdyn_codegen::lagrange::{derive, Equations};
 use flexdyn_codegen::model::Model;
 use flexdyn_codegen::{generate_scene, Error};
 
-const ROBOT: &str = include_str!("../../scenes/parallel_robot_flexible.toml");
+const ROBOT: &str =
+    include_str!("../../examples/parallel-robot/scenes/parallel_robot_flexible.toml");
 const TWISTS: [&str; 6] = ["th11j", "th12j", "th21j", "th22j", "th31j", "th32j"];
 
 /// A folder with the flexible robot as `base.toml` and `files`.
@@ -308,7 +309,7 @@ fn base_errors_are_located() {
     let e = fail(dir.path(), "chain.toml");
     assert!(e.message.contains("itself a derived scene"), "{e}");
     // A base without flexible links has no modes to drop.
-    let rigid = include_str!("../../scenes/parallel_robot_rigid.toml");
+    let rigid = include_str!("../../examples/parallel-robot/scenes/parallel_robot_rigid.toml");
     let dir = folder(&[
         ("rigid.toml", rigid),
         (
