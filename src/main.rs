@@ -289,13 +289,13 @@ fn main() -> ExitCode {
 }
 
 fn export(scene: &Path, out: &Path) -> Result<(), String> {
-    let model = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
-    write_atomic(out, &flexdyn::codegen::export::export_json(&model))
+    let model = flexdyn::codegen::Model::load(scene).map_err(|e| e.to_string())?;
+    write_atomic(out, &flexdyn::codegen::export_json(&model))
 }
 
 fn eval(scene: &Path, states: &Path, out: Option<&Path>, perturbed: bool) -> Result<(), String> {
     use flexdyn::eval::{check_state, evaluate, States};
-    let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+    let parsed = flexdyn::codegen::Model::load(scene).map_err(|e| e.to_string())?;
     let lookup = if perturbed {
         flexdyn::perturbed_scenes::model
     } else {
@@ -670,8 +670,8 @@ fn report(
 fn robot_scene(
     scene: &Path,
     command: &str,
-) -> Result<(flexdyn::codegen::model::Model, flexdyn::robot::Geometry), String> {
-    let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+) -> Result<(flexdyn::codegen::Model, flexdyn::robot::Geometry), String> {
+    let parsed = flexdyn::codegen::Model::load(scene).map_err(|e| e.to_string())?;
     if !flexdyn::robot::ROBOT_SCENES.contains(&parsed.name.as_str()) {
         return Err(format!(
             "`{command}` drives the parallel robot; scene `{}` is not one (try scenes/parallel_robot_rigid.toml; \

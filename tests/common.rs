@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use flexdyn_codegen::model::Model;
+use flexdyn_codegen::Model;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 

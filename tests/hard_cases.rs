@@ -928,14 +928,11 @@ fn spin_up<M: Model<5, 1, 1>>(
     scene: &str,
     set_phase: impl Fn(&mut M, f64),
 ) -> SpinUp {
-    let parsed = flexdyn::codegen::model::Model::load(std::path::Path::new(scene))
+    let parsed = flexdyn::codegen::Model::load(std::path::Path::new(scene))
         .unwrap_or_else(|e| panic!("{e}"));
     let link = &parsed.flexible_links[0];
-    let tip_dof =
-        flexdyn::codegen::fem::NODE_DOFS * link.basis.beam.elements + flexdyn::codegen::fem::UY;
-    let shape: Vec<f64> = (0..link.modes())
-        .map(|j| link.basis.shapes[(tip_dof, j)])
-        .collect();
+    let tip = link.basis.station(link.basis.beam.length).expect("the tip");
+    let shape: Vec<f64> = (0..link.modes()).map(|j| tip.translation[(1, j)]).collect();
     let tip = |s: &State<5>| {
         shape
             .iter()
@@ -1042,7 +1039,7 @@ fn rigid_robot_towards_the_workspace_edge_reports_growing_condition() {
     use flexdyn::runtime::{InverseConfig, InverseDynamics, InverseSolution};
     use flexdyn::scenes::parallel_robot_rigid::ParallelRobotRigid;
     let model = ParallelRobotRigid;
-    let parsed = flexdyn::codegen::model::Model::load(std::path::Path::new(
+    let parsed = flexdyn::codegen::Model::load(std::path::Path::new(
         "scenes/parallel_robot_rigid.toml",
     ))
     .unwrap_or_else(|e| panic!("{e}"));

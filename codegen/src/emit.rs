@@ -1,13 +1,17 @@
-//! Rust emission: one module per scene, built with `quote` from the scheduled
-//! programs (never from scene text) and formatted with `prettyplease`.
+//! Stage 7, emit: one Rust module per scene, built with `quote` from the
+//! programs of the schedule stage (never from scene text) and formatted
+//! with `prettyplease`. Each emitted function is one program
+//! ([`crate::schedule::schedule`] of its outputs); the module names the
+//! runtime crate (its `Model` trait, `math` and `nalgebra` re-export) by the
+//! path the builder was given.
 
 use proc_macro2::{Literal, TokenStream};
 use quote::{format_ident, quote};
 
+use crate::derive::Equations;
 use crate::expr::{Graph, Id, Symbol};
-use crate::lagrange::Equations;
 use crate::model::Model;
-use crate::program::{schedule, Code, OpCount, Program, Stmt};
+use crate::schedule::{schedule, Code, OpCount, Program, Stmt};
 
 /// Operation counts of one emitted function.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,17 +29,6 @@ pub struct Emitted {
     pub source: String,
     /// Per-function operation counts.
     pub functions: Vec<FunctionReport>,
-}
-
-impl Emitted {
-    /// Operations of all functions together.
-    pub fn total_ops(&self) -> OpCount {
-        let mut total = OpCount::default();
-        for f in &self.functions {
-            total += f.ops;
-        }
-        total
-    }
 }
 
 /// Name of the model struct for a scene name: `double_pendulum` -> `DoublePendulum`.
@@ -534,16 +527,13 @@ fn input_idents(used: Inputs) -> (proc_macro2::Ident, proc_macro2::Ident, proc_m
     (name(used.q, "q"), name(used.qd, "qd"), name(used.t, "t"))
 }
 
-/// Emit the module of a scene.
-pub fn emit(model: &Model, eq: &Equations) -> Emitted {
-    emit_perturbed(model, eq, None).0
-}
-
-/// [`emit`] with an optional test-only perturbation of one coefficient;
-/// also says whether the perturbation found its coefficient.
-pub fn emit_perturbed(
+/// Emit the module of a scene, naming the runtime crate by `runtime`, with
+/// an optional test-only perturbation of one coefficient; also says whether
+/// the perturbation found its coefficient.
+pub fn emit(
     model: &Model,
     eq: &Equations,
+    runtime: &syn::Path,
     perturbation: Option<&CoefficientPerturbation>,
 ) -> (Emitted, bool) {
     let mut e = Emitter {
@@ -782,8 +772,8 @@ pub fn emit_perturbed(
         )]
     };
     let tokens = quote! {
-        use flexdyn_runtime::math;
-        use flexdyn_runtime::nalgebra::{SMatrix, SVector};
+        use #runtime::math;
+        use #runtime::nalgebra::{SMatrix, SVector};
 
         /// Number of generalized coordinates.
         pub const NQ: usize = #nq_l;
@@ -795,7 +785,7 @@ pub fn emit_perturbed(
         #struct_def
 
         #lints
-        impl flexdyn_runtime::Model<#nq_l, #nc_l, #nu_l> for #sname {
+        impl #runtime::Model<#nq_l, #nc_l, #nu_l> for #sname {
             const NAME: &'static str = #scene;
             const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
             const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];

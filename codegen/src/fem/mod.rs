@@ -147,8 +147,13 @@ pub mod modal;
 
 use nalgebra::{DMatrix, DVector};
 
-pub use invariants::{kinetic_energy, Invariants};
-pub use modal::{ModalBasis, ModeKind, ModeSelection, Station};
+#[cfg(test)]
+mod frequency_tests;
+
+#[cfg(test)]
+pub use invariants::kinetic_energy;
+pub use invariants::Invariants;
+pub use modal::{ModalBasis, ModeSelection};
 
 /// Axial displacement dof (index within a node).
 pub const UX: usize = 0;
