@@ -25,7 +25,7 @@ use crate::load::{load, resolve, LoadedScene};
 use crate::model::{build, Model};
 use crate::prune::prune;
 use crate::reduce;
-use crate::schedule::OpCount;
+use crate::schedule::{functions, OpCount};
 
 /// The runtime crate's path in emitted code, unless the builder says
 /// otherwise.
@@ -152,7 +152,8 @@ fn generate_perturbed(
     let mut model = Model::load(path)?;
     let eq = model.equations()?;
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
-    let (emitted, applied) = emit(&model, &eq, runtime, perturbation);
+    let functions = functions(&model, &eq);
+    let (emitted, applied) = emit(&model, &eq, functions, runtime, perturbation);
     if let (Some(c), false) = (perturbation, applied) {
         return Err(Error {
             file: path.to_path_buf(),

@@ -76,16 +76,22 @@ fn write_crate(dir: &Path, paths: [&str; 2]) {
     }
 }
 
-/// `cargo run` in `dir`, with a target directory of its own under the
-/// workspace's; the command's output.
-fn cargo_run(dir: &Path) -> std::process::Output {
+/// `cargo run` in `dir`, with the target directory `target` of its own
+/// under the workspace's (cargo identifies a package by its path relative to
+/// its workspace, the same for every throwaway crate: two crates sharing a
+/// target directory could take each other's build for fresh); the command's
+/// output.
+fn cargo_run(dir: &Path, target: &str) -> std::process::Output {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     Command::new(cargo)
         .args(["run", "--quiet", "--offline", "--manifest-path"])
         .arg(dir.join("Cargo.toml"))
         .env(
             "CARGO_TARGET_DIR",
-            workspace().join("target").join("runtime_path_check"),
+            workspace()
+                .join("target")
+                .join("runtime_path_check")
+                .join(target),
         )
         .env_remove("RUSTFLAGS")
         .output()
@@ -103,7 +109,7 @@ fn value(stdout: &str, key: &str) -> String {
 fn emitted_code_compiles_against_the_runtime_at_the_given_path() {
     let dir = tempfile::tempdir().unwrap();
     write_crate(dir.path(), [SCENES[0].1, SCENES[1].1]);
-    let out = cargo_run(dir.path());
+    let out = cargo_run(dir.path(), "given_path");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -128,7 +134,7 @@ fn emitted_code_for_another_runtime_path_does_not_compile_there() {
     // path cannot find the runtime.
     let dir = tempfile::tempdir().unwrap();
     write_crate(dir.path(), ["flexdyn_runtime", "flexdyn_runtime"]);
-    let out = cargo_run(dir.path());
+    let out = cargo_run(dir.path(), "default_path");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "built although the path is wrong");
     assert!(stderr.contains("flexdyn_runtime"), "{stderr}");

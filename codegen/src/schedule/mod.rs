@@ -1,15 +1,18 @@
-//! Schedule: from expression nodes to a straight-line program, in two
-//! passes: common-subexpression elimination ([`cse`]: every node used more
-//! than once gets one `let`, `sin` and `cos` of one argument one `sin_cos`
-//! call, only nodes reachable from the outputs are kept), then sharing of
-//! repeated pairs of factors and terms ([`share`]); the result carries its
-//! operation count ([`code`]).
+//! Stage 6, schedule: the emitted functions ([`functions`]: which derived
+//! terms each computes), each a straight-line program from the expression
+//! nodes of its outputs, in two passes: common-subexpression elimination
+//! ([`cse`]: every node used more than once gets one `let`, `sin` and `cos`
+//! of one argument one `sin_cos` call, only nodes reachable from the outputs
+//! are kept), then sharing of repeated pairs of factors and terms
+//! ([`share`]); a program carries its operation count ([`code`]).
 
 mod code;
 mod cse;
+mod functions;
 mod share;
 
 pub use code::{Code, OpCount, Program, Stmt};
+pub use functions::{functions, Function, Shape};
 
 use crate::expr::{Graph, Id};
 

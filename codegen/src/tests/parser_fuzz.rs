@@ -1075,7 +1075,8 @@ fn generated_scenes_never_panic_the_loader_or_the_generator() {
                     match derive(&mut model) {
                         Ok(eq) => {
                             let runtime = syn::parse_str("flexdyn_runtime").expect("a path");
-                            let (emitted, _) = emit(&model, &eq, &runtime, None);
+                            let functions = crate::schedule::functions(&model, &eq);
+                            let (emitted, _) = emit(&model, &eq, functions, &runtime, None);
                             prop_assert!(!emitted.source.is_empty());
                         }
                         Err(e) => prop_assert!(!e.message.trim().is_empty(), "{text}"),
