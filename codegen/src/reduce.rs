@@ -1,4 +1,5 @@
-//! Model only what a scene needs: reductions of a scene's model.
+//! Stage 3, reduce: model only what a scene needs, by the reductions a
+//! derived scene applies to its base scene's model.
 //!
 //! A derived scene file names a `base` scene and a `[reduce]` table:
 //!
@@ -10,14 +11,12 @@
 //! * `freeze = [names]`: hold coordinates at zero (position and velocity),
 //!   for example the twists of flexible joints, which makes those joints rigid
 //!   while their members keep their inertia.
-//! * `drop_below = tol`: after the derivation, drop summands of the mass
-//!   matrix and the bias forces whose largest magnitude over sample states
-//!   drawn from the declared coordinate and velocity ranges stays below `tol`
-//!   of the term's scale (see [`prune`]). Constraints are never pruned; the
-//!   bias Jacobians stay those of the exact forces.
+//! * `drop_below = tol`: recorded in the model; after the derivation, the
+//!   prune stage ([`crate::prune`]) drops the summands of the mass matrix
+//!   and the bias forces that stay below `tol` of the term's scale.
 //!
-//! The structural reductions ([`apply`]) act on the symbolic energies before
-//! the derivation; pruning acts on the derived terms.
+//! The structural reductions ([`apply`]) act on the symbolic energies of the
+//! base scene's model, before the derivation.
 
 use crate::error::{Error, Source};
 use crate::expr::{Id, Symbol};

@@ -114,7 +114,8 @@
 //!
 //! `T = 1/2 int rho A |V + w x u + u_f_dot|^2 dx + 1/2 int rho Ip rx_dot^2 dx`
 //!
-//! is assembled from the invariants as ([`kinetic_energy`] evaluates it):
+//! is assembled from the invariants as (`invariants::kinetic_energy`, the
+//! tests' reference, evaluates it):
 //!
 //! ```text
 //! c(eta)     = S0 + S1 eta                                    (first moment)

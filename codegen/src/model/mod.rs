@@ -155,7 +155,8 @@ pub struct Model {
     pub flexible_links: Vec<FlexibleLink>,
     /// Relative tolerance below which summands of the mass matrix and bias
     /// forces are dropped after the derivation (a derived scene's
-    /// `reduce.drop_below`, set by [`crate::reduce`], applied by [`crate::prune`]).
+    /// `reduce.drop_below`, set by the reduce stage, applied by the prune
+    /// stage).
     pub drop_below: Option<f64>,
     /// Every file the model was read from (a derived scene and its base).
     pub sources: Vec<PathBuf>,

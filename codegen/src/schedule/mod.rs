@@ -1,4 +1,4 @@
-//! Stage 6, schedule: the emitted functions ([`functions`]: which derived
+//! Stage 6, schedule: the emitted functions ([`functions()`]: which derived
 //! terms each computes), each a straight-line program from the expression
 //! nodes of its outputs, in two passes: common-subexpression elimination
 //! ([`cse`]: every node used more than once gets one `let`, `sin` and `cos`

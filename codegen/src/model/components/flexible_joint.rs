@@ -1,9 +1,9 @@
-//! `flexible_joint`: a flexible joint (the paper's): a joint member, a solid circular
-//! shaft of mass `m`, length `l` and `material`, turning with `frame`
-//! about its `axis`, with a linear torsion spring on its twist
+//! `flexible_joint`: a flexible joint (the paper's): a joint member, a
+//! solid circular shaft of mass `m`, length `l` and `material`, turning
+//! with `frame` about its `axis`, with a linear torsion spring on its twist
 //! `expression`. Radius from `A = m / (rho l)`, inertia `m r^2 / 2` about
-//! the axis and `m (3 r^2 + l^2) / 12` across it, stiffness
-//! `G Ip / l` (`fem::shaft_joint_stiffness`) unless `stiffness` is given.
+//! the axis and `m (3 r^2 + l^2) / 12` across it, stiffness `G Ip / l`
+//! (`fem::shaft_joint_stiffness`) unless `stiffness` is given.
 
 use toml::Spanned;
 
