@@ -10,36 +10,36 @@ use crate::expr::{Graph, Id};
 /// axes means constant rotations (a chain placed at 120 degrees) never enter
 /// the kinetic energy, which stays as simple as the mechanism.
 #[derive(Debug, Clone)]
-pub struct Frame {
+pub(crate) struct Frame {
     /// Rotation from the frame's axes to world axes.
-    pub rotation: [[Id; 3]; 3],
+    pub(crate) rotation: [[Id; 3]; 3],
     /// Origin in world coordinates.
-    pub origin: [Id; 3],
+    pub(crate) origin: [Id; 3],
     /// Velocity of the origin in the frame's own axes.
-    pub velocity: [Id; 3],
+    pub(crate) velocity: [Id; 3],
     /// Angular velocity in the frame's own axes.
-    pub omega: [Id; 3],
+    pub(crate) omega: [Id; 3],
 }
 
 /// A material point: world position, and velocity in the axes of the frame
 /// it was given in (all points of one component share those axes).
-pub struct Point {
+pub(crate) struct Point {
     /// World position.
-    pub position: [Id; 3],
+    pub(crate) position: [Id; 3],
     /// Velocity in the axes of the frame it was given in.
-    pub velocity: [Id; 3],
+    pub(crate) velocity: [Id; 3],
 }
 
 /// Vector and frame operations of the model stage, as graph methods.
 impl Graph {
     /// `a . b`.
-    pub fn dot(&mut self, a: [Id; 3], b: [Id; 3]) -> Id {
+    pub(crate) fn dot(&mut self, a: [Id; 3], b: [Id; 3]) -> Id {
         let terms: Vec<Id> = (0..3).map(|k| self.mul(a[k], b[k])).collect();
         self.sum(&terms)
     }
 
     /// `a x b`.
-    pub fn cross(&mut self, a: [Id; 3], b: [Id; 3]) -> [Id; 3] {
+    pub(crate) fn cross(&mut self, a: [Id; 3], b: [Id; 3]) -> [Id; 3] {
         std::array::from_fn(|k| {
             let (i, j) = ((k + 1) % 3, (k + 2) % 3);
             let p = self.mul(a[i], b[j]);
@@ -49,7 +49,7 @@ impl Graph {
     }
 
     /// `R v`.
-    pub fn rotate(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
+    pub(crate) fn rotate(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
         std::array::from_fn(|i| {
             let terms: Vec<Id> = (0..3).map(|k| self.mul(r[i][k], v[k])).collect();
             self.sum(&terms)
@@ -57,7 +57,7 @@ impl Graph {
     }
 
     /// `R^T v`.
-    pub fn rotate_transpose(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
+    pub(crate) fn rotate_transpose(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
         std::array::from_fn(|i| {
             let terms: Vec<Id> = (0..3).map(|k| self.mul(r[k][i], v[k])).collect();
             self.sum(&terms)
@@ -65,7 +65,7 @@ impl Graph {
     }
 
     /// `A B`.
-    pub fn matmul(&mut self, a: &[[Id; 3]; 3], b: &[[Id; 3]; 3]) -> [[Id; 3]; 3] {
+    pub(crate) fn matmul(&mut self, a: &[[Id; 3]; 3], b: &[[Id; 3]; 3]) -> [[Id; 3]; 3] {
         std::array::from_fn(|i| {
             std::array::from_fn(|j| {
                 let terms: Vec<Id> = (0..3).map(|k| self.mul(a[i][k], b[k][j])).collect();
@@ -75,7 +75,7 @@ impl Graph {
     }
 
     /// Rotation by `angle` about the unit vector `u` (Rodrigues).
-    pub fn axis_rotation(&mut self, u: [f64; 3], angle: Id) -> [[Id; 3]; 3] {
+    pub(crate) fn axis_rotation(&mut self, u: [f64; 3], angle: Id) -> [[Id; 3]; 3] {
         let c = self.cos(angle);
         let s = self.sin(angle);
         std::array::from_fn(|i| {
@@ -99,7 +99,7 @@ impl Graph {
     }
 
     /// The world frame: identity axes, at rest.
-    pub fn world_frame(&mut self) -> Frame {
+    pub(crate) fn world_frame(&mut self) -> Frame {
         let zero = self.constant(0.0);
         let one = self.constant(1.0);
         let mut rotation = [[zero; 3]; 3];
@@ -116,7 +116,7 @@ impl Graph {
 
     /// The frame at `translation` (in `parent`'s axes) from `parent`'s
     /// origin, rotated from `parent` by `rotations` in turn (intrinsic).
-    pub fn child_frame(
+    pub(crate) fn child_frame(
         &mut self,
         parent: &Frame,
         translation: [Id; 3],
@@ -151,7 +151,7 @@ impl Graph {
 
     /// Velocity, in `frame`'s axes, of a point at `local` (which may itself
     /// move): `v_origin + w x local + d(local)/dt`.
-    pub fn moving_point_velocity(&mut self, frame: &Frame, local: [Id; 3]) -> [Id; 3] {
+    pub(crate) fn moving_point_velocity(&mut self, frame: &Frame, local: [Id; 3]) -> [Id; 3] {
         let rate = self.time_derivative_at_zero_acceleration(&local);
         let w = frame.omega;
         let cross = [
