@@ -850,14 +850,11 @@ fn spin_up<M: Model<5, 1, 1>>(
     scene: &str,
     set_phase: impl Fn(&mut M, f64),
 ) -> SpinUp {
-    let parsed = flexdyn::codegen::model::Model::load(std::path::Path::new(scene))
+    let parsed = flexdyn::codegen::Model::load(std::path::Path::new(scene))
         .unwrap_or_else(|e| panic!("{e}"));
     let link = &parsed.flexible_links[0];
-    let tip_dof =
-        flexdyn::codegen::fem::NODE_DOFS * link.basis.beam.elements + flexdyn::codegen::fem::UY;
-    let shape: Vec<f64> = (0..link.modes())
-        .map(|j| link.basis.shapes[(tip_dof, j)])
-        .collect();
+    let tip = link.basis.station(link.basis.beam.length).expect("the tip");
+    let shape: Vec<f64> = (0..link.modes()).map(|j| tip.translation[(1, j)]).collect();
     let tip = |s: &State<5>| {
         shape
             .iter()

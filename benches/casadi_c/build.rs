@@ -52,9 +52,9 @@ fn main() {
     for (name, file) in SCENES {
         let scene = repo.join(file);
         let model =
-            flexdyn_codegen::model::Model::load(&scene).unwrap_or_else(|e| fail(&e.to_string()));
+            flexdyn_codegen::Model::load(&scene).unwrap_or_else(|e| fail(&e.to_string()));
         let export = out.join(format!("{name}.json"));
-        std::fs::write(&export, flexdyn_codegen::export::export_json(&model))
+        std::fs::write(&export, flexdyn_codegen::export_json(&model))
             .unwrap_or_else(|e| fail(&format!("cannot write {}: {e}", export.display())));
         let run = Command::new(&python)
             .arg(&script)

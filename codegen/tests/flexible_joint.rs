@@ -8,10 +8,7 @@
 
 use std::path::Path;
 
-use flexdyn_codegen::error::Source;
-use flexdyn_codegen::expr::Symbol;
-use flexdyn_codegen::model::Model;
-use flexdyn_codegen::Error;
+use flexdyn_codegen::{Error, Model, Source, Symbol};
 
 fn load(text: &str) -> Result<Model, Error> {
     Model::from_source(&Source::new(Path::new("scene.toml"), text.to_owned()))

@@ -54,7 +54,7 @@ pub const COMPILED_SCENES: Compiled = Compiled {
 
 /// Run the command on the scenes of `compiled`.
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
-    let parsed = crate::codegen::model::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
     let lookup = if args.perturbed {
         compiled.perturbed_model
     } else {

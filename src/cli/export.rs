@@ -17,6 +17,6 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(args: &Args) -> Result<(), String> {
-    let model = crate::codegen::model::Model::load(&args.scene).map_err(|e| e.to_string())?;
-    crate::table::write_atomic(&args.out, &crate::codegen::export::export_json(&model))
+    let model = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    crate::table::write_atomic(&args.out, &crate::codegen::export_json(&model))
 }

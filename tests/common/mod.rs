@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use flexdyn::codegen::model::Model;
+use flexdyn::codegen::Model;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 

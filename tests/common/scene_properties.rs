@@ -246,7 +246,7 @@ fn bias_jacobians_match_differences_of_bias() {
 }
 
 /// Whether any component of the scene has a nonzero dissipation function.
-fn scene_is_damped(scene: &flexdyn::codegen::model::Model) -> bool {
+fn scene_is_damped(scene: &flexdyn::codegen::Model) -> bool {
     let zero = scene.graph.find_constant(0.0);
     scene.components.iter().any(|c| Some(c.dissipation) != zero)
 }

@@ -550,8 +550,8 @@ fn report(
 fn robot_scene(
     scene: &Path,
     command: &str,
-) -> Result<(flexdyn::codegen::model::Model, robot_crate::robot::Geometry), String> {
-    let parsed = flexdyn::codegen::model::Model::load(scene).map_err(|e| e.to_string())?;
+) -> Result<(flexdyn::codegen::Model, robot_crate::robot::Geometry), String> {
+    let parsed = flexdyn::codegen::Model::load(scene).map_err(|e| e.to_string())?;
     if !robot_crate::robot::ROBOT_SCENES.contains(&parsed.name.as_str()) {
         return Err(format!(
             "`{command}` drives the parallel robot; scene `{}` is not one (try examples/parallel-robot/scenes/parallel_robot_rigid.toml; \

@@ -290,7 +290,7 @@ impl Study {
     /// Prepare: the rigid robot's torques along the circle (the feed-forward
     /// of every forward run) and the PD gains of the full scene.
     pub fn new(settings: Settings, scenes: &Path) -> Result<Study, String> {
-        let full = flexdyn::codegen::model::Model::load(&scenes.join(format!("{FULL}.toml")))
+        let full = flexdyn::codegen::Model::load(&scenes.join(format!("{FULL}.toml")))
             .map_err(|e| e.to_string())?;
         let geometry = Geometry::from_parameters(&full.parameters)?;
         let gain = |name: &str| {

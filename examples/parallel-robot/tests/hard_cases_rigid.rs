@@ -93,7 +93,7 @@ fn rigid_robot_towards_the_workspace_edge_reports_growing_condition() {
     use flexdyn_parallel_robot::robot::{inverse_kinematics, Geometry};
     use flexdyn_parallel_robot::scenes::parallel_robot_rigid::ParallelRobotRigid;
     let model = ParallelRobotRigid;
-    let parsed = flexdyn::codegen::model::Model::load(std::path::Path::new(
+    let parsed = flexdyn::codegen::Model::load(std::path::Path::new(
         "scenes/parallel_robot_rigid.toml",
     ))
     .unwrap_or_else(|e| panic!("{e}"));

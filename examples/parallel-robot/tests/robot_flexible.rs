@@ -12,9 +12,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use flexdyn::codegen::error::Source;
-use flexdyn::codegen::expr::{powi_f64, Graph, Id, Node, Symbol};
-use flexdyn::codegen::lagrange::{derive, Equations};
+use flexdyn::codegen::{powi_f64, Equations, Graph, Id, Node, Source, Symbol};
 use flexdyn::runtime::integrate::{GeneralizedAlpha, StepSettings};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::{
@@ -89,7 +87,7 @@ enum Op {
     Time,
     Sum(Vec<(usize, f64)>, f64),
     Prod(Vec<(usize, i32)>),
-    Call(flexdyn::codegen::expr::Func, usize),
+    Call(flexdyn::codegen::Func, usize),
     Atan2(usize, usize),
 }
 
@@ -156,7 +154,7 @@ struct TapeModel<C, const NQ: usize, const NC: usize> {
 
 impl<C: Model<NQ, NC, 3>, const NQ: usize, const NC: usize> TapeModel<C, NQ, NC> {
     fn from_text(text: &str) -> Self {
-        let mut m = flexdyn::codegen::model::Model::from_source(&Source::new(
+        let mut m = flexdyn::codegen::Model::from_source(&Source::new(
             Path::new("variant.toml"),
             text.to_owned(),
         ))
@@ -167,7 +165,7 @@ impl<C: Model<NQ, NC, 3>, const NQ: usize, const NC: usize> TapeModel<C, NQ, NC>
             C::COORDINATES.to_vec(),
             "variant must keep the coordinates"
         );
-        let eq: Equations = derive(&mut m).unwrap();
+        let eq: Equations = m.equations().unwrap();
         assert_eq!(eq.phi.len(), NC);
         let mut roots = Vec::new();
         for i in 0..NQ {
@@ -317,14 +315,14 @@ fn zero_modes_reduce_the_flexible_link_robot_to_the_rigid_one() {
     // rest) the mass matrix, the bias forces and both energies are the same.
     let text = scene_text("parallel_robot_flexible_links").replace("modes = 6", "modes = 0");
     let load = |t: &str| {
-        flexdyn::codegen::model::Model::from_source(&Source::new(Path::new("s.toml"), t.to_owned()))
+        flexdyn::codegen::Model::from_source(&Source::new(Path::new("s.toml"), t.to_owned()))
             .unwrap()
     };
     let mut mf = load(&text);
     let mut mr = load(&scene_text("parallel_robot_rigid"));
     assert_eq!(mf.nq(), 15, "12 rigid coordinates and 3 platform rotations");
-    let ef = derive(&mut mf).unwrap();
-    let er = derive(&mut mr).unwrap();
+    let ef = mf.equations().unwrap();
+    let er = mr.equations().unwrap();
     let idx: Vec<usize> = flexdyn_parallel_robot::robot::RIGID_COORDINATES
         .iter()
         .map(|n| {

@@ -1,4 +1,5 @@
-//! Lagrange's equations, derived per component and assembled.
+//! Stage 4, derive: Lagrange's equations, derived per component and
+//! assembled.
 //!
 //! For each component with energies `T(q, qd, t)`, `V(q, t)` and dissipation
 //! `D(q, qd, t)`, over the coordinates it touches:
@@ -126,28 +127,12 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
             }
         }
     }
-    // The bias Jacobians (a Newton matrix, which need not be exact) are
-    // those of the exact bias forces: pruning bounds the forces, not their
-    // derivatives.
-    let bias_of = |g: &mut Graph, parts: [&[Id]; 3]| -> Vec<Id> {
-        (0..n)
-            .map(|i| g.sum(&[parts[0][i], parts[1][i], parts[2][i]]))
-            .collect()
-    };
-    let exact_bias = bias_of(g, [&coriolis, &potential_forces, &damping_forces]);
-    if let Some(tol) = model.drop_below {
-        crate::reduce::prune(
-            g,
-            &model.coordinates,
-            &model.runtime_parameters,
-            tol,
-            &mut mass,
-            &exact_bias,
-            [&mut coriolis, &mut potential_forces, &mut damping_forces],
-        );
-    }
-    // Hash-consed: the same nodes as `exact_bias` when nothing was pruned.
-    let bias = bias_of(g, [&coriolis, &potential_forces, &damping_forces]);
+    // The exact bias forces; the prune stage may drop summands of their
+    // parts (and recompute them), while the bias Jacobians (a Newton matrix,
+    // which need not be exact) stay those of the exact forces.
+    let bias: Vec<Id> = (0..n)
+        .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
+        .collect();
     let kinetic_energy = g.sum(&kinetic);
     let potential_energy = g.sum(&potential);
 
@@ -161,10 +146,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
     let bias_jacobians = model.outputs.bias_jacobians.then(|| {
         let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
-        (
-            g.jacobian(&exact_bias, &q_vars),
-            g.jacobian(&exact_bias, &qd_vars),
-        )
+        (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars))
     });
 
     // Constraints.
@@ -227,7 +209,7 @@ fn uses_velocity(g: &Graph, e: Id) -> bool {
 
 /// The Christoffel form `C_ij = sum_k G_ijk qd_k` with
 /// `G_ijk = (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) / 2`.
-fn christoffel(g: &mut Graph, mass: &[Vec<Id>]) -> Vec<Vec<Id>> {
+pub(crate) fn christoffel(g: &mut Graph, mass: &[Vec<Id>]) -> Vec<Vec<Id>> {
     let n = mass.len();
     let flat: Vec<Id> = mass.iter().flatten().copied().collect();
     // dm[k][i*n + j] = dM_ij / dq_k

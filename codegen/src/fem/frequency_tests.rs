@@ -10,9 +10,10 @@
 use std::f64::consts::PI;
 use std::time::Instant;
 
-use flexdyn_codegen::fem::{
+use super::modal::ModeKind;
+use super::{
     kinetic_energy, shaft_joint_stiffness, Beam, BoundaryConditions, FeModel, Invariants, Material,
-    ModalBasis, ModeKind, ModeSelection, Section, NODE_DOFS, UY,
+    ModalBasis, ModeSelection, Section, NODE_DOFS, UY,
 };
 
 const L: f64 = 0.8;

@@ -9,15 +9,15 @@
 
 use std::path::Path;
 
-use flexdyn_codegen::error::Source;
-use flexdyn_codegen::expr::{Graph, Id, Node, Symbol};
-use flexdyn_codegen::fem::{
-    self, Beam, BoundaryConditions, FeModel, Invariants, Material, ModeKind, ModeSelection,
-    Section, NODE_DOFS, RX, RY, RZ, UX, UY, UZ,
+use crate::derive::{derive, Equations};
+use crate::error::{Error, Source};
+use crate::expr::{Graph, Id, Node, Symbol};
+use crate::fem::modal::ModeKind;
+use crate::fem::{
+    self, Beam, BoundaryConditions, FeModel, Invariants, Material, ModeSelection, Section,
+    NODE_DOFS, RX, RY, RZ, UX, UY, UZ,
 };
-use flexdyn_codegen::lagrange::{derive, Equations};
-use flexdyn_codegen::model::Model;
-use flexdyn_codegen::Error;
+use crate::model::Model;
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
 
 const FILE: &str = "scene.toml";

@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 
-use crate::expr::{Func, Graph, Id, Node, Symbol};
+use super::{Func, Graph, Id, Node, Symbol};
 
 impl Graph {
     /// Directional derivative of `e`: the derivative of every symbol `s` is

@@ -16,9 +16,10 @@
 //! Reassociation changes rounding in the last bits only; the CasADi
 //! validation bounds the emitted terms at 1e-10 relative.
 
-use crate::expr::Symbol;
-use crate::program::{Code, Stmt};
 use std::collections::HashMap;
+
+use super::code::{Code, Stmt};
+use crate::expr::Symbol;
 
 /// Passes over the program (each can pair the results of the previous one).
 const PASSES: usize = 4;
@@ -321,7 +322,7 @@ impl Rewriter<'_> {
 
 /// Shares the repeated pairs of the program `stmts` + `outputs`, binding new
 /// variables numbered from `*next` (advanced past them).
-pub(crate) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mut u32) {
+pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mut u32) {
     for _ in 0..PASSES {
         let existing = existing_pairs(stmts);
         // How many products and sums contain each pair (an existing `let`

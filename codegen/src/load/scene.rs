@@ -406,7 +406,9 @@ pub struct ActuatorDef {
 pub struct SceneDef {
     /// Identifier: module name of the generated code.
     pub name: Spanned<String>,
-    /// Free text for people; never copied into generated code.
+    /// Free text for people; never copied into generated code (read only
+    /// to check that it is a string).
+    #[allow(dead_code)]
     pub description: Option<String>,
     /// Gravity vector in world axes (default `[0, 0, -9.81]`).
     pub gravity: Option<Spanned<Vec<SScalar>>>,
@@ -440,7 +442,9 @@ pub struct SceneDef {
 pub struct DerivedSceneDef {
     /// Identifier: module name of the generated code.
     pub name: Spanned<String>,
-    /// Free text for people; never copied into generated code.
+    /// Free text for people; never copied into generated code (read only
+    /// to check that it is a string).
+    #[allow(dead_code)]
     pub description: Option<String>,
     /// The scene it reduces: a file name in the same directory.
     pub base: Spanned<String>,
@@ -477,12 +481,6 @@ pub enum SceneFile {
 
 /// Largest scene file accepted, in bytes.
 pub const MAX_SCENE_BYTES: usize = 4 << 20;
-
-/// Parse a scene file's text.
-pub fn parse_scene(source: &Source) -> Result<SceneDef, Error> {
-    check_size(source)?;
-    from_toml(source)
-}
 
 /// Parse a scene file's text, full or derived (one with a top-level `base`).
 pub fn parse_scene_file(source: &Source) -> Result<SceneFile, Error> {
@@ -524,7 +522,10 @@ mod tests {
     use std::path::Path;
 
     fn parse(text: &str) -> Result<SceneDef, Error> {
-        parse_scene(&Source::new(Path::new("s.toml"), text.into()))
+        match parse_scene_file(&Source::new(Path::new("s.toml"), text.into()))? {
+            SceneFile::Full(def) => Ok(def),
+            SceneFile::Derived(_) => panic!("a full scene was expected"),
+        }
     }
 
     #[test]

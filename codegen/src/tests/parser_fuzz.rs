@@ -12,7 +12,7 @@
 //! seconds); the nightly-size run is
 //!
 //! ```text
-//! FLEXDYN_FUZZ_CASES=100000 cargo test --release -p flexdyn-codegen --test parser_fuzz
+//! FLEXDYN_FUZZ_CASES=100000 cargo test --release -p flexdyn-codegen --lib tests::parser_fuzz
 //! ```
 //!
 //! (100000 cases for each property). `FLEXDYN_FUZZ_SEED` (a
@@ -22,15 +22,16 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use flexdyn_codegen::emit::emit;
-use flexdyn_codegen::error::{Error, Source};
-use flexdyn_codegen::expr::{Graph, Symbol};
-use flexdyn_codegen::lagrange::derive;
-use flexdyn_codegen::model::Model;
-use flexdyn_codegen::parse::{parse_expr, Binding, ParseError, Scope};
-use flexdyn_codegen::scene::parse_scene;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
+
+use crate::derive::derive;
+use crate::emit::emit;
+use crate::error::{Error, Source};
+use crate::expr::{Graph, Symbol};
+use crate::load::parse::{parse_expr, Binding, ParseError, Scope};
+use crate::load::scene::parse_scene_file;
+use crate::model::Model;
 
 fn cases() -> u32 {
     match std::env::var("FLEXDYN_FUZZ_CASES") {
@@ -328,15 +329,15 @@ gain = 2.0
 
 const SCENES: &[&str] = &[
     KITCHEN_SINK,
-    include_str!("../../scenes/pendulum.toml"),
-    include_str!("../../scenes/cart_pole.toml"),
-    include_str!("../../scenes/double_pendulum.toml"),
-    include_str!("../../scenes/five_bar.toml"),
-    include_str!("../../scenes/slider_crank.toml"),
-    include_str!("../../examples/parallel-robot/scenes/parallel_robot_rigid.toml"),
-    include_str!("../../scenes/four_bar.toml"),
-    include_str!("../../scenes/flyball_governor.toml"),
-    include_str!("../../scenes/extreme_ratios.toml"),
+    include_str!("../../../scenes/pendulum.toml"),
+    include_str!("../../../scenes/cart_pole.toml"),
+    include_str!("../../../scenes/double_pendulum.toml"),
+    include_str!("../../../scenes/five_bar.toml"),
+    include_str!("../../../scenes/slider_crank.toml"),
+    include_str!("../../../examples/parallel-robot/scenes/parallel_robot_rigid.toml"),
+    include_str!("../../../scenes/four_bar.toml"),
+    include_str!("../../../scenes/flyball_governor.toml"),
+    include_str!("../../../scenes/extreme_ratios.toml"),
     SMALL_FLEXIBLE,
 ];
 
@@ -502,7 +503,7 @@ fn mutated_scenes_never_panic_and_errors_are_located() {
                 check_scene_error(&text, &e)?;
                 // An error from reading the TOML is the model's error too,
                 // and is always located.
-                if let Err(toml_error) = parse_scene(&source) {
+                if let Err(toml_error) = parse_scene_file(&source) {
                     prop_assert_eq!(&toml_error, &e);
                     prop_assert!(toml_error.line >= 1, "{}", toml_error);
                 }
@@ -1073,7 +1074,9 @@ fn generated_scenes_never_panic_the_loader_or_the_generator() {
                     // refused with a message; never a panic.
                     match derive(&mut model) {
                         Ok(eq) => {
-                            let emitted = emit(&model, &eq);
+                            let runtime = syn::parse_str("flexdyn_runtime").expect("a path");
+                            let functions = crate::schedule::functions(&model, &eq);
+                            let (emitted, _) = emit(&model, &eq, functions, &runtime, None);
                             prop_assert!(!emitted.source.is_empty());
                         }
                         Err(e) => prop_assert!(!e.message.trim().is_empty(), "{text}"),

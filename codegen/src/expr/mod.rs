@@ -13,6 +13,8 @@
 //! Children always have smaller ids than their parents, so increasing id order
 //! is a topological order of the graph.
 
+mod diff;
+
 use std::collections::HashMap;
 use std::fmt;
 
