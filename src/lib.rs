@@ -7,6 +7,7 @@
 
 pub mod dynamic;
 pub mod eval;
+pub mod interpreted;
 pub mod plot;
 pub mod progress;
 pub mod report;

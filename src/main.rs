@@ -45,11 +45,12 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Evaluate every generated term of a compiled scene at states read from
+    /// Evaluate every generated term of a scene at states read from
     /// JSON (`{"states": [{"q": [..], "qd": [..], "t": 0.0}]}`) and write
     /// them as JSON.
     Eval {
-        /// Scene file (its scene must be compiled in, i.e. live in `scenes/`).
+        /// Scene file: a compiled-in scene is evaluated by its compiled
+        /// module, any other by the interpreter (bitwise the same numbers).
         #[arg(long)]
         scene: PathBuf,
         /// States file.
@@ -301,20 +302,22 @@ fn eval(scene: &Path, states: &Path, out: Option<&Path>, perturbed: bool) -> Res
     } else {
         flexdyn::scenes::model
     };
-    let mut model = lookup(&parsed.name).ok_or_else(|| {
-        if perturbed {
-            format!(
-                "scene `{}` has no perturbed build (those are: {})",
-                parsed.name,
+    // A scene not compiled in is interpreted: the same numbers, bitwise.
+    let interpreted = match lookup(&parsed.name) {
+        None if !perturbed => Some(flexdyn::interpreted::InterpretedModel::load(scene)?),
+        _ => None,
+    };
+    let fresh = |name: &str| -> Result<Box<dyn flexdyn::dynamic::DynModel>, String> {
+        match (lookup(name), &interpreted) {
+            (Some(m), _) => Ok(m),
+            (None, Some(i)) => Ok(Box::new(i.clone())),
+            (None, None) => Err(format!(
+                "scene `{name}` has no perturbed build (those are: {})",
                 flexdyn::perturbed_scenes::SCENES.join(", ")
-            )
-        } else {
-            format!(
-                "scene `{}` is not compiled into this binary: put its file in scenes/ and rebuild",
-                parsed.name
-            )
+            )),
         }
-    })?;
+    };
+    let mut model = fresh(&parsed.name)?;
     let text = std::fs::read_to_string(states)
         .map_err(|e| format!("cannot read {}: {e}", states.display()))?;
     let input: States =
@@ -324,7 +327,7 @@ fn eval(scene: &Path, states: &Path, out: Option<&Path>, perturbed: bool) -> Res
         check_state(model.as_ref(), s, k)?;
         if !s.params.is_empty() {
             // Parameters apply to this state only: start from the defaults.
-            model = lookup(&parsed.name).ok_or("scene vanished")?;
+            model = fresh(&parsed.name)?;
         }
         results.push(evaluate(model.as_mut(), s).map_err(|e| format!("state {k}: {e}"))?);
     }

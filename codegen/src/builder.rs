@@ -17,7 +17,7 @@ use quote::quote;
 
 use crate::emit::{emit_perturbed, struct_name, CoefficientPerturbation, FunctionReport};
 use crate::error::Error;
-use crate::lagrange::derive;
+use crate::lagrange::{derive, Equations};
 use crate::model::Model;
 use crate::program::OpCount;
 
@@ -77,14 +77,7 @@ fn generate_perturbed(
     perturbations: &[CoefficientPerturbation],
 ) -> Result<Generated, Error> {
     let start = Instant::now();
-    let mut model = Model::load(path)?;
-    let eq = derive(&mut model).map_err(|e| Error {
-        file: path.to_path_buf(),
-        line: 0,
-        column: 0,
-        context: Some(e.context.clone()),
-        message: e.message.clone(),
-    })?;
+    let (model, eq) = derived(path)?;
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
     let (emitted, applied) = emit_perturbed(&model, &eq, perturbation);
     if let (Some(c), false) = (perturbation, applied) {
@@ -108,6 +101,20 @@ fn generate_perturbed(
         functions: emitted.functions,
         elapsed: start.elapsed(),
     })
+}
+
+/// A scene file's model and its derived equations, in memory (what the
+/// emitter and the interpreter work from).
+pub(crate) fn derived(path: &Path) -> Result<(Model, Equations), Error> {
+    let mut model = Model::load(path)?;
+    let eq = derive(&mut model).map_err(|e| Error {
+        file: path.to_path_buf(),
+        line: 0,
+        column: 0,
+        context: Some(e.context.clone()),
+        message: e.message.clone(),
+    })?;
+    Ok((model, eq))
 }
 
 /// Configures and runs the generator.

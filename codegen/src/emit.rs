@@ -159,20 +159,20 @@ impl Signature {
 
 /// Storage of an output.
 #[derive(Clone, Copy)]
-enum Shape {
+pub(crate) enum Shape {
     Vector,
     Matrix { symmetric: bool },
 }
 
 /// One output argument of an emitted function: a vector is one row of entries.
-struct Output<'a> {
-    name: &'static str,
-    shape: Shape,
-    entries: std::borrow::Cow<'a, [Vec<Id>]>,
+pub(crate) struct Output<'a> {
+    pub(crate) name: &'static str,
+    pub(crate) shape: Shape,
+    pub(crate) entries: std::borrow::Cow<'a, [Vec<Id>]>,
 }
 
 impl<'a> Output<'a> {
-    fn vector(name: &'static str, entries: &[Id]) -> Output<'a> {
+    pub(crate) fn vector(name: &'static str, entries: &[Id]) -> Output<'a> {
         Output {
             name,
             shape: Shape::Vector,
@@ -180,7 +180,11 @@ impl<'a> Output<'a> {
         }
     }
 
-    fn matrix(name: &'static str, entries: &'a [Vec<Id>], symmetric: bool) -> Output<'a> {
+    pub(crate) fn matrix(
+        name: &'static str,
+        entries: &'a [Vec<Id>],
+        symmetric: bool,
+    ) -> Output<'a> {
         Output {
             name,
             shape: Shape::Matrix { symmetric },
@@ -389,23 +393,7 @@ impl Emitter<'_> {
     /// upper triangle and mirror it.
     fn function(&mut self, sig: Signature, outputs: &[Output]) -> TokenStream {
         let nq = usize_lit(self.model.nq());
-        let zero = self.graph.find_constant(0.0);
-        let mut ids = Vec::new();
-        let mut slots: Vec<(usize, usize, usize)> = Vec::new();
-        for (k, o) in outputs.iter().enumerate() {
-            for (i, row) in o.entries.iter().enumerate() {
-                for (j, &e) in row.iter().enumerate() {
-                    let skip = match o.shape {
-                        Shape::Vector => false,
-                        Shape::Matrix { symmetric } => (symmetric && j < i) || Some(e) == zero,
-                    };
-                    if !skip {
-                        ids.push(e);
-                        slots.push((k, i, j));
-                    }
-                }
-            }
-        }
+        let (ids, slots) = computed_entries(self.graph, outputs);
         let mut p = schedule(self.graph, &ids);
         self.record(sig.name, &mut p);
         let used = self.inputs(&ids);
@@ -498,6 +486,33 @@ impl Emitter<'_> {
             }
         }
     }
+}
+
+/// The entries a function computes, in order, with their (output, row,
+/// column): every vector entry, and the matrix entries that are not
+/// structurally zero, of a symmetric matrix the upper triangle only.
+pub(crate) fn computed_entries(
+    graph: &Graph,
+    outputs: &[Output],
+) -> (Vec<Id>, Vec<(usize, usize, usize)>) {
+    let zero = graph.find_constant(0.0);
+    let mut ids = Vec::new();
+    let mut slots = Vec::new();
+    for (k, o) in outputs.iter().enumerate() {
+        for (i, row) in o.entries.iter().enumerate() {
+            for (j, &e) in row.iter().enumerate() {
+                let skip = match o.shape {
+                    Shape::Vector => false,
+                    Shape::Matrix { symmetric } => (symmetric && j < i) || Some(e) == zero,
+                };
+                if !skip {
+                    ids.push(e);
+                    slots.push((k, i, j));
+                }
+            }
+        }
+    }
+    (ids, slots)
 }
 
 /// `a * b * c` from factor tokens (the `seed` is used when there are none).

@@ -5,7 +5,8 @@
 //! energies ([`model`]) -> derived terms ([`lagrange`]) -> optimised
 //! straight-line program ([`program`], with repeated pairs of factors and
 //! terms shared by `share`) -> emitted Rust ([`emit`]), driven by
-//! the [`Builder`]. A derived scene is reduced ([`reduce`]: modes dropped,
+//! the [`Builder`]; [`interpret`] evaluates the same programs at run time,
+//! bitwise as the emitted Rust does. A derived scene is reduced ([`reduce`]: modes dropped,
 //! coordinates frozen, negligible terms pruned) on the way.
 
 mod builder;
@@ -15,6 +16,7 @@ pub mod error;
 pub mod export;
 pub mod expr;
 pub mod fem;
+pub mod interpret;
 pub mod lagrange;
 pub mod model;
 pub mod parse;
