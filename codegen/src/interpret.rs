@@ -109,28 +109,12 @@ enum Op {
     Mul,
     Div,
     Neg,
-    Sin,
-    Cos,
-    Tan,
-    Exp,
-    Ln,
-    Sqrt,
+    Call(Func),
     SinCos,
     Atan2,
 }
 
 impl Op {
-    fn call(f: Func) -> Op {
-        match f {
-            Func::Sin => Op::Sin,
-            Func::Cos => Op::Cos,
-            Func::Tan => Op::Tan,
-            Func::Exp => Op::Exp,
-            Func::Ln => Op::Ln,
-            Func::Sqrt => Op::Sqrt,
-        }
-    }
-
     /// The arithmetic of two values, for folding literals (`None` for calls).
     fn fold(self, x: f64, y: f64) -> Option<f64> {
         match self {
@@ -252,12 +236,7 @@ impl Tape {
                 Op::Mul => x * y,
                 Op::Div => x / y,
                 Op::Neg => -x,
-                Op::Sin => math::sin(x),
-                Op::Cos => math::cos(x),
-                Op::Tan => math::tan(x),
-                Op::Exp => math::exp(x),
-                Op::Ln => math::ln(x),
-                Op::Sqrt => math::sqrt(x),
+                Op::Call(f) => call(f, x),
                 Op::Atan2 => math::atan2(x, y),
                 Op::SinCos => {
                     let (sin, cos) = math::sin_cos(x);
@@ -273,6 +252,18 @@ impl Tape {
         for &(slot, pos) in &self.writes {
             out[pos as usize] = s[slot as usize];
         }
+    }
+}
+
+/// `f(x)` by the function generated code calls.
+fn call(f: Func, x: f64) -> f64 {
+    match f {
+        Func::Sin => math::sin(x),
+        Func::Cos => math::cos(x),
+        Func::Tan => math::tan(x),
+        Func::Exp => math::exp(x),
+        Func::Ln => math::ln(x),
+        Func::Sqrt => math::sqrt(x),
     }
 }
 
@@ -370,68 +361,33 @@ impl Interpreted {
 fn functions<'a>(model: &Model, eq: &'a Equations) -> Vec<(Function, bool, Vec<Output<'a>>)> {
     let m = || Output::matrix("m", &eq.mass, true);
     let phi_q = || Output::matrix("phi_q", &eq.phi_q, false);
+    let vector = |ids: &[crate::expr::Id]| Output::vector("out", ids);
+    let one = |f, qd, ids: &[crate::expr::Id]| (f, qd, vec![vector(ids)]);
     let mut out = vec![
         (Function::MassMatrix, false, vec![m()]),
-        (Function::Bias, true, vec![Output::vector("h", &eq.bias)]),
-        (
-            Function::Constraints,
-            false,
-            vec![Output::vector("phi", &eq.phi)],
-        ),
+        one(Function::Bias, true, &eq.bias),
+        one(Function::Constraints, false, &eq.phi),
         (Function::ConstraintJacobian, false, vec![phi_q()]),
-        (
-            Function::ConstraintTimeDerivative,
-            false,
-            vec![Output::vector("phi_t", &eq.phi_t)],
-        ),
-        (
-            Function::ConstraintRhs,
-            true,
-            vec![Output::vector("gamma", &eq.gamma)],
-        ),
+        one(Function::ConstraintTimeDerivative, false, &eq.phi_t),
+        one(Function::ConstraintRhs, true, &eq.gamma),
         (
             Function::ConstraintsAndJacobian,
             false,
-            vec![Output::vector("phi", &eq.phi), phi_q()],
+            vec![vector(&eq.phi), phi_q()],
         ),
         (
             Function::DynamicsTerms,
             true,
-            vec![
-                m(),
-                Output::vector("h", &eq.bias),
-                phi_q(),
-                Output::vector("gamma", &eq.gamma),
-            ],
+            vec![m(), vector(&eq.bias), phi_q(), vector(&eq.gamma)],
         ),
-        (
-            Function::KineticEnergy,
-            true,
-            vec![Output::vector("t", &[eq.kinetic_energy])],
-        ),
-        (
-            Function::PotentialEnergy,
-            false,
-            vec![Output::vector("v", &[eq.potential_energy])],
-        ),
+        one(Function::KineticEnergy, true, &[eq.kinetic_energy]),
+        one(Function::PotentialEnergy, false, &[eq.potential_energy]),
     ];
     if model.outputs.forces {
         out.extend([
-            (
-                Function::CoriolisForces,
-                true,
-                vec![Output::vector("out", &eq.coriolis)],
-            ),
-            (
-                Function::PotentialForces,
-                false,
-                vec![Output::vector("out", &eq.potential_forces)],
-            ),
-            (
-                Function::DampingForces,
-                true,
-                vec![Output::vector("out", &eq.damping_forces)],
-            ),
+            one(Function::CoriolisForces, true, &eq.coriolis),
+            one(Function::PotentialForces, false, &eq.potential_forces),
+            one(Function::DampingForces, true, &eq.damping_forces),
         ]);
     }
     if let Some(c) = &eq.coriolis_matrix {
@@ -644,7 +600,7 @@ impl Lowering {
             Code::Prod { num, den } => self.chain(None, false, num, den),
             Code::Call(f, a) => {
                 let a = self.value(a);
-                self.op(Op::call(*f), a, a)
+                self.op(Op::Call(*f), a, a)
             }
             Code::Atan2(y, x) => {
                 let (y, x) = (self.value(y), self.value(x));
