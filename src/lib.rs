@@ -10,6 +10,7 @@
 pub mod cli;
 pub mod dynamic;
 pub mod eval;
+pub mod interpreted;
 pub mod plot;
 pub mod progress;
 pub mod table;

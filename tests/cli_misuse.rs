@@ -135,11 +135,14 @@ fn eval_refuses_bad_state_files() {
         std::fs::write(&states, text).unwrap();
         refused(d, &["s.json"], &eval, needle);
     }
-    // A scene that is not compiled into the binary.
-    std::fs::write(&states, "{\"states\": []}").unwrap();
+    // A scene that is not compiled into the binary is interpreted, and
+    // its states checked against it.
+    std::fs::write(&states, "{\"states\": [{\"q\": [1, 2], \"qd\": [0, 0]}]}").unwrap();
     std::fs::write(
         d.join("other.toml"),
-        "name = \"other\"\n[[coordinates]]\nname = \"x\"\n",
+        "name = \"other\"\n[[coordinates]]\nname = \"x\"\n\
+         [[components]]\nname = \"m\"\ntype = \"point_mass\"\nmass = 1\n\
+         position = [\"x\", 0, 0]\n",
     )
     .unwrap();
     refused(
@@ -154,6 +157,6 @@ fn eval_refuses_bad_state_files() {
             "--out",
             &out,
         ],
-        "not compiled into this binary",
+        "state 0: scene `other` has 1 coordinates, got 2 positions and 2 velocities",
     );
 }

@@ -18,6 +18,10 @@
 //! 7. `emit`: the formatted Rust module, naming the runtime crate by the
 //!    path [`Builder::runtime_path`] (default `flexdyn_runtime`).
 //!
+//! [`interpret`] is emit's twin for run time: it lowers the same scheduled
+//!    programs to instruction tapes that compute, bitwise, what the emitted
+//!    Rust computes, so a scene file can be evaluated without compiling it.
+//!
 //! Each stage imports only from earlier ones. `export` writes a model's
 //! symbolic inputs as JSON ([`export_json`]).
 //!
@@ -34,6 +38,7 @@ mod export;
 mod expr;
 mod fem;
 mod geometry;
+pub mod interpret;
 mod load;
 mod model;
 mod prune;

@@ -1,5 +1,8 @@
-//! `flexdyn eval`: every generated term of a compiled-in scene at states read
-//! from JSON, written as JSON (what the CasADi validation compares).
+//! `flexdyn eval`: every generated term of any scene at states read from
+//! JSON, written as JSON (what the CasADi validation compares). A scene
+//! compiled into the binary is evaluated by its compiled module, any other
+//! scene file is generated in memory and interpreted
+//! ([`crate::interpreted`]): bitwise the same numbers.
 
 use std::path::PathBuf;
 
@@ -7,14 +10,19 @@ use crate::dynamic::DynModel;
 use crate::eval::{check_state, evaluate, States};
 use crate::table::write_atomic;
 
-/// Evaluate every generated term of a compiled scene at states read from
+/// Evaluate every generated term of a scene at states read from
 /// JSON (`{"states": [{"q": [..], "qd": [..], "t": 0.0}]}`) and write them
 /// as JSON.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scene file (its scene must be compiled into this binary).
+    /// Scene file: a compiled-in scene is evaluated by its compiled module,
+    /// any other by the interpreter (bitwise the same numbers).
     #[arg(long)]
     pub scene: PathBuf,
+    /// Interpret the scene file even when a scene of its name is compiled
+    /// in (e.g. an edited copy of a shipped scene).
+    #[arg(long, conflicts_with = "perturbed")]
+    pub interpret: bool,
     /// States file.
     #[arg(long)]
     pub states: PathBuf,
@@ -39,8 +47,6 @@ pub struct Compiled {
     pub perturbed_scenes: &'static [&'static str],
     /// The default model of a perturbed build, by name.
     pub perturbed_model: fn(&str) -> Option<Box<dyn DynModel>>,
-    /// The folder whose scenes are compiled in (for the error message).
-    pub scene_dir: &'static str,
 }
 
 /// The generic scenes of `scenes/`, compiled into this crate.
@@ -49,7 +55,6 @@ pub const COMPILED_SCENES: Compiled = Compiled {
     model: crate::scenes::model,
     perturbed_scenes: crate::perturbed_scenes::SCENES,
     perturbed_model: crate::perturbed_scenes::model,
-    scene_dir: "scenes/",
 };
 
 /// Run the command on the scenes of `compiled`.
@@ -60,20 +65,23 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     } else {
         compiled.model
     };
-    let mut model = lookup(&parsed.name).ok_or_else(|| {
-        if args.perturbed {
-            format!(
-                "scene `{}` has no perturbed build (those are: {})",
-                parsed.name,
-                compiled.perturbed_scenes.join(", ")
-            )
-        } else {
-            format!(
-                "scene `{}` is not compiled into this binary: put its file in {} and rebuild",
-                parsed.name, compiled.scene_dir
-            )
+    let compiled_in = !args.interpret && lookup(&parsed.name).is_some();
+    let interpreted = match compiled_in || args.perturbed {
+        true => None,
+        false => Some(crate::interpreted::InterpretedModel::load(&args.scene)?),
+    };
+    let fresh = |name: &str| -> Result<Box<dyn DynModel>, String> {
+        match &interpreted {
+            Some(i) => Ok(Box::new(i.clone())),
+            None => lookup(name).ok_or_else(|| {
+                format!(
+                    "scene `{name}` has no perturbed build (those are: {})",
+                    compiled.perturbed_scenes.join(", ")
+                )
+            }),
         }
-    })?;
+    };
+    let mut model = fresh(&parsed.name)?;
     let text = std::fs::read_to_string(&args.states)
         .map_err(|e| format!("cannot read {}: {e}", args.states.display()))?;
     let input: States =
@@ -83,7 +91,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         check_state(model.as_ref(), s, k)?;
         if !s.params.is_empty() {
             // Parameters apply to this state only: start from the defaults.
-            model = lookup(&parsed.name).ok_or("scene vanished")?;
+            model = fresh(&parsed.name)?;
         }
         results.push(evaluate(model.as_mut(), s).map_err(|e| format!("state {k}: {e}"))?);
     }

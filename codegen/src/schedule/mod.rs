@@ -12,7 +12,7 @@ mod functions;
 mod share;
 
 pub use code::{Code, OpCount, Program, Stmt};
-pub use functions::{functions, Function, Shape};
+pub use functions::{functions, Function, Output, Shape};
 
 use crate::expr::{Graph, Id};
 

@@ -24,7 +24,6 @@ const ROBOT_SCENES: cli::eval::Compiled = cli::eval::Compiled {
     model: robot_crate::scenes::model,
     perturbed_scenes: robot_crate::perturbed_scenes::SCENES,
     perturbed_model: robot_crate::perturbed_scenes::model,
-    scene_dir: "examples/parallel-robot/scenes/",
 };
 
 #[derive(Subcommand)]

@@ -93,10 +93,9 @@ fn rigid_robot_towards_the_workspace_edge_reports_growing_condition() {
     use flexdyn_parallel_robot::robot::{inverse_kinematics, Geometry};
     use flexdyn_parallel_robot::scenes::parallel_robot_rigid::ParallelRobotRigid;
     let model = ParallelRobotRigid;
-    let parsed = flexdyn::codegen::Model::load(std::path::Path::new(
-        "scenes/parallel_robot_rigid.toml",
-    ))
-    .unwrap_or_else(|e| panic!("{e}"));
+    let parsed =
+        flexdyn::codegen::Model::load(std::path::Path::new("scenes/parallel_robot_rigid.toml"))
+            .unwrap_or_else(|e| panic!("{e}"));
     let g = Geometry::from_parameters(&parsed.parameters).expect("robot geometry");
     let zero = SVector::<f64, 3>::zeros();
     let mut worst_ratio = (f64::INFINITY, 0.0f64);
