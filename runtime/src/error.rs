@@ -463,11 +463,13 @@ impl fmt::Display for ErrorKind {
                 match rate {
                     Some(rate) => write!(
                         f,
-                        "; the fastest mode is at about {:.3e} rad/s ({:.3e} Hz), so use steps \
-                         below {:.3e} s",
+                        "; the fastest mode is at about {:.3e} rad/s ({:.3e} Hz), so steps must \
+                         be below {:.3e} s for it to contract and below about {:.3e} s for it to \
+                         converge quickly",
                         rate,
                         rate / (2.0 * core::f64::consts::PI),
-                        GAUSS_LEGENDRE_CONTRACTION_LIMIT / rate
+                        GAUSS_LEGENDRE_CONTRACTION_LIMIT / rate,
+                        0.5 * GAUSS_LEGENDRE_CONTRACTION_LIMIT / rate
                     ),
                     None => write!(f, "; use a smaller step"),
                 }
