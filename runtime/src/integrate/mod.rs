@@ -8,10 +8,12 @@
 //!   it sees;
 //! * [`AdaptiveRk4`]: RK4 with step-doubling error control;
 //! * [`SemiImplicitEuler`]: symplectic (semi-implicit) Euler, first order,
-//!   one force evaluation per step;
+//!   one force evaluation per step, with RK4's stability estimate (two more
+//!   evaluations) against its bound `dt * rho(J) < 2`;
 //! * [`GaussLegendre4`]: two-stage Gauss–Legendre collocation, implicit,
 //!   symplectic / symmetric, order 4, for accurate long runs of non-stiff
-//!   conservative scenes;
+//!   conservative scenes; its fixed-point stage iteration contracts only
+//!   for `dt * rho(J) < sqrt(12)`, and says so when it diverges;
 //! * [`GeneralizedAlpha`]: implicit generalized-α (Chung–Hulbert, in the
 //!   Arnold–Brüls form) with bounded Newton iterations, for stiff flexible
 //!   models.
@@ -87,8 +89,9 @@ pub struct StepReport {
     /// ([`AdaptiveRk4`] used as an [`Integrator`]); 0 for the fixed-step
     /// explicit schemes.
     pub iterations: u32,
-    /// Explicit schemes: estimate of `dt * rho(J)` (spectral radius of the
-    /// linearised dynamics) from the RK stages; 0 where not measured.
+    /// Explicit schemes ([`Rk4`], [`AdaptiveRk4`], [`SemiImplicitEuler`]
+    /// with its check on): estimate of `dt * rho(J)` (spectral radius of
+    /// the linearised dynamics) from the RK stages; 0 where not measured.
     pub stability_estimate: f64,
     /// The projection performed after the step, if any.
     pub projection: Option<ProjectionReport>,
