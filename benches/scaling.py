@@ -3,7 +3,7 @@
 grow with the number of modes per flexible link and with the number of
 finite elements.
 
-Takes ``scenes/parallel_robot_flexible_links.toml`` (three flexible links),
+Takes ``examples/parallel-robot/scenes/parallel_robot_flexible_links.toml`` (three flexible links),
 rewrites its ``modes`` / ``elements`` lines in a temporary copy, and for each
 variant records:
 
@@ -25,7 +25,8 @@ variant records:
 
 ``--plot PATH`` draws the table as a PNG (needs matplotlib: see
 ``benches/requirements.txt``). ``--every-scene`` measures the same columns
-for every shipped scene instead (one row per file in ``scenes/``).
+for every shipped scene instead (one row per file in ``scenes/`` and
+``examples/parallel-robot/scenes/``).
 
 Usage (from the repository root, after ``cargo build --release``):
 
@@ -44,7 +45,8 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-SCENE = REPO / "scenes/parallel_robot_flexible_links.toml"
+ROBOT_SCENES = REPO / "examples/parallel-robot/scenes"
+SCENE = ROBOT_SCENES / "parallel_robot_flexible_links.toml"
 MODES = [0, 1, 2, 3, 4, 6, 8, 10, 12]
 ELEMENTS = [5, 10, 20, 40, 80]
 MODES_AT = 6  # modes per link of the elements sweep
@@ -147,7 +149,8 @@ def every_scene(binary: Path, crate: Path, tmp: Path) -> None:
     print("| scene | coordinates | generate | ops (all) | ops (dynamics_terms) | compile "
           "| dynamics_terms call |")
     print("|---|---|---|---|---|---|---|")
-    for scene in sorted((REPO / "scenes").glob("*.toml")):
+    shipped = [*(REPO / "scenes").glob("*.toml"), *ROBOT_SCENES.glob("*.toml")]
+    for scene in sorted(shipped, key=lambda p: p.name):
         ms, total, fused, module = generate(binary, scene, tmp)
         nq = int(re.search(r"pub const NQ: usize = (\d+);", module.read_text()).group(1))
         secs = compile_time(crate, module)
@@ -224,7 +227,7 @@ def main() -> int:
     ap.add_argument("--csv", help="also write the table as CSV")
     ap.add_argument("--plot", help="also draw the table as a PNG (needs matplotlib)")
     ap.add_argument("--every-scene", action="store_true",
-                    help="instead, one row per shipped scene (scenes/*.toml): generation, ops, "
+                    help="instead, one row per shipped scene (scenes/*.toml and the robot's): generation, ops, "
                          "compile and evaluation time")
     args = ap.parse_args()
     binary = Path(args.flexdyn)

@@ -38,6 +38,12 @@ DEFAULT_SCENES = ["pendulum", "double_pendulum", "cart_pole", "slider_crank", "f
                   "parallel_robot_rigid", "parallel_robot_flexible_joints"]
 
 
+def scene_file(name: str) -> Path:
+    """A shipped scene by name: in scenes/, or the parallel-robot example's."""
+    generic = REPO / f"scenes/{name}.toml"
+    return generic if generic.is_file() else REPO / f"examples/parallel-robot/scenes/{name}.toml"
+
+
 def build(export: dict):
     import sympy as sp
 
@@ -126,7 +132,7 @@ def main() -> int:
     if not binary.exists():
         print(f"error: no flexdyn binary at {binary}: run `cargo build --release`", file=sys.stderr)
         return 2
-    scenes = [Path(s) for s in args.scenes] or [REPO / f"scenes/{s}.toml" for s in DEFAULT_SCENES]
+    scenes = [Path(s) for s in args.scenes] or [scene_file(s) for s in DEFAULT_SCENES]
     print(f"SymPy {sympy.__version__}; M (upper triangle) and h, then cse\n")
     print("| scene | nq | flexdyn generate (all terms) | flexdyn ops M+h | SymPy derive | SymPy cse | SymPy ops M+h |")
     print("|---|---|---|---|---|---|---|")

@@ -1,5 +1,6 @@
 //! Scene models behind one object-safe interface, for tools that pick a scene
-//! at run time (the command line, validation). Uses heap-allocated results;
+//! at run time (the command line, validation): compiled ones ([`erase`]) and
+//! interpreted ones ([`crate::interpreted`]). Uses heap-allocated results;
 //! real-time code uses the generated types and [`flexdyn_runtime::Model`]
 //! directly.
 
@@ -9,11 +10,11 @@ use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 /// A generated model with its dimensions erased.
 pub trait DynModel {
     /// Scene name.
-    fn name(&self) -> &'static str;
+    fn name(&self) -> &str;
     /// Coordinate names.
-    fn coordinates(&self) -> &'static [&'static str];
+    fn coordinates(&self) -> Vec<&str>;
     /// Actuator names.
-    fn actuators(&self) -> &'static [&'static str];
+    fn actuators(&self) -> Vec<&str>;
     /// Number of coordinates.
     fn nq(&self) -> usize {
         self.coordinates().len()
@@ -47,7 +48,7 @@ pub trait DynModel {
     /// Potential energy.
     fn potential_energy(&self, q: &[f64], t: f64) -> f64;
     /// Names of the runtime parameters.
-    fn parameters(&self) -> &'static [&'static str];
+    fn parameters(&self) -> Vec<&str>;
     /// Set a runtime parameter; `false` if there is none of that name.
     fn set_parameter(&mut self, name: &str, value: f64) -> bool;
     /// Coriolis forces, when generated.
@@ -86,14 +87,14 @@ impl<M, const NQ: usize, const NC: usize, const NU: usize> DynModel for Erased<M
 where
     M: Model<NQ, NC, NU>,
 {
-    fn name(&self) -> &'static str {
+    fn name(&self) -> &str {
         M::NAME
     }
-    fn coordinates(&self) -> &'static [&'static str] {
-        &M::COORDINATES
+    fn coordinates(&self) -> Vec<&str> {
+        M::COORDINATES.to_vec()
     }
-    fn actuators(&self) -> &'static [&'static str] {
-        &M::ACTUATORS
+    fn actuators(&self) -> Vec<&str> {
+        M::ACTUATORS.to_vec()
     }
     fn nc(&self) -> usize {
         NC
@@ -163,8 +164,8 @@ where
     fn potential_energy(&self, q: &[f64], t: f64) -> f64 {
         self.0.potential_energy(&vector(q), t)
     }
-    fn parameters(&self) -> &'static [&'static str] {
-        M::PARAMETERS
+    fn parameters(&self) -> Vec<&str> {
+        M::PARAMETERS.to_vec()
     }
     fn set_parameter(&mut self, name: &str, value: f64) -> bool {
         self.0.set_parameter(name, value)

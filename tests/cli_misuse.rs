@@ -1,47 +1,15 @@
-//! Issue 8: command-line misuse. Every bad invocation fails with a non-zero
-//! exit status and a clear one-line error on stderr (no panic, no usage
-//! dump for a value that parsed), and leaves no output file behind, partial
-//! or complete. (tests/robot_cli.rs covers the robot commands' first cases.)
+//! Issue 8: command-line misuse of `flexdyn`. Every bad invocation fails
+//! with a non-zero exit status and a clear one-line error on stderr (no
+//! panic, no usage dump for a value that parsed), and leaves no output file
+//! behind, partial or complete. (The parallel-robot example's
+//! `tests/cli_misuse.rs` covers its `inverse` and `simulate`.)
 
-use std::path::Path;
-use std::process::Command;
+#[path = "common/cli.rs"]
+mod cli;
 
-const ROBOT: &str = "scenes/parallel_robot_rigid.toml";
+use cli::{p, refused};
 
-fn flexdyn(args: &[&str]) -> (Option<i32>, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_flexdyn"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run flexdyn");
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// Runs `args`, expecting failure with `needle` in the error and no file
-/// left in `dir` besides those listed in `keep`.
-fn refused(dir: &Path, keep: &[&str], args: &[&str], needle: &str) {
-    let (code, err) = flexdyn(args);
-    assert_eq!(code, Some(1), "{args:?} should fail with status 1: {err}");
-    assert!(
-        err.starts_with("error: ") && err.contains(needle),
-        "{args:?}: `{err}` should mention `{needle}`"
-    );
-    assert!(!err.contains("panicked"), "{args:?}: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
-    let left: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| !keep.contains(&n.as_str()))
-        .collect();
-    assert!(left.is_empty(), "{args:?} left {left:?} behind");
-}
-
-fn p(dir: &Path, name: &str) -> String {
-    dir.join(name).to_string_lossy().into_owned()
-}
+const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
 
 #[test]
 fn generate_and_export_refuse_missing_and_bad_files() {
@@ -167,11 +135,14 @@ fn eval_refuses_bad_state_files() {
         std::fs::write(&states, text).unwrap();
         refused(d, &["s.json"], &eval, needle);
     }
-    // A scene that is not compiled into the binary.
-    std::fs::write(&states, "{\"states\": []}").unwrap();
+    // A scene that is not compiled into the binary is interpreted, and
+    // its states checked against it.
+    std::fs::write(&states, "{\"states\": [{\"q\": [1, 2], \"qd\": [0, 0]}]}").unwrap();
     std::fs::write(
         d.join("other.toml"),
-        "name = \"other\"\n[[coordinates]]\nname = \"x\"\n",
+        "name = \"other\"\n[[coordinates]]\nname = \"x\"\n\
+         [[components]]\nname = \"m\"\ntype = \"point_mass\"\nmass = 1\n\
+         position = [\"x\", 0, 0]\n",
     )
     .unwrap();
     refused(
@@ -186,205 +157,6 @@ fn eval_refuses_bad_state_files() {
             "--out",
             &out,
         ],
-        "not compiled into this binary",
+        "state 0: scene `other` has 1 coordinates, got 2 positions and 2 velocities",
     );
-}
-
-#[test]
-fn inverse_refuses_bad_numbers_and_leaves_no_partial_output() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let csv = p(d, "tau.csv");
-    let base = ["inverse", "--scene", ROBOT, "--quiet", "--csv", &csv];
-    let cases: [(&[&str], &str); 10] = [
-        (&["--dt", "NaN"], "step must be a positive number"),
-        (&["--dt=-inf"], "step must be a positive number"),
-        (&["--dt", "1e-320"], "at most"),
-        (
-            &["--duration", "NaN"],
-            "duration must be a non-negative number",
-        ),
-        (
-            &["--duration", "inf"],
-            "duration must be a non-negative number",
-        ),
-        (
-            &["--duration", "-1"],
-            "duration must be a non-negative number",
-        ),
-        (&["--omega", "NaN"], "--omega must be finite"),
-        (&["--radius", "-0.1"], "--radius finite and non-negative"),
-        (&["--center", "0,0"], "--center must be three numbers"),
-        (&["--center", "0,0,inf"], "--center must be three numbers"),
-    ];
-    for (extra, needle) in cases {
-        let args: Vec<&str> = base.iter().chain(extra).copied().collect();
-        refused(d, &[], &args, needle);
-    }
-    // The plot fails after the table is computed: the CSV, which could be
-    // written, is not left behind either.
-    refused(
-        d,
-        &[],
-        &[
-            "inverse",
-            "--scene",
-            ROBOT,
-            "--duration",
-            "0.1",
-            "--quiet",
-            "--csv",
-            &csv,
-            "--plot",
-            &p(d, "no/plot.png"),
-        ],
-        "plotting failed",
-    );
-    refused(
-        d,
-        &[],
-        &[
-            "inverse",
-            "--scene",
-            ROBOT,
-            "--duration",
-            "0.1",
-            "--quiet",
-            "--csv",
-            &csv,
-            "--plot",
-            &p(d, "plot.gif"),
-        ],
-        ".png or .svg",
-    );
-    // An output path that is a directory.
-    refused(
-        d,
-        &[],
-        &[
-            "inverse",
-            "--scene",
-            ROBOT,
-            "--duration",
-            "0.1",
-            "--quiet",
-            "--csv",
-            d.to_str().unwrap(),
-        ],
-        "is a directory",
-    );
-    // And the same command succeeds once the paths are right, writing both.
-    let plot = p(d, "plot.svg");
-    let (code, err) = flexdyn(&[
-        "inverse",
-        "--scene",
-        ROBOT,
-        "--duration",
-        "0.1",
-        "--quiet",
-        "--csv",
-        &csv,
-        "--plot",
-        &plot,
-    ]);
-    assert_eq!(code, Some(0), "{err}");
-    let mut names: Vec<String> = std::fs::read_dir(d)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    assert_eq!(names, ["plot.svg", "tau.csv"]);
-}
-
-#[test]
-fn simulate_refuses_unreadable_or_wrong_torque_tables_and_bad_steps() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let table = p(d, "tq.csv");
-    let out = p(d, "sim.csv");
-    let good = "t,tau_1,tau_2,tau_3,px,py,pz\n0,1,1,1,0.1,0,0.7\n0.01,1,1,1,0.1,0,0.7\n";
-    let sim = [
-        "simulate",
-        "--scene",
-        ROBOT,
-        "--torques",
-        &table,
-        "--csv",
-        &out,
-        "--quiet",
-    ];
-    refused(d, &[], &sim, "cannot read");
-    let tables: [(&[u8], &str); 8] = [
-        (b"\x89PNG\r\n\x1a\n\x00\x00", "cannot read"),
-        (b"", "empty file"),
-        (b"t,tau_1,tau_2,tau_3,px,py,pz\n", "no rows"),
-        (b"time,tau1,tau2,tau3\n0,1,1,1\n", "no column `t`"),
-        (
-            b"t,tau_1,tau_2,tau_3,px,py,pz\n0,1,NaN,1,0.1,0,0.7\n",
-            "column `tau_2`: `NaN` is not a finite number",
-        ),
-        (
-            b"t,tau_1,tau_2,tau_3,px,py,pz\n0,1,1,1,0.1,0,0.7\n0.1,1,1\n",
-            ":3: expected 7 values",
-        ),
-        (
-            b"t,tau_1,tau_2,tau_3,px,py,pz\n0,1,1,1,0.1,0,0.7\n-1,1,1,1,0.1,0,0.7\n",
-            "increase strictly",
-        ),
-        (
-            b"t,tau_1,tau_2,tau_3,px,py,pz\n0,1,1,1,5,0,0.7\n",
-            "out of reach",
-        ),
-    ];
-    for (text, needle) in tables {
-        std::fs::write(&table, text).unwrap();
-        refused(d, &["tq.csv"], &sim, needle);
-    }
-    // A directory given as the table.
-    refused(
-        d,
-        &["tq.csv"],
-        &[
-            "simulate",
-            "--scene",
-            ROBOT,
-            "--torques",
-            d.to_str().unwrap(),
-            "--csv",
-            &out,
-        ],
-        "cannot read",
-    );
-    std::fs::write(&table, good).unwrap();
-    let steps: [(&[&str], &str); 9] = [
-        (&["--dt", "0"], "step must be a positive number"),
-        (&["--dt", "-0.001"], "step must be a positive number"),
-        (&["--dt", "NaN"], "step must be a positive number"),
-        (&["--duration", "1e300"], "at most"),
-        (
-            &["--duration", "-1"],
-            "duration must be a non-negative number",
-        ),
-        (
-            &["--duration", "NaN"],
-            "duration must be a non-negative number",
-        ),
-        (
-            &["--output-dt", "0"],
-            "--output-dt must be a positive number",
-        ),
-        (
-            &["--output-dt", "NaN"],
-            "--output-dt must be a positive number",
-        ),
-        (&["--output-dt", "0.0015"], "whole multiple of --dt"),
-    ];
-    for (extra, needle) in steps {
-        let args: Vec<&str> = sim.iter().chain(extra).copied().collect();
-        refused(d, &["tq.csv"], &args, needle);
-    }
-    // Plot failure after the simulation: no CSV left either.
-    let plot = p(d, "no/plot.png");
-    let args: Vec<&str> = sim.iter().chain(&["--plot", &plot]).copied().collect();
-    refused(d, &["tq.csv"], &args, "plotting failed");
 }

@@ -1,12 +1,20 @@
-//! Exports each benchmarked scene, has CasADi generate C for its `M`, `h`,
+//! Generates each benchmarked scene's flexdyn module into `$OUT_DIR/flexdyn/`,
+//! exports the scene, has CasADi generate C for its `M`, `h`,
 //! `Phi_q` and `gamma` (tests/casadi/codegen_c.py, CSE on), and compiles
 //! that C at -O3 with the `cc` crate. CasADi's arithmetic operation counts
 //! go to `$OUT_DIR/casadi_ops.rs`.
 use std::path::PathBuf;
 use std::process::Command;
 
-/// Scenes compared (each also included from `generated/` by the bench).
-const SCENES: &[&str] = &["slider_crank", "five_bar", "parallel_robot_rigid"];
+/// Scenes compared: name and scene file, relative to the repository root.
+const SCENES: &[(&str, &str)] = &[
+    ("slider_crank", "scenes/slider_crank.toml"),
+    ("five_bar", "scenes/five_bar.toml"),
+    (
+        "parallel_robot_rigid",
+        "examples/parallel-robot/scenes/parallel_robot_rigid.toml",
+    ),
+];
 
 fn main() {
     let here = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap());
@@ -32,13 +40,21 @@ fn main() {
     let mut ops = String::new();
     let mut build = cc::Build::new();
     build.opt_level(3).warnings(false);
-    for name in SCENES {
-        let scene = repo.join(format!("scenes/{name}.toml"));
-        println!("cargo:rerun-if-changed={}", scene.display());
+    SCENES
+        .iter()
+        .fold(flexdyn_codegen::Builder::new(), |b, (_, file)| {
+            b.scene(repo.join(file))
+        })
+        .out_dir(out.join("flexdyn"))
+        .emit_rerun_if_changed(true)
+        .generate()
+        .unwrap_or_else(|e| fail(&e.to_string()));
+    for (name, file) in SCENES {
+        let scene = repo.join(file);
         let model =
-            flexdyn_codegen::model::Model::load(&scene).unwrap_or_else(|e| fail(&e.to_string()));
+            flexdyn_codegen::Model::load(&scene).unwrap_or_else(|e| fail(&e.to_string()));
         let export = out.join(format!("{name}.json"));
-        std::fs::write(&export, flexdyn_codegen::export::export_json(&model))
+        std::fs::write(&export, flexdyn_codegen::export_json(&model))
             .unwrap_or_else(|e| fail(&format!("cannot write {}: {e}", export.display())));
         let run = Command::new(&python)
             .arg(&script)

@@ -1,5 +1,8 @@
 //! The generator's entry point: a builder that turns scene files into Rust
-//! modules, all or nothing, writing only files whose content changed.
+//! modules, all or nothing, writing only files whose content changed. Each
+//! scene goes through the stages in order: load, model, reduce, derive,
+//! prune, then schedule and emit ([`generate_scene`]); [`Model`] offers the
+//! first stages to callers that want the symbolic model itself.
 //!
 //! ```no_run
 //! flexdyn_codegen::Builder::new()
@@ -15,11 +18,56 @@ use std::time::{Duration, Instant};
 
 use quote::quote;
 
-use crate::emit::{emit_perturbed, struct_name, CoefficientPerturbation, FunctionReport};
-use crate::error::Error;
-use crate::lagrange::derive;
-use crate::model::Model;
-use crate::program::OpCount;
+use crate::derive::{derive, Equations};
+use crate::emit::{emit, struct_name, CoefficientPerturbation, FunctionReport};
+use crate::error::{Error, Source};
+use crate::load::{load, resolve, LoadedScene};
+use crate::model::{build, Model};
+use crate::prune::prune;
+use crate::reduce;
+use crate::schedule::{functions, OpCount};
+
+/// The runtime crate's path in emitted code, unless the builder says
+/// otherwise.
+const DEFAULT_RUNTIME_PATH: &str = "flexdyn_runtime";
+
+/// Stages 2 and 3: the symbolic model of a loaded scene, with a derived
+/// scene's reductions applied.
+fn model_of(scene: LoadedScene) -> Result<Model, Error> {
+    let model = build(&scene)?;
+    match &scene.derived {
+        Some((source, def)) => reduce::apply(model, def, source),
+        None => Ok(model),
+    }
+}
+
+impl Model {
+    /// Load a scene file into its symbolic model (a derived scene loads its
+    /// base and applies its reductions).
+    pub fn load(path: &Path) -> Result<Model, Error> {
+        model_of(load(path)?)
+    }
+
+    /// [`Model::load`] from a scene file's text; a derived scene's base is
+    /// read from the directory of `source`'s path.
+    pub fn from_source(source: &Source) -> Result<Model, Error> {
+        model_of(resolve(source.clone())?)
+    }
+
+    /// Stages 4 and 5: the equations of motion, derived and, when the scene
+    /// asks for it, pruned. Adds the derived terms to [`Model::graph`].
+    pub fn equations(&mut self) -> Result<Equations, Error> {
+        let mut eq = derive(self).map_err(|e| Error {
+            file: self.sources.first().cloned().unwrap_or_default(),
+            line: 0,
+            column: 0,
+            context: Some(e.context.clone()),
+            message: e.message.clone(),
+        })?;
+        prune(self, &mut eq);
+        Ok(eq)
+    }
+}
 
 /// A scene turned into Rust source, not yet written anywhere.
 #[derive(Debug, Clone)]
@@ -65,28 +113,47 @@ impl fmt::Display for Generated {
     }
 }
 
-/// Generate the Rust module of one scene file, in memory.
+/// Generate the Rust module of one scene file, in memory, for the runtime
+/// crate at its default path `flexdyn_runtime`.
 pub fn generate_scene(path: &Path) -> Result<Generated, Error> {
-    generate_perturbed(path, &[])
+    let runtime = runtime_path(DEFAULT_RUNTIME_PATH)?;
+    generate_perturbed(path, &runtime, &[])
 }
 
-/// [`generate_scene`], applying the perturbation among `perturbations` that
-/// names this scene (an error if it finds no such coefficient).
+/// The runtime path as a Rust path: `a::b`, `::a::b` or `crate::a`, without
+/// generic arguments.
+fn runtime_path(text: &str) -> Result<syn::Path, Error> {
+    let error = |why: String| Error {
+        file: PathBuf::new(),
+        line: 0,
+        column: 0,
+        context: Some("Builder::runtime_path".into()),
+        message: format!(
+            "`{text}` is not a path to the runtime crate (such as `flexdyn_runtime`, \
+             `crate::rt` or `::my_rt`): {why}"
+        ),
+    };
+    let path: syn::Path = syn::parse_str(text).map_err(|e| error(e.to_string()))?;
+    if path.segments.iter().any(|s| !s.arguments.is_none()) {
+        return Err(error("generic arguments are not allowed".into()));
+    }
+    Ok(path)
+}
+
+/// [`generate_scene`] for the runtime at `runtime`, applying the
+/// perturbation among `perturbations` that names this scene (an error if it
+/// finds no such coefficient).
 fn generate_perturbed(
     path: &Path,
+    runtime: &syn::Path,
     perturbations: &[CoefficientPerturbation],
 ) -> Result<Generated, Error> {
     let start = Instant::now();
     let mut model = Model::load(path)?;
-    let eq = derive(&mut model).map_err(|e| Error {
-        file: path.to_path_buf(),
-        line: 0,
-        column: 0,
-        context: Some(e.context.clone()),
-        message: e.message.clone(),
-    })?;
+    let eq = model.equations()?;
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
-    let (emitted, applied) = emit_perturbed(&model, &eq, perturbation);
+    let functions = functions(&model, &eq);
+    let (emitted, applied) = emit(&model, &eq, functions, runtime, perturbation);
     if let (Some(c), false) = (perturbation, applied) {
         return Err(Error {
             file: path.to_path_buf(),
@@ -118,6 +185,7 @@ pub struct Builder {
     out_dir: Option<PathBuf>,
     rerun_if_changed: bool,
     index: Option<Index>,
+    runtime_path: Option<String>,
     perturbations: Vec<CoefficientPerturbation>,
 }
 
@@ -188,11 +256,22 @@ impl Builder {
         self
     }
 
+    /// The path by which emitted code names the runtime crate
+    /// (`flexdyn-runtime`): its `Model` trait, `math` and `nalgebra`
+    /// re-export. Defaults to `flexdyn_runtime`; give `crate::rt` or
+    /// `::my_rt` where the runtime is re-exported or renamed. Generation
+    /// fails with an error if it is not a Rust path.
+    pub fn runtime_path(mut self, path: impl Into<String>) -> Builder {
+        self.runtime_path = Some(path.into());
+        self
+    }
+
     /// Test only: multiply coefficient `index` of the emitted function
     /// `function` of scene `scene` by `1 + relative`, to prove that a
     /// validation catches a wrong term in generated code. The module's header
     /// says so; generation fails if the scene is not generated or the
     /// coefficient does not exist.
+    #[cfg(any(test, feature = "test-hooks"))]
     #[doc(hidden)]
     pub fn perturb_coefficient(
         mut self,
@@ -242,6 +321,7 @@ impl Builder {
                 println!("cargo:rerun-if-changed={}", dir.display());
             }
         }
+        let runtime = runtime_path(self.runtime_path.as_deref().unwrap_or(DEFAULT_RUNTIME_PATH))?;
         let files = self.scene_files()?;
         if self.rerun_if_changed {
             for f in &files {
@@ -250,7 +330,7 @@ impl Builder {
         }
         let mut scenes: Vec<Generated> = Vec::new();
         for f in &files {
-            let g = generate_perturbed(f, &self.perturbations)?;
+            let g = generate_perturbed(f, &runtime, &self.perturbations)?;
             if self.rerun_if_changed {
                 for s in g.sources.iter().filter(|s| !files.contains(s)) {
                     println!("cargo:rerun-if-changed={}", s.display());

@@ -1,13 +1,16 @@
-//! Rust emission: one module per scene, built with `quote` from the scheduled
-//! programs (never from scene text) and formatted with `prettyplease`.
+//! Stage 7, emit: one Rust module per scene, built with `quote` from the
+//! functions of the schedule stage, one program each
+//! ([`crate::schedule::functions`]; never from scene text), and formatted
+//! with `prettyplease`. The module names the runtime crate (its `Model`
+//! trait, `math` and `nalgebra` re-export) by the path the builder was given.
 
 use proc_macro2::{Literal, TokenStream};
 use quote::{format_ident, quote};
 
+use crate::derive::Equations;
 use crate::expr::{Graph, Id, Symbol};
-use crate::lagrange::Equations;
 use crate::model::Model;
-use crate::program::{schedule, Code, OpCount, Program, Stmt};
+use crate::schedule::{Code, Function, OpCount, Program, Shape, Stmt};
 
 /// Operation counts of one emitted function.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,17 +28,6 @@ pub struct Emitted {
     pub source: String,
     /// Per-function operation counts.
     pub functions: Vec<FunctionReport>,
-}
-
-impl Emitted {
-    /// Operations of all functions together.
-    pub fn total_ops(&self) -> OpCount {
-        let mut total = OpCount::default();
-        for f in &self.functions {
-            total += f.ops;
-        }
-        total
-    }
 }
 
 /// Name of the model struct for a scene name: `double_pendulum` -> `DoublePendulum`.
@@ -131,62 +123,6 @@ fn lit(x: f64) -> TokenStream {
 
 fn usize_lit(i: usize) -> Literal {
     Literal::usize_unsuffixed(i)
-}
-
-/// What an emitted function is called and how.
-struct Signature {
-    name: &'static str,
-    doc: &'static str,
-    with_qd: bool,
-    optional: bool,
-}
-
-impl Signature {
-    fn new(name: &'static str, doc: &'static str, with_qd: bool) -> Signature {
-        Signature {
-            name,
-            doc,
-            with_qd,
-            optional: false,
-        }
-    }
-
-    fn optional(mut self) -> Signature {
-        self.optional = true;
-        self
-    }
-}
-
-/// Storage of an output.
-#[derive(Clone, Copy)]
-enum Shape {
-    Vector,
-    Matrix { symmetric: bool },
-}
-
-/// One output argument of an emitted function: a vector is one row of entries.
-struct Output<'a> {
-    name: &'static str,
-    shape: Shape,
-    entries: std::borrow::Cow<'a, [Vec<Id>]>,
-}
-
-impl<'a> Output<'a> {
-    fn vector(name: &'static str, entries: &[Id]) -> Output<'a> {
-        Output {
-            name,
-            shape: Shape::Vector,
-            entries: std::borrow::Cow::Owned(vec![entries.to_vec()]),
-        }
-    }
-
-    fn matrix(name: &'static str, entries: &'a [Vec<Id>], symmetric: bool) -> Output<'a> {
-        Output {
-            name,
-            shape: Shape::Matrix { symmetric },
-            entries: std::borrow::Cow::Borrowed(entries),
-        }
-    }
 }
 
 /// Programs with at most this many statements are emitted as one `let` per
@@ -382,34 +318,15 @@ impl Emitter<'_> {
         }
     }
 
-    /// A function writing one or more outputs (vectors or matrices) from one
-    /// jointly optimised program, so that all outputs share their common
-    /// subexpressions. Matrix entries that are structurally zero are not
-    /// computed: the matrix is zeroed first. Symmetric matrices compute the
-    /// upper triangle and mirror it.
-    fn function(&mut self, sig: Signature, outputs: &[Output]) -> TokenStream {
+    /// A function writing one or more outputs (vectors or matrices) from its
+    /// program. A matrix whose entries are not all computed is zeroed first;
+    /// symmetric matrices mirror their upper triangle.
+    fn function(&mut self, f: &mut Function) -> TokenStream {
         let nq = usize_lit(self.model.nq());
-        let zero = self.graph.find_constant(0.0);
-        let mut ids = Vec::new();
-        let mut slots: Vec<(usize, usize, usize)> = Vec::new();
-        for (k, o) in outputs.iter().enumerate() {
-            for (i, row) in o.entries.iter().enumerate() {
-                for (j, &e) in row.iter().enumerate() {
-                    let skip = match o.shape {
-                        Shape::Vector => false,
-                        Shape::Matrix { symmetric } => (symmetric && j < i) || Some(e) == zero,
-                    };
-                    if !skip {
-                        ids.push(e);
-                        slots.push((k, i, j));
-                    }
-                }
-            }
-        }
-        let mut p = schedule(self.graph, &ids);
-        self.record(sig.name, &mut p);
-        let used = self.inputs(&ids);
-        let body = self.stmts(&p);
+        self.record(f.sig.name, &mut f.program);
+        let (sig, outputs, slots, p) = (&f.sig, &f.outputs, &f.slots, &f.program);
+        let used = self.inputs(&f.ids);
+        let body = self.stmts(p);
         let mut assigns = TokenStream::new();
         let mut args = TokenStream::new();
         for (k, o) in outputs.iter().enumerate() {
@@ -441,7 +358,7 @@ impl Emitter<'_> {
                 }
             }
         }
-        for (c, &(k, i, j)) in p.outputs.iter().zip(&slots) {
+        for (c, &(k, i, j)) in p.outputs.iter().zip(slots) {
             let name = format_ident!("{}", outputs[k].name);
             let e = self.code(c, SUM);
             let (il, jl) = (usize_lit(i), usize_lit(j));
@@ -475,12 +392,13 @@ impl Emitter<'_> {
         }
     }
 
-    fn scalar_fn(&mut self, name: &'static str, doc: &str, id: Id, with_qd: bool) -> TokenStream {
+    /// A function returning one scalar from its program.
+    fn scalar_fn(&mut self, f: &mut Function) -> TokenStream {
         let nq = usize_lit(self.model.nq());
-        let mut p = schedule(self.graph, &[id]);
-        self.record(name, &mut p);
-        let used = self.inputs(&[id]);
-        let body = self.stmts(&p);
+        self.record(f.sig.name, &mut f.program);
+        let (name, doc, with_qd, p) = (f.sig.name, f.sig.doc, f.sig.with_qd, &f.program);
+        let used = self.inputs(&f.ids);
+        let body = self.stmts(p);
         let e = self.code(&p.outputs[0], SUM);
         let (q, qd, t) = input_idents(used);
         let fname = format_ident!("{}", name);
@@ -534,16 +452,14 @@ fn input_idents(used: Inputs) -> (proc_macro2::Ident, proc_macro2::Ident, proc_m
     (name(used.q, "q"), name(used.qd, "qd"), name(used.t, "t"))
 }
 
-/// Emit the module of a scene.
-pub fn emit(model: &Model, eq: &Equations) -> Emitted {
-    emit_perturbed(model, eq, None).0
-}
-
-/// [`emit`] with an optional test-only perturbation of one coefficient;
-/// also says whether the perturbation found its coefficient.
-pub fn emit_perturbed(
+/// Emit the module of a scene, naming the runtime crate by `runtime`, with
+/// an optional test-only perturbation of one coefficient; also says whether
+/// the perturbation found its coefficient.
+pub fn emit(
     model: &Model,
     eq: &Equations,
+    functions: Vec<Function>,
+    runtime: &syn::Path,
     perturbation: Option<&CoefficientPerturbation>,
 ) -> (Emitted, bool) {
     let mut e = Emitter {
@@ -560,86 +476,19 @@ pub fn emit_perturbed(
     let sname = format_ident!("{}", struct_name(&model.name));
     let scene = model.name.as_str();
 
-    let mass = e.function(
-        Signature::new(
-            "mass_matrix",
-            "Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.",
-            false,
-        ),
-        &[Output::matrix("m", &eq.mass, true)],
-    );
-    let bias = e.function(
-        Signature::new(
-            "bias",
-            "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.",
-            true,
-        ),
-        &[Output::vector("h", &eq.bias)],
-    );
-    let phi = e.function(
-        Signature::new("constraints", "Constraint residuals `Phi(q, t)`.", false),
-        &[Output::vector("phi", &eq.phi)],
-    );
-    let phi_q = e.function(
-        Signature::new(
-            "constraint_jacobian",
-            "Constraint Jacobian `Phi_q(q, t)`.",
-            false,
-        ),
-        &[Output::matrix("phi_q", &eq.phi_q, false)],
-    );
-    let phi_t = e.function(
-        Signature::new(
-            "constraint_time_derivative",
-            "Explicit time derivative of the constraints `Phi_t(q, t)`.",
-            false,
-        ),
-        &[Output::vector("phi_t", &eq.phi_t)],
-    );
-    let gamma = e.function(
-        Signature::new(
-            "constraint_rhs",
-            "Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.",
-            true,
-        ),
-        &[Output::vector("gamma", &eq.gamma)],
-    );
-    let phi_and_q = e.function(
-        Signature::new(
-            "constraints_and_jacobian",
-            "`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).",
-            false,
-        ),
-        &[
-            Output::vector("phi", &eq.phi),
-            Output::matrix("phi_q", &eq.phi_q, false),
-        ],
-    );
-    let fused = e.function(
-        Signature::new(
-            "dynamics_terms",
-            "`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).",
-            true,
-        ),
-        &[
-            Output::matrix("m", &eq.mass, true),
-            Output::vector("h", &eq.bias),
-            Output::matrix("phi_q", &eq.phi_q, false),
-            Output::vector("gamma", &eq.gamma),
-        ],
-    );
-    let kinetic = e.scalar_fn(
-        "kinetic_energy",
-        "Kinetic energy `T`.",
-        eq.kinetic_energy,
-        true,
-    );
-    let potential = e.scalar_fn(
-        "potential_energy",
-        "Potential energy `V` (gravity and elastic).",
-        eq.potential_energy,
-        false,
-    );
+    // The trait's functions, then the optional outputs (the trait's
+    // methods default to "not generated").
+    let (mut core, mut scalars, mut optional) =
+        (TokenStream::new(), TokenStream::new(), TokenStream::new());
+    for mut f in functions {
+        if f.is_scalar() {
+            scalars.extend(e.scalar_fn(&mut f));
+        } else if f.sig.optional {
+            optional.extend(e.function(&mut f));
+        } else {
+            core.extend(e.function(&mut f));
+        }
+    }
 
     // Actuator map: constant.
     let mut b_assigns = TokenStream::new();
@@ -657,62 +506,6 @@ pub fn emit_perturbed(
         }
     }
     let b_arg = if any_actuator { quote!(b) } else { quote!(_b) };
-
-    // Optional outputs override the trait's default (not generated) methods.
-    let mut optional = TokenStream::new();
-    if model.outputs.forces {
-        for (name, doc, ids, qd) in [
-            (
-                "coriolis_forces",
-                "Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).",
-                &eq.coriolis,
-                true,
-            ),
-            (
-                "potential_forces",
-                "Gravity and elastic forces `dV/dq`.",
-                &eq.potential_forces,
-                false,
-            ),
-            (
-                "damping_forces",
-                "Damping forces `dD/dqd`.",
-                &eq.damping_forces,
-                true,
-            ),
-        ] {
-            optional.extend(e.function(
-                Signature::new(name, doc, qd).optional(),
-                &[Output::vector("out", ids)],
-            ));
-        }
-    }
-    if let Some(cm) = &eq.coriolis_matrix {
-        optional.extend(e.function(
-            Signature::new(
-                "coriolis_matrix",
-                "Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.",
-                true,
-            )
-            .optional(),
-            &[Output::matrix("out", cm, false)],
-        ));
-    }
-
-    if let Some((h_q, h_qd)) = &eq.bias_jacobians {
-        optional.extend(e.function(
-            Signature::new(
-                "bias_jacobians",
-                "Exact Jacobians of the bias forces: `h_q = dh/dq`, `h_qd = dh/dqd` (entry `(i, j)` is `d h_i / d x_j`).",
-                true,
-            )
-            .optional(),
-            &[
-                Output::matrix("h_q", h_q, false),
-                Output::matrix("h_qd", h_qd, false),
-            ],
-        ));
-    }
 
     let coords = model.coordinates.iter().map(|c| c.name.as_str());
     let acts = model.actuators.iter().map(|a| a.name.as_str());
@@ -782,8 +575,8 @@ pub fn emit_perturbed(
         )]
     };
     let tokens = quote! {
-        use flexdyn_runtime::math;
-        use flexdyn_runtime::nalgebra::{SMatrix, SVector};
+        use #runtime::math;
+        use #runtime::nalgebra::{SMatrix, SVector};
 
         /// Number of generalized coordinates.
         pub const NQ: usize = #nq_l;
@@ -795,24 +588,16 @@ pub fn emit_perturbed(
         #struct_def
 
         #lints
-        impl flexdyn_runtime::Model<#nq_l, #nc_l, #nu_l> for #sname {
+        impl #runtime::Model<#nq_l, #nc_l, #nu_l> for #sname {
             const NAME: &'static str = #scene;
             const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
             const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];
-            #mass
-            #bias
-            #phi
-            #phi_q
-            #phi_t
-            #gamma
-            #phi_and_q
-            #fused
+            #core
             #[inline]
             fn actuator_map(&self, #b_arg: &mut SMatrix<f64, #nq_l, #nu_l>) {
                 #b_assigns
             }
-            #kinetic
-            #potential
+            #scalars
             #parameters
             #optional
         }

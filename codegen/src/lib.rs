@@ -1,27 +1,57 @@
 //! flexdyn-codegen: from a scene's energies to specialised Rust.
 //!
-//! Data flow, one module per arrow:
-//! scene file ([`scene`]) -> parsed expressions ([`parse`]) -> component
-//! energies ([`model`]) -> derived terms ([`lagrange`]) -> optimised
-//! straight-line program ([`program`], with repeated pairs of factors and
-//! terms shared by `share`) -> emitted Rust ([`emit`]), driven by
-//! the [`Builder`]. A derived scene is reduced ([`reduce`]: modes dropped,
-//! coordinates frozen, negligible terms pruned) on the way.
+//! Each scene goes through the stages in order, one module each, driven by
+//! the [`Builder`]:
+//!
+//! 1. `load`: the scene file's TOML to a typed scene; a derived scene's base
+//!    file is read and resolved;
+//! 2. `model`: frames, coordinates, constraints, actuators, and every
+//!    component (one file per kind) turned into its energies `T`, `V`, `D`
+//!    on the expression graph (`expr`; vectors and rotations in `geometry`,
+//!    the finite-element maths of flexible links in `fem`);
+//! 3. `reduce`: a derived scene's reductions (modes dropped, coordinates
+//!    frozen);
+//! 4. `derive`: Lagrange's equations ([`Equations`]);
+//! 5. `prune`: negligible summands dropped where the scene asks for it;
+//! 6. `schedule`: a straight-line program per emitted function (common
+//!    subexpressions, shared pairs of factors and terms);
+//! 7. `emit`: the formatted Rust module, naming the runtime crate by the
+//!    path [`Builder::runtime_path`] (default `flexdyn_runtime`).
+//!
+//! [`interpret`] is emit's twin for run time: it lowers the same scheduled
+//!    programs to instruction tapes that compute, bitwise, what the emitted
+//!    Rust computes, so a scene file can be evaluated without compiling it.
+//!
+//! Each stage imports only from earlier ones. `export` writes a model's
+//! symbolic inputs as JSON ([`export_json`]).
+//!
+//! The public API is the builder and its results, the symbolic model of a
+//! scene ([`Model::load`], [`Model::equations`]) with the expression graph
+//! its terms live in ([`Graph`], [`Node`], [`Id`], [`Symbol`], [`Func`],
+//! [`powi_f64`]), and errors with their position ([`Error`], [`Source`]).
 
 mod builder;
-pub mod diff;
-pub mod emit;
-pub mod error;
-pub mod export;
-pub mod expr;
-pub mod fem;
-pub mod lagrange;
-pub mod model;
-pub mod parse;
-pub mod program;
-pub mod reduce;
-pub mod scene;
-mod share;
+mod derive;
+mod emit;
+mod error;
+mod export;
+mod expr;
+mod fem;
+mod geometry;
+pub mod interpret;
+mod load;
+mod model;
+mod prune;
+mod reduce;
+mod schedule;
+#[cfg(test)]
+mod tests;
 
 pub use builder::{generate_scene, write_if_changed, Builder, Generated, Report};
-pub use error::Error;
+pub use derive::Equations;
+pub use emit::FunctionReport;
+pub use error::{Error, Source};
+pub use export::export_json;
+pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
+pub use model::Model;
+pub use schedule::OpCount;

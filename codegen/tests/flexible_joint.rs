@@ -8,10 +8,7 @@
 
 use std::path::Path;
 
-use flexdyn_codegen::error::Source;
-use flexdyn_codegen::expr::Symbol;
-use flexdyn_codegen::model::Model;
-use flexdyn_codegen::Error;
+use flexdyn_codegen::{Error, Model, Source, Symbol};
 
 fn load(text: &str) -> Result<Model, Error> {
     Model::from_source(&Source::new(Path::new("scene.toml"), text.to_owned()))
@@ -182,7 +179,8 @@ fn flexible_joint_errors_are_located() {
 fn robot_joint_stiffness_parameters_equal_the_derived_shaft_stiffness() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     for scene in ["parallel_robot_flexible", "parallel_robot_flexible_joints"] {
-        let model = Model::load(&root.join(format!("scenes/{scene}.toml"))).unwrap();
+        let model = Model::load(&root.join(format!("examples/parallel-robot/scenes/{scene}.toml")))
+            .unwrap();
         let p = |k: &str| model.parameters[k];
         let g = p("Ej") / (2.0 * (1.0 + p("nuj")));
         let area = p("mj") / (p("rhoj") * p("lj"));

@@ -11,12 +11,10 @@
 
 use std::path::{Path, PathBuf};
 
-use flexdyn_codegen::expr::{Id, Symbol};
-use flexdyn_codegen::lagrange::{derive, Equations};
-use flexdyn_codegen::model::Model;
-use flexdyn_codegen::{generate_scene, Error};
+use flexdyn_codegen::{generate_scene, Equations, Error, Id, Model, Symbol};
 
-const ROBOT: &str = include_str!("../../scenes/parallel_robot_flexible.toml");
+const ROBOT: &str =
+    include_str!("../../examples/parallel-robot/scenes/parallel_robot_flexible.toml");
 const TWISTS: [&str; 6] = ["th11j", "th12j", "th21j", "th22j", "th31j", "th32j"];
 
 /// A folder with the flexible robot as `base.toml` and `files`.
@@ -99,7 +97,10 @@ fn compare(a: &mut Model, b: &mut Model, states: usize) -> f64 {
         a.coordinates.iter().map(|c| &c.name).collect::<Vec<_>>(),
         b.coordinates.iter().map(|c| &c.name).collect::<Vec<_>>()
     );
-    let (ea, eb) = (derive(a).expect("derive"), derive(b).expect("derive"));
+    let (ea, eb) = (
+        a.equations().expect("derive"),
+        b.equations().expect("derive"),
+    );
     let mut rng = Rng(0x1234_5678_9abc_def1);
     let mut worst = 0.0f64;
     for _ in 0..states {
@@ -201,7 +202,7 @@ fn pruned_terms_stay_within_the_stated_bound_elsewhere() {
     let mut pruned = load(dir.path(), "variant.toml");
     let mut exact = load(dir.path(), "base.toml");
     assert_eq!(pruned.drop_below, Some(tol));
-    let (ep, ee) = (derive(&mut pruned).unwrap(), derive(&mut exact).unwrap());
+    let (ep, ee) = (pruned.equations().unwrap(), exact.equations().unwrap());
     let mut rng = Rng(0x0bad_5eed_1357_9bdf);
     let (mut err_m, mut err_h, mut scale_m, mut scale_h) = (0.0f64, 0.0f64, 1.0f64, 1.0f64);
     let mut changed = false;
@@ -308,7 +309,7 @@ fn base_errors_are_located() {
     let e = fail(dir.path(), "chain.toml");
     assert!(e.message.contains("itself a derived scene"), "{e}");
     // A base without flexible links has no modes to drop.
-    let rigid = include_str!("../../scenes/parallel_robot_rigid.toml");
+    let rigid = include_str!("../../examples/parallel-robot/scenes/parallel_robot_rigid.toml");
     let dir = folder(&[
         ("rigid.toml", rigid),
         (

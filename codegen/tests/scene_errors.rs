@@ -6,9 +6,7 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use flexdyn_codegen::error::Source;
-use flexdyn_codegen::model::Model;
-use flexdyn_codegen::{generate_scene, Builder, Error};
+use flexdyn_codegen::{generate_scene, Builder, Error, Model, Source};
 
 const FILE: &str = "scene.toml";
 

@@ -11,15 +11,15 @@ use flexdyn_runtime::Model;
 
 #[allow(dead_code)]
 mod slider_crank {
-    include!("../../../generated/slider_crank.rs");
+    include!(concat!(env!("OUT_DIR"), "/flexdyn/slider_crank.rs"));
 }
 #[allow(dead_code)]
 mod five_bar {
-    include!("../../../generated/five_bar.rs");
+    include!(concat!(env!("OUT_DIR"), "/flexdyn/five_bar.rs"));
 }
 #[allow(dead_code)]
 mod parallel_robot_rigid {
-    include!("../../../generated/parallel_robot_rigid.rs");
+    include!(concat!(env!("OUT_DIR"), "/flexdyn/parallel_robot_rigid.rs"));
 }
 mod casadi_ops {
     include!(concat!(env!("OUT_DIR"), "/casadi_ops.rs"));
@@ -226,7 +226,7 @@ fn benches(c: &mut Criterion) {
         "slider_crank",
         &slider_crank::SliderCrank,
         Casadi::new(slider_crank_terms, slider_crank_terms_work),
-        include_str!("../../../generated/slider_crank.rs"),
+        include_str!(concat!(env!("OUT_DIR"), "/flexdyn/slider_crank.rs")),
         casadi_ops::SLIDER_CRANK,
     );
     compare(
@@ -234,7 +234,7 @@ fn benches(c: &mut Criterion) {
         "five_bar",
         &five_bar::FiveBar,
         Casadi::new(five_bar_terms, five_bar_terms_work),
-        include_str!("../../../generated/five_bar.rs"),
+        include_str!(concat!(env!("OUT_DIR"), "/flexdyn/five_bar.rs")),
         casadi_ops::FIVE_BAR,
     );
     compare(
@@ -242,7 +242,7 @@ fn benches(c: &mut Criterion) {
         "parallel_robot_rigid",
         &parallel_robot_rigid::ParallelRobotRigid,
         Casadi::new(parallel_robot_rigid_terms, parallel_robot_rigid_terms_work),
-        include_str!("../../../generated/parallel_robot_rigid.rs"),
+        include_str!(concat!(env!("OUT_DIR"), "/flexdyn/parallel_robot_rigid.rs")),
         casadi_ops::PARALLEL_ROBOT_RIGID,
     );
 }

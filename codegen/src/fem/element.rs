@@ -149,6 +149,7 @@ fn bending_mass(rho_a: f64, h: f64) -> [[f64; 4]; 4] {
     ]
 }
 
+#[cfg(test)]
 fn bending_geometric(n: f64, h: f64) -> [[f64; 4]; 4] {
     let c = n / (30.0 * h);
     let (h1, h2) = (h, h * h);
@@ -197,7 +198,9 @@ pub fn mass(material: &Material, section: &Section, h: f64) -> ElementMatrix {
 }
 
 /// Consistent geometric stiffness for a constant axial force `n` (tension
-/// positive), acting on the two bending planes.
+/// positive), acting on the two bending planes: the reference the tests
+/// hold [`geometric_stiffness_varying`] to.
+#[cfg(test)]
 pub fn geometric_stiffness(n: f64, h: f64) -> ElementMatrix {
     let mut k = ElementMatrix::zeros();
     add_plane(&mut k, &PLANE_XY, bending_geometric(n, h));

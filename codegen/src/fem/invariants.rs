@@ -197,10 +197,12 @@ impl Invariants {
     }
 }
 
+#[cfg(test)]
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+#[cfg(test)]
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
@@ -218,6 +220,10 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// # Panics
 ///
 /// If `eta` or `eta_dot` does not have one entry per mode.
+///
+/// The generator builds these energies symbolically; this numerical
+/// evaluation is the reference the tests compare them with.
+#[cfg(test)]
 pub fn kinetic_energy(
     inv: &Invariants,
     v: [f64; 3],

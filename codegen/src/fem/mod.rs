@@ -114,7 +114,8 @@
 //!
 //! `T = 1/2 int rho A |V + w x u + u_f_dot|^2 dx + 1/2 int rho Ip rx_dot^2 dx`
 //!
-//! is assembled from the invariants as ([`kinetic_energy`] evaluates it):
+//! is assembled from the invariants as (`invariants::kinetic_energy`, the
+//! tests' reference, evaluates it):
 //!
 //! ```text
 //! c(eta)     = S0 + S1 eta                                    (first moment)
@@ -147,8 +148,13 @@ pub mod modal;
 
 use nalgebra::{DMatrix, DVector};
 
-pub use invariants::{kinetic_energy, Invariants};
-pub use modal::{ModalBasis, ModeKind, ModeSelection, Station};
+#[cfg(test)]
+mod frequency_tests;
+
+#[cfg(test)]
+pub use invariants::kinetic_energy;
+pub use invariants::Invariants;
+pub use modal::{ModalBasis, ModeSelection};
 
 /// Axial displacement dof (index within a node).
 pub const UX: usize = 0;

@@ -1,0 +1,272 @@
+//! Stage 4, derive: Lagrange's equations, derived per component and
+//! assembled.
+//!
+//! For each component with energies `T(q, qd, t)`, `V(q, t)` and dissipation
+//! `D(q, qd, t)`, over the coordinates it touches:
+//!
+//! * mass matrix block `M = d2T/dqd2`;
+//! * Coriolis/centrifugal forces `c = d/dt(dT/dqd)|_(qdd=0) - dT/dq`;
+//! * potential (gravity and elastic) forces `g = dV/dq`;
+//! * damping forces `d = dD/dqd`.
+//!
+//! The system is `M qdd + c + g + d = Phi_q^T lambda + B tau`. For the
+//! constraints `Phi(q, t)`: `Phi_q`, `Phi_t` and the acceleration right-hand
+//! side `gamma = -d/dt(Phi_q qd + Phi_t)|_(qdd=0)`. `M` is never inverted
+//! symbolically; the runtime factorises it numerically.
+
+use std::fmt;
+
+use crate::expr::{Graph, Id, Symbol};
+use crate::model::Model;
+
+/// A matrix of graph nodes, as rows.
+pub type Matrix = Vec<Vec<Id>>;
+
+/// Every derived term of a scene, as nodes of the model's graph.
+#[derive(Debug, Clone)]
+pub struct Equations {
+    /// Mass matrix (symmetric; `mass[i][j] == mass[j][i]`).
+    pub mass: Vec<Vec<Id>>,
+    /// Coriolis/centrifugal forces `C(q, qd) qd` (including explicit time terms).
+    pub coriolis: Vec<Id>,
+    /// Gravity and elastic forces `dV/dq`.
+    pub potential_forces: Vec<Id>,
+    /// Damping forces `dD/dqd`.
+    pub damping_forces: Vec<Id>,
+    /// Bias forces `h = coriolis + potential_forces + damping_forces`.
+    pub bias: Vec<Id>,
+    /// Coriolis matrix from Christoffel symbols, when asked for.
+    pub coriolis_matrix: Option<Vec<Vec<Id>>>,
+    /// Jacobians of the bias forces `(dh/dq, dh/dqd)`, when asked for;
+    /// entry `[i][j]` is `d h_i / d x_j`.
+    pub bias_jacobians: Option<(Matrix, Matrix)>,
+    /// Total kinetic energy.
+    pub kinetic_energy: Id,
+    /// Total potential energy.
+    pub potential_energy: Id,
+    /// Constraint residuals.
+    pub phi: Vec<Id>,
+    /// Constraint Jacobian, `phi_q[i][j] = dPhi_i/dq_j`.
+    pub phi_q: Vec<Vec<Id>>,
+    /// Explicit time derivative of the constraints.
+    pub phi_t: Vec<Id>,
+    /// Acceleration right-hand side.
+    pub gamma: Vec<Id>,
+    /// Actuator map, `actuator_map[i][j]`: force on coordinate `i` per unit input `j`.
+    pub actuator_map: Vec<Vec<f64>>,
+}
+
+/// A scene whose energies do not fit the requested derivation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeriveError {
+    /// The component (or output) concerned.
+    pub context: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl fmt::Display for DeriveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "in {}: {}", self.context, self.message)
+    }
+}
+
+impl std::error::Error for DeriveError {}
+
+/// Derive the equations of motion of a model.
+pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
+    let n = model.nq();
+    let g = &mut model.graph;
+    let zero = g.constant(0.0);
+    let mut mass = vec![vec![zero; n]; n];
+    let mut coriolis = vec![zero; n];
+    let mut potential_forces = vec![zero; n];
+    let mut damping_forces = vec![zero; n];
+    let mut kinetic = Vec::new();
+    let mut potential = Vec::new();
+
+    for c in &model.components {
+        kinetic.push(c.kinetic);
+        potential.push(c.potential);
+        let ctx = || format!("component `{}`", c.name);
+        if c.potential != zero && uses_velocity(g, c.potential) {
+            return Err(DeriveError {
+                context: ctx(),
+                message: "potential energy depends on velocities".into(),
+            });
+        }
+        // Kinetic energy: mass block and Coriolis forces over touched coordinates.
+        if c.kinetic != zero {
+            let touched = touched(g, c.kinetic);
+            let qd_vars: Vec<Symbol> = touched.iter().map(|&i| Symbol::Qd(i as u32)).collect();
+            let momenta = g.gradient(c.kinetic, &qd_vars);
+            for (a, &i) in touched.iter().enumerate() {
+                for (b, &j) in touched.iter().enumerate().skip(a) {
+                    let d = g.diff(momenta[a], qd_vars[b]);
+                    mass[i][j] = g.add(mass[i][j], d);
+                    mass[j][i] = mass[i][j];
+                }
+            }
+            let rates = g.time_derivative_at_zero_acceleration(&momenta);
+            for (a, &i) in touched.iter().enumerate() {
+                let dtdq = g.diff(c.kinetic, Symbol::Q(i as u32));
+                let ci = g.sub(rates[a], dtdq);
+                coriolis[i] = g.add(coriolis[i], ci);
+            }
+        }
+        if c.potential != zero {
+            for i in touched(g, c.potential) {
+                let d = g.diff(c.potential, Symbol::Q(i as u32));
+                potential_forces[i] = g.add(potential_forces[i], d);
+            }
+        }
+        if c.dissipation != zero {
+            for i in touched(g, c.dissipation) {
+                let d = g.diff(c.dissipation, Symbol::Qd(i as u32));
+                damping_forces[i] = g.add(damping_forces[i], d);
+            }
+        }
+    }
+    // The exact bias forces; the prune stage may drop summands of their
+    // parts (and recompute them), while the bias Jacobians (a Newton matrix,
+    // which need not be exact) stay those of the exact forces.
+    let bias: Vec<Id> = (0..n)
+        .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
+        .collect();
+    let kinetic_energy = g.sum(&kinetic);
+    let potential_energy = g.sum(&potential);
+
+    let coriolis_matrix = if model.outputs.coriolis_matrix {
+        check_quadratic_kinetic(g, kinetic_energy, &model.runtime_parameters)?;
+        Some(christoffel(g, &mass))
+    } else {
+        None
+    };
+
+    let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
+    let bias_jacobians = model.outputs.bias_jacobians.then(|| {
+        let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
+        (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars))
+    });
+
+    // Constraints.
+    let phi: Vec<Id> = model.constraints.iter().map(|c| c.residual).collect();
+    for c in &model.constraints {
+        if uses_velocity(g, c.residual) {
+            return Err(DeriveError {
+                context: format!("constraint `{}`", c.name),
+                message: "a holonomic constraint cannot depend on velocities".into(),
+            });
+        }
+    }
+    let phi_q = g.jacobian(&phi, &q_vars);
+    let phi_t = g.diff_many(&phi, Symbol::Time);
+    let velocity_residual = g.time_derivative_at_zero_acceleration(&phi);
+    let rates = g.time_derivative_at_zero_acceleration(&velocity_residual);
+    let gamma: Vec<Id> = rates.iter().map(|&r| g.neg(r)).collect();
+
+    let mut actuator_map = vec![vec![0.0; model.actuators.len()]; n];
+    for (j, a) in model.actuators.iter().enumerate() {
+        actuator_map[a.coordinate][j] += a.gain;
+    }
+
+    Ok(Equations {
+        mass,
+        coriolis,
+        potential_forces,
+        damping_forces,
+        bias,
+        coriolis_matrix,
+        bias_jacobians,
+        kinetic_energy,
+        potential_energy,
+        phi,
+        phi_q,
+        phi_t,
+        gamma,
+        actuator_map,
+    })
+}
+
+/// Indices of the coordinates an expression touches (through `q` or `qd`).
+fn touched(g: &Graph, e: Id) -> Vec<usize> {
+    let mut out: Vec<usize> = g
+        .symbols(&[e])
+        .into_iter()
+        .filter_map(|s| match s {
+            Symbol::Q(i) | Symbol::Qd(i) => Some(i as usize),
+            _ => None,
+        })
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+fn uses_velocity(g: &Graph, e: Id) -> bool {
+    g.symbols(&[e]).iter().any(|s| matches!(s, Symbol::Qd(_)))
+}
+
+/// The Christoffel form `C_ij = sum_k G_ijk qd_k` with
+/// `G_ijk = (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) / 2`.
+pub(crate) fn christoffel(g: &mut Graph, mass: &[Vec<Id>]) -> Vec<Vec<Id>> {
+    let n = mass.len();
+    let flat: Vec<Id> = mass.iter().flatten().copied().collect();
+    // dm[k][i*n + j] = dM_ij / dq_k
+    let dm: Vec<Vec<Id>> = (0..n)
+        .map(|k| g.diff_many(&flat, Symbol::Q(k as u32)))
+        .collect();
+    (0..n)
+        .map(|i| {
+            (0..n)
+                .map(|j| {
+                    let mut terms = Vec::new();
+                    for k in 0..n {
+                        let a = g.add(dm[k][i * n + j], dm[j][i * n + k]);
+                        let s = g.sub(a, dm[i][j * n + k]);
+                        let qd = g.qd(k);
+                        let t = g.mul(s, qd);
+                        terms.push((t, 0.5));
+                    }
+                    g.linear(&terms, 0.0)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The Christoffel form needs `T = qd^T M(q) qd / 2`: no explicit time, no
+/// terms linear or constant in `qd`. Checked numerically (`T(2 qd) = 4 T(qd)`)
+/// and structurally (no `t`).
+fn check_quadratic_kinetic(
+    g: &Graph,
+    kinetic: Id,
+    params: &[crate::model::RuntimeParameter],
+) -> Result<(), DeriveError> {
+    let fail = |message: &str| DeriveError {
+        context: "output `coriolis_matrix`".into(),
+        message: message.into(),
+    };
+    if g.symbols(&[kinetic]).contains(&Symbol::Time) {
+        return Err(fail(
+            "the kinetic energy depends explicitly on time; the Christoffel form does not apply",
+        ));
+    }
+    for trial in 0..3u32 {
+        let value = |scale: f64| {
+            g.eval(&[kinetic], &|s| match s {
+                Symbol::Q(i) => 0.3 + 0.17 * f64::from(i + trial),
+                Symbol::Qd(i) => scale * (0.5 - 0.23 * f64::from((i * 7 + trial) % 5)),
+                Symbol::Time => 0.0,
+                Symbol::Param(i) => params[i as usize].value,
+            })[0]
+        };
+        let (t1, t2) = (value(1.0), value(2.0));
+        if (t2 - 4.0 * t1).abs() > 1e-9 * (t2.abs() + 4.0 * t1.abs()).max(1e-300) {
+            return Err(fail(
+                "the kinetic energy is not a quadratic form in the velocities; the Christoffel form does not apply",
+            ));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,177 @@
+//! Symbolic 3-vectors and rotations on the expression graph: dot and cross
+//! products, rotation matrices (Rodrigues' formula about a unit axis),
+//! their products, and frames (pose and velocities) built by translating and
+//! rotating a parent frame. Velocities are kept in each frame's own axes.
+
+use crate::expr::{Graph, Id};
+
+/// World-frame pose of a frame, with the velocity of its origin and its
+/// angular velocity both in the frame's own axes. Keeping velocities in local
+/// axes means constant rotations (a chain placed at 120 degrees) never enter
+/// the kinetic energy, which stays as simple as the mechanism.
+#[derive(Debug, Clone)]
+pub(crate) struct Frame {
+    /// Rotation from the frame's axes to world axes.
+    pub(crate) rotation: [[Id; 3]; 3],
+    /// Origin in world coordinates.
+    pub(crate) origin: [Id; 3],
+    /// Velocity of the origin in the frame's own axes.
+    pub(crate) velocity: [Id; 3],
+    /// Angular velocity in the frame's own axes.
+    pub(crate) omega: [Id; 3],
+}
+
+/// A material point: world position, and velocity in the axes of the frame
+/// it was given in (all points of one component share those axes).
+pub(crate) struct Point {
+    /// World position.
+    pub(crate) position: [Id; 3],
+    /// Velocity in the axes of the frame it was given in.
+    pub(crate) velocity: [Id; 3],
+}
+
+/// Vector and frame operations of the model stage, as graph methods.
+impl Graph {
+    /// `a . b`.
+    pub(crate) fn dot(&mut self, a: [Id; 3], b: [Id; 3]) -> Id {
+        let terms: Vec<Id> = (0..3).map(|k| self.mul(a[k], b[k])).collect();
+        self.sum(&terms)
+    }
+
+    /// `a x b`.
+    pub(crate) fn cross(&mut self, a: [Id; 3], b: [Id; 3]) -> [Id; 3] {
+        std::array::from_fn(|k| {
+            let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+            let p = self.mul(a[i], b[j]);
+            let q = self.mul(a[j], b[i]);
+            self.sub(p, q)
+        })
+    }
+
+    /// `R v`.
+    pub(crate) fn rotate(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
+        std::array::from_fn(|i| {
+            let terms: Vec<Id> = (0..3).map(|k| self.mul(r[i][k], v[k])).collect();
+            self.sum(&terms)
+        })
+    }
+
+    /// `R^T v`.
+    pub(crate) fn rotate_transpose(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
+        std::array::from_fn(|i| {
+            let terms: Vec<Id> = (0..3).map(|k| self.mul(r[k][i], v[k])).collect();
+            self.sum(&terms)
+        })
+    }
+
+    /// `A B`.
+    pub(crate) fn matmul(&mut self, a: &[[Id; 3]; 3], b: &[[Id; 3]; 3]) -> [[Id; 3]; 3] {
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                let terms: Vec<Id> = (0..3).map(|k| self.mul(a[i][k], b[k][j])).collect();
+                self.sum(&terms)
+            })
+        })
+    }
+
+    /// Rotation by `angle` about the unit vector `u` (Rodrigues).
+    pub(crate) fn axis_rotation(&mut self, u: [f64; 3], angle: Id) -> [[Id; 3]; 3] {
+        let c = self.cos(angle);
+        let s = self.sin(angle);
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                // R = c I + s [u]x + (1 - c) u u^T
+                let uu = u[i] * u[j];
+                let cross = match (i, j) {
+                    (0, 1) => -u[2],
+                    (1, 0) => u[2],
+                    (0, 2) => u[1],
+                    (2, 0) => -u[1],
+                    (1, 2) => -u[0],
+                    (2, 1) => u[0],
+                    _ => 0.0,
+                };
+                let diag = if i == j { 1.0 } else { 0.0 };
+                // (diag - uu) c + cross s + uu
+                self.linear(&[(c, diag - uu), (s, cross)], uu)
+            })
+        })
+    }
+
+    /// The world frame: identity axes, at rest.
+    pub(crate) fn world_frame(&mut self) -> Frame {
+        let zero = self.constant(0.0);
+        let one = self.constant(1.0);
+        let mut rotation = [[zero; 3]; 3];
+        for (k, row) in rotation.iter_mut().enumerate() {
+            row[k] = one;
+        }
+        Frame {
+            rotation,
+            origin: [zero; 3],
+            velocity: [zero; 3],
+            omega: [zero; 3],
+        }
+    }
+
+    /// The frame at `translation` (in `parent`'s axes) from `parent`'s
+    /// origin, rotated from `parent` by `rotations` in turn (intrinsic).
+    pub(crate) fn child_frame(
+        &mut self,
+        parent: &Frame,
+        translation: [Id; 3],
+        rotations: &[([f64; 3], Id)],
+    ) -> Frame {
+        let offset = self.rotate(&parent.rotation, translation);
+        let origin: [Id; 3] = std::array::from_fn(|k| self.add(parent.origin[k], offset[k]));
+        // Origin velocity in parent axes: v_parent + w_parent x t + dt/dt.
+        let mut velocity = self.moving_point_velocity(parent, translation);
+        let mut rotation = parent.rotation;
+        let mut omega = parent.omega;
+        for &(axis, angle) in rotations {
+            let local = self.axis_rotation(axis, angle);
+            rotation = self.matmul(&rotation, &local);
+            // omega_child = R_local^T omega_parent + axis * angle_dot
+            let rate = self.time_derivative_at_zero_acceleration(&[angle])[0];
+            velocity = self.rotate_transpose(&local, velocity);
+            let rotated = self.rotate_transpose(&local, omega);
+            omega = std::array::from_fn(|k| {
+                let a = self.constant(axis[k]);
+                let term = self.mul(a, rate);
+                self.add(rotated[k], term)
+            });
+        }
+        Frame {
+            rotation,
+            origin,
+            velocity,
+            omega,
+        }
+    }
+
+    /// Velocity, in `frame`'s axes, of a point at `local` (which may itself
+    /// move): `v_origin + w x local + d(local)/dt`.
+    pub(crate) fn moving_point_velocity(&mut self, frame: &Frame, local: [Id; 3]) -> [Id; 3] {
+        let rate = self.time_derivative_at_zero_acceleration(&local);
+        let w = frame.omega;
+        let cross = [
+            (w[1], local[2], w[2], local[1]),
+            (w[2], local[0], w[0], local[2]),
+            (w[0], local[1], w[1], local[0]),
+        ];
+        std::array::from_fn(|k| {
+            let (a, b, c, d) = cross[k];
+            let ab = self.mul(a, b);
+            let cd = self.mul(c, d);
+            self.linear(
+                &[
+                    (frame.velocity[k], 1.0),
+                    (ab, 1.0),
+                    (cd, -1.0),
+                    (rate[k], 1.0),
+                ],
+                0.0,
+            )
+        })
+    }
+}

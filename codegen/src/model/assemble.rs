@@ -1,0 +1,76 @@
+//! The model stage in order: the names, the components that add
+//! coordinates, the frames, the energies, the constraints and actuators.
+
+use super::components;
+use super::context::Context;
+use super::{Component, Model};
+use crate::error::Error;
+use crate::load::LoadedScene;
+
+/// Build the symbolic model of a loaded scene's full scene (a derived
+/// scene's reductions are the next stage's).
+pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
+    let def = &scene.def;
+    let mut cx = Context::new(&scene.source);
+    let mut coordinates = cx.coordinates(def)?;
+    let runtime_parameters = cx.parameters(def)?;
+    cx.gravity = match &def.gravity {
+        Some(v) => cx.vector(v, None, false)?,
+        None => {
+            let zero = cx.graph.constant(0.0);
+            let g = cx.graph.constant(-9.81);
+            [zero, zero, g]
+        }
+    };
+    // Components that add coordinates first (flexible links: their
+    // finite-element models are built numerically and their modal
+    // coordinates appended to the declared ones), so that frames
+    // (stations), components and constraints below can use them.
+    let mut early = Vec::with_capacity(def.components.len());
+    for (i, c) in def.components.iter().enumerate() {
+        if components::adds_coordinates(c) {
+            let mut read = components::read(&cx, i, c)?;
+            read.value.prepare(&mut cx, &mut coordinates, &read.ctx)?;
+            cx.flexible.extend(read.value.flexible_link().cloned());
+            early.push(Some(read));
+        } else {
+            early.push(None);
+        }
+    }
+    cx.frames(&def.frames)?;
+    let mut component_energies = Vec::with_capacity(def.components.len());
+    for (i, (c, early)) in def.components.iter().zip(early).enumerate() {
+        let read = match early {
+            Some(read) => read,
+            None => components::read(&cx, i, c)?,
+        };
+        let [kinetic, potential, dissipation] = read.value.energies(&mut cx, &read.ctx)?;
+        component_energies.push(Component {
+            name: read.name,
+            kind: read.kind.to_owned(),
+            kinetic,
+            potential,
+            dissipation,
+        });
+    }
+    let mut constraints = Vec::new();
+    for (i, c) in def.constraints.iter().enumerate() {
+        cx.constraint(i, c, &mut constraints)?;
+    }
+    let actuators = cx.actuators(def, &coordinates)?;
+    let outputs = cx.outputs(def)?;
+    Ok(Model {
+        name: def.name.get_ref().clone(),
+        graph: cx.graph,
+        coordinates,
+        runtime_parameters,
+        parameters: cx.parameter_values,
+        components: component_energies,
+        constraints,
+        actuators,
+        outputs,
+        flexible_links: cx.flexible,
+        drop_below: None,
+        sources: vec![scene.source.path().to_path_buf()],
+    })
+}

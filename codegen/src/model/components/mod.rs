@@ -1,0 +1,202 @@
+//! The component kinds: the registry, one line per kind, and what a kind
+//! provides. Each kind lives in a file of its own: its fields, its typed
+//! value converted once from the TOML table ([`ComponentDef`]), and its
+//! energies `T`, `V`, `D`. Adding a kind is one file plus one line in
+//! [`KINDS`].
+
+mod damper;
+mod energy;
+mod flexible_joint;
+mod flexible_link;
+mod point_mass;
+mod rigid_body;
+mod rod;
+mod spring;
+
+pub(super) use flexible_link::station_frame;
+
+use super::context::Context;
+use super::{Coordinate, FlexibleLink};
+use crate::error::Error;
+use crate::expr::Id;
+use crate::load::scene::{ComponentDef, SScalar};
+
+/// Every component kind, in the order the error messages list them.
+const KINDS: &[Kind] = &[
+    energy::KIND,
+    point_mass::KIND,
+    rod::KIND,
+    rigid_body::KIND,
+    spring::KIND,
+    damper::KIND,
+    flexible_link::KIND,
+    flexible_joint::KIND,
+];
+
+/// A component kind.
+pub(super) struct Kind {
+    /// Its `type` in the scene file.
+    name: &'static str,
+    /// The fields it accepts besides `name` and `type`.
+    fields: &'static [&'static str],
+    /// Whether it adds coordinates, so that it is read (and prepared) before
+    /// the frames, which may use them.
+    adds_coordinates: bool,
+    /// Its reader.
+    read: ReadFn,
+}
+
+/// Converts a component's TOML table into its kind's typed value, given the
+/// component's name and error context.
+type ReadFn = fn(&Context, &ComponentDef, &str, &str) -> Result<Box<dyn Energies>, Error>;
+
+/// A component read into its kind's typed value.
+pub(super) trait Energies {
+    /// Work before the frames are built: a flexible link builds its
+    /// finite-element model and appends its modal coordinates.
+    fn prepare(
+        &mut self,
+        _cx: &mut Context,
+        _coordinates: &mut Vec<Coordinate>,
+        _ctx: &str,
+    ) -> Result<(), Error> {
+        Ok(())
+    }
+
+    /// The finite-element data of a flexible link, once prepared.
+    fn flexible_link(&self) -> Option<&FlexibleLink> {
+        None
+    }
+
+    /// Kinetic energy `T`, potential energy `V` and dissipation function `D`.
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error>;
+}
+
+/// A component with its name, kind and error context, read into its typed
+/// value.
+pub(super) struct Read {
+    /// Component name (given, or the kind and its index).
+    pub(super) name: String,
+    /// Its kind's name.
+    pub(super) kind: &'static str,
+    /// Context for error messages.
+    pub(super) ctx: String,
+    /// The typed value.
+    pub(super) value: Box<dyn Energies>,
+}
+
+/// Whether a component's kind adds coordinates (it is then read before the
+/// frames).
+pub(super) fn adds_coordinates(c: &ComponentDef) -> bool {
+    KINDS
+        .iter()
+        .any(|k| k.name == c.kind.get_ref() && k.adds_coordinates)
+}
+
+/// Read component `index`: its name, its kind, its fields.
+pub(super) fn read(cx: &Context, index: usize, c: &ComponentDef) -> Result<Read, Error> {
+    let kind = c.kind.get_ref();
+    let name = match &c.name {
+        Some(n) => {
+            crate::load::check_ident(cx.source, n, "component")?;
+            n.get_ref().clone()
+        }
+        None => format!("{kind}{index}"),
+    };
+    let ctx = format!("component `{name}`");
+    let Some(k) = KINDS.iter().find(|k| k.name == kind) else {
+        let known: Vec<&str> = KINDS.iter().map(|k| k.name).collect();
+        return Err(cx.err(
+            c.kind.span().start,
+            Some(&ctx),
+            format!(
+                "unknown component type `{kind}` (known: {})",
+                known.join(", ")
+            ),
+        ));
+    };
+    check_fields(cx, c, k.fields, &ctx)?;
+    let value = (k.read)(cx, c, &name, &ctx)?;
+    Ok(Read {
+        name,
+        kind: k.name,
+        ctx,
+        value,
+    })
+}
+
+/// The value of a required field of component `c`, or an error at its
+/// `type` naming the field.
+pub(super) fn required<'c, T>(
+    cx: &Context,
+    c: &ComponentDef,
+    value: &'c Option<T>,
+    ctx: &str,
+    field: &str,
+) -> Result<&'c T, Error> {
+    value.as_ref().ok_or_else(|| {
+        cx.err(
+            c.kind.span().start,
+            Some(ctx),
+            format!("a `{}` component needs `{field}`", c.kind.get_ref()),
+        )
+    })
+}
+
+fn check_fields(cx: &Context, c: &ComponentDef, allowed: &[&str], ctx: &str) -> Result<(), Error> {
+    let span = |s: &Option<SScalar>| s.as_ref().map(|s| s.span().start);
+    let present: [(&str, Option<usize>); 24] = [
+        ("kinetic", c.kinetic.as_ref().map(|s| s.span().start)),
+        ("potential", c.potential.as_ref().map(|s| s.span().start)),
+        (
+            "dissipation",
+            c.dissipation.as_ref().map(|s| s.span().start),
+        ),
+        ("mass", c.mass.as_ref().map(|s| s.span().start)),
+        ("frame", c.frame.as_ref().map(|s| s.span().start)),
+        ("position", c.position.as_ref().map(|s| s.span().start)),
+        ("from", c.from.as_ref().map(|s| s.span().start)),
+        ("to", c.to.as_ref().map(|s| s.span().start)),
+        ("inertia", c.inertia.as_ref().map(|s| s.span().start)),
+        ("stiffness", c.stiffness.as_ref().map(|s| s.span().start)),
+        ("damping", c.damping.as_ref().map(|s| s.span().start)),
+        ("expression", c.expression.as_ref().map(|s| s.span().start)),
+        ("rest", c.rest.as_ref().map(|s| s.span().start)),
+        ("axis", c.axis.as_ref().map(|s| s.span().start)),
+        ("length", span(&c.length)),
+        ("material", c.material.as_ref().map(|s| s.span().start)),
+        ("section", c.section.as_ref().map(|s| s.span().start)),
+        ("elements", span(&c.elements)),
+        ("modes", span(&c.modes)),
+        ("max_frequency", span(&c.max_frequency)),
+        ("boundary", c.boundary.as_ref().map(|s| s.span().start)),
+        (
+            "end_stiffness",
+            c.end_stiffness.as_ref().map(|s| s.span().start),
+        ),
+        (
+            "damping_ratio",
+            c.damping_ratio.as_ref().map(|s| s.span().start),
+        ),
+        (
+            "geometric_stiffening",
+            c.geometric_stiffening.as_ref().map(|s| s.span().start),
+        ),
+    ];
+    for (field, at) in present {
+        if let Some(at) = at {
+            if !allowed.contains(&field) {
+                return Err(cx.err(
+                    at,
+                    Some(ctx),
+                    format!(
+                        "field `{field}` does not apply to a `{}` component (allowed: {})",
+                        c.kind.get_ref(),
+                        allowed.join(", ")
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}

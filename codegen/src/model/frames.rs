@@ -1,0 +1,41 @@
+//! Kinematic frames in file order: each placed in its parent (the world by
+//! default), or at a station of a flexible link's deformed centre line, by
+//! a translation and elementary rotations in turn.
+
+use super::components::station_frame;
+use super::context::Context;
+use crate::error::Error;
+use crate::load::check_ident;
+use crate::load::scene::FrameDef;
+
+impl Context<'_> {
+    pub(super) fn frames(&mut self, defs: &[FrameDef]) -> Result<(), Error> {
+        for f in defs {
+            check_ident(self.source, &f.name, "frame")?;
+            let ctx = format!("frame `{}`", f.name.get_ref());
+            if f.name.get_ref() == "world" || self.frames.contains_key(f.name.get_ref()) {
+                return Err(self.err(f.name.span().start, Some(&ctx), "frame is defined twice"));
+            }
+            let mut parent = match &f.parent {
+                Some(p) => self.lookup_frame(p, &ctx)?,
+                None => self.graph.world_frame(),
+            };
+            if let Some(station) = &f.station {
+                parent = station_frame(self, f, station, &parent, &ctx)?;
+            }
+            let translation = match &f.translation {
+                Some(t) => self.vector(t, Some(&ctx), false)?,
+                None => [self.graph.constant(0.0); 3],
+            };
+            let mut rotations = Vec::with_capacity(f.rotation.len());
+            for r in &f.rotation {
+                let axis = self.axis(&r.axis, &ctx)?;
+                let angle = self.scalar(&r.angle, Some(&ctx), false)?;
+                rotations.push((axis, angle));
+            }
+            let frame = self.graph.child_frame(&parent, translation, &rotations);
+            self.frames.insert(f.name.get_ref().clone(), frame);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,181 @@
+//! Stage 2, model: from a loaded scene to symbolic energies. Checks names,
+//! parameters and physical data, builds kinematic frames, and turns every
+//! component into its kinetic energy `T`, potential energy `V` and
+//! dissipation function `D`.
+//!
+//! Order ([`build`]): coordinates and parameters ([`coordinates`]) and
+//! gravity; then the components that add coordinates (a `flexible_link`,
+//! whose finite-element model, [`crate::fem`], is built numerically and
+//! whose modal coordinates `<name>_eta<j>` are appended to the declared
+//! ones); then the frames in file order ([`frames`]; a frame with `station`
+//! follows a flexible link's deformed centre line); then the components'
+//! energies ([`components`], one file per kind), the constraints
+//! ([`constraints`]) and the actuators ([`actuators`]). The reading of scene
+//! values into graph nodes is in [`context`]; vectors and rotations in
+//! [`crate::geometry`].
+
+mod actuators;
+mod assemble;
+mod components;
+mod constraints;
+mod context;
+mod coordinates;
+mod frames;
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use nalgebra::DMatrix;
+
+use crate::expr::{Graph, Id};
+use crate::fem::{FeModel, Invariants, ModalBasis};
+
+pub(crate) use assemble::build;
+
+/// A generalized coordinate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coordinate {
+    /// Its name.
+    pub name: String,
+    /// Declared position range.
+    pub range: Option<[f64; 2]>,
+    /// Declared velocity range.
+    pub velocity_range: Option<[f64; 2]>,
+}
+
+/// A parameter left as an input of the generated model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RuntimeParameter {
+    /// Field name in the generated model struct.
+    pub name: String,
+    /// Nominal value (the struct's default).
+    pub value: f64,
+}
+
+/// The energies of one component.
+#[derive(Debug, Clone)]
+pub struct Component {
+    /// Name for reports.
+    pub name: String,
+    /// Kind (`rod`, `energy`, ...).
+    pub kind: String,
+    /// Kinetic energy.
+    pub kinetic: Id,
+    /// Potential energy.
+    pub potential: Id,
+    /// Rayleigh dissipation function.
+    pub dissipation: Id,
+}
+
+/// A holonomic constraint.
+#[derive(Debug, Clone)]
+pub struct Constraint {
+    /// Name for reports.
+    pub name: String,
+    /// Residual `Phi(q, t)`.
+    pub residual: Id,
+}
+
+/// An actuator input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Actuator {
+    /// Name.
+    pub name: String,
+    /// Coordinate it drives.
+    pub coordinate: usize,
+    /// Generalized force per unit input.
+    pub gain: f64,
+}
+
+/// Optional outputs a scene may ask for.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Outputs {
+    /// The Coriolis matrix from Christoffel symbols.
+    pub coriolis_matrix: bool,
+    /// Coriolis, potential and damping forces as separate functions.
+    pub forces: bool,
+    /// Exact Jacobians of the bias forces, `dh/dq` and `dh/dqd` (for the
+    /// Newton matrix of implicit integrators).
+    pub bias_jacobians: bool,
+}
+
+/// The finite-element data behind a `flexible_link` component, built
+/// numerically when the scene is read.
+#[derive(Debug, Clone)]
+pub struct FlexibleLink {
+    /// Component name.
+    pub name: String,
+    /// Name of its reference frame.
+    pub frame: String,
+    /// Index in [`Model::coordinates`] of its first modal coordinate; the
+    /// `k` modal coordinates follow in mode order.
+    pub first_coordinate: usize,
+    /// The constrained finite-element model.
+    pub fe: FeModel,
+    /// The kept modes.
+    pub basis: ModalBasis,
+    /// Their inertia invariants.
+    pub invariants: Invariants,
+    /// Modal damping ratio of each kept mode.
+    pub damping_ratio: Vec<f64>,
+    /// `Phi^T Kg1 Phi` for the centrifugal axial force per unit squared
+    /// transverse spin rate, when geometric stiffening is on.
+    pub geometric_stiffness: Option<DMatrix<f64>>,
+}
+
+impl FlexibleLink {
+    /// Number of kept modes.
+    pub fn modes(&self) -> usize {
+        self.basis.len()
+    }
+}
+
+/// A scene turned into symbolic energies.
+#[derive(Debug, Clone)]
+pub struct Model {
+    /// Scene name (an identifier).
+    pub name: String,
+    /// The expression graph holding every expression below.
+    pub graph: Graph,
+    /// Coordinates in order.
+    pub coordinates: Vec<Coordinate>,
+    /// Runtime parameters, in the order of `Symbol::Param` indices.
+    pub runtime_parameters: Vec<RuntimeParameter>,
+    /// Nominal value of every parameter, folded or runtime, by name.
+    pub parameters: BTreeMap<String, f64>,
+    /// Components.
+    pub components: Vec<Component>,
+    /// Constraints.
+    pub constraints: Vec<Constraint>,
+    /// Actuators.
+    pub actuators: Vec<Actuator>,
+    /// Optional outputs.
+    pub outputs: Outputs,
+    /// Finite-element data of the flexible links, in component order.
+    pub flexible_links: Vec<FlexibleLink>,
+    /// Relative tolerance below which summands of the mass matrix and bias
+    /// forces are dropped after the derivation (a derived scene's
+    /// `reduce.drop_below`, set by the reduce stage, applied by the prune
+    /// stage).
+    pub drop_below: Option<f64>,
+    /// Every file the model was read from (a derived scene and its base).
+    pub sources: Vec<PathBuf>,
+}
+
+impl Model {
+    /// Number of coordinates.
+    pub fn nq(&self) -> usize {
+        self.coordinates.len()
+    }
+
+    /// The scene's symbolic inputs: `T`, `V`, `D` of every component in
+    /// order, then every constraint residual.
+    pub fn input_roots(&self) -> Vec<Id> {
+        let mut roots: Vec<Id> = Vec::new();
+        for c in &self.components {
+            roots.extend([c.kinetic, c.potential, c.dissipation]);
+        }
+        roots.extend(self.constraints.iter().map(|c| c.residual));
+        roots
+    }
+}

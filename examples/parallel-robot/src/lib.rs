@@ -1,0 +1,25 @@
+//! The spatial parallel robot of the paper on flexdyn: its scenes (the rigid
+//! robot and its flexible variants, generated at build time from `scenes/`),
+//! geometry and closed-form inverse kinematics ([`robot`]), the circle and
+//! inverse and forward dynamics along it ([`robot`], [`servo`]), and the
+//! speed-against-error study behind `docs/performance.md` ([`report`]).
+//! The `parallel-robot` binary drives them from the command line.
+
+pub mod report;
+pub mod robot;
+pub mod servo;
+
+/// The generated robot scene modules (one per file in `scenes/`).
+#[allow(missing_docs)]
+pub mod scenes {
+    include!(concat!(env!("OUT_DIR"), "/scenes.rs"));
+}
+
+/// Test only: a copy of `parallel_robot_rigid` with one emitted coefficient
+/// deliberately wrong (see `build.rs`), evaluated by
+/// `parallel-robot eval --perturbed` to prove the CasADi validation catches it.
+#[doc(hidden)]
+#[allow(missing_docs)]
+pub mod perturbed_scenes {
+    include!(concat!(env!("OUT_DIR"), "/perturbed/scenes.rs"));
+}

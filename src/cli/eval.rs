@@ -1,0 +1,107 @@
+//! `flexdyn eval`: every generated term of any scene at states read from
+//! JSON, written as JSON (what the CasADi validation compares). A scene
+//! compiled into the binary is evaluated by its compiled module, any other
+//! scene file is generated in memory and interpreted
+//! ([`crate::interpreted`]): bitwise the same numbers.
+
+use std::path::PathBuf;
+
+use crate::dynamic::DynModel;
+use crate::eval::{check_state, evaluate, States};
+use crate::table::write_atomic;
+
+/// Evaluate every generated term of a scene at states read from
+/// JSON (`{"states": [{"q": [..], "qd": [..], "t": 0.0}]}`) and write them
+/// as JSON.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scene file: a compiled-in scene is evaluated by its compiled module,
+    /// any other by the interpreter (bitwise the same numbers).
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Interpret the scene file even when a scene of its name is compiled
+    /// in (e.g. an edited copy of a shipped scene).
+    #[arg(long, conflicts_with = "perturbed")]
+    pub interpret: bool,
+    /// States file.
+    #[arg(long)]
+    pub states: PathBuf,
+    /// Output file (standard output when absent).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Test-only hook: evaluate the build of the scene with one emitted
+    /// coefficient deliberately wrong.
+    #[arg(long, hide = true)]
+    pub perturbed: bool,
+}
+
+/// The scenes a binary has compiled in: the index modules that
+/// `flexdyn_codegen::Builder::index` writes.
+#[derive(Debug, Clone, Copy)]
+pub struct Compiled {
+    /// Names of the compiled scenes.
+    pub scenes: &'static [&'static str],
+    /// The default model of a compiled scene, by name.
+    pub model: fn(&str) -> Option<Box<dyn DynModel>>,
+    /// Names of the test-only perturbed builds.
+    pub perturbed_scenes: &'static [&'static str],
+    /// The default model of a perturbed build, by name.
+    pub perturbed_model: fn(&str) -> Option<Box<dyn DynModel>>,
+}
+
+/// The generic scenes of `scenes/`, compiled into this crate.
+pub const COMPILED_SCENES: Compiled = Compiled {
+    scenes: crate::scenes::SCENES,
+    model: crate::scenes::model,
+    perturbed_scenes: crate::perturbed_scenes::SCENES,
+    perturbed_model: crate::perturbed_scenes::model,
+};
+
+/// Run the command on the scenes of `compiled`.
+pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
+    let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    let lookup = if args.perturbed {
+        compiled.perturbed_model
+    } else {
+        compiled.model
+    };
+    let compiled_in = !args.interpret && lookup(&parsed.name).is_some();
+    let interpreted = match compiled_in || args.perturbed {
+        true => None,
+        false => Some(crate::interpreted::InterpretedModel::load(&args.scene)?),
+    };
+    let fresh = |name: &str| -> Result<Box<dyn DynModel>, String> {
+        match &interpreted {
+            Some(i) => Ok(Box::new(i.clone())),
+            None => lookup(name).ok_or_else(|| {
+                format!(
+                    "scene `{name}` has no perturbed build (those are: {})",
+                    compiled.perturbed_scenes.join(", ")
+                )
+            }),
+        }
+    };
+    let mut model = fresh(&parsed.name)?;
+    let text = std::fs::read_to_string(&args.states)
+        .map_err(|e| format!("cannot read {}: {e}", args.states.display()))?;
+    let input: States =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", args.states.display()))?;
+    let mut results = Vec::with_capacity(input.states.len());
+    for (k, s) in input.states.iter().enumerate() {
+        check_state(model.as_ref(), s, k)?;
+        if !s.params.is_empty() {
+            // Parameters apply to this state only: start from the defaults.
+            model = fresh(&parsed.name)?;
+        }
+        results.push(evaluate(model.as_mut(), s).map_err(|e| format!("state {k}: {e}"))?);
+    }
+    let json = serde_json::json!({ "scene": parsed.name, "results": results });
+    let text = serde_json::to_string(&json).map_err(|e| e.to_string())?;
+    match &args.out {
+        Some(path) => write_atomic(path, &text),
+        None => {
+            println!("{text}");
+            Ok(())
+        }
+    }
+}

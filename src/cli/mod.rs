@@ -1,0 +1,7 @@
+//! The `flexdyn` commands, one module each: its `clap` arguments and the
+//! function that runs it. Binaries built on flexdyn (for example the
+//! examples under `examples/`) reuse them with their own compiled-in scenes.
+
+pub mod eval;
+pub mod export;
+pub mod generate;
