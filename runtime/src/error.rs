@@ -145,15 +145,40 @@ pub enum ErrorKind {
         /// The limit it exceeded.
         limit: f64,
     },
-    /// A nonlinear iteration (Newton iteration of an implicit step, position
-    /// projection or inverse kinematics; fixed-point stage iteration of
-    /// Gauss–Legendre) did not reach its tolerance within its iteration cap.
+    /// A Newton iteration (of an implicit step, a position projection or
+    /// inverse kinematics) did not reach its tolerance within its iteration
+    /// cap. From a projection the error's [`Error::stage`] names it.
     NewtonNotConverged {
         /// Iterations performed.
         iterations: u32,
         /// Last residual / correction norm, relative to the tolerance where the
         /// solver uses a scaled norm (see the solver's docs).
         residual: f64,
+        /// The tolerance `residual` had to reach (1 for a scaled norm).
+        tolerance: f64,
+    },
+    /// The fixed-point stage iteration of [`crate::GaussLegendre4`] failed:
+    /// its increments grew (or a stage value became non-finite) or it used
+    /// its sweep cap. The iteration contracts only for steps well below the
+    /// period of the fastest mode (`dt * omega` below about
+    /// [`GAUSS_LEGENDRE_CONTRACTION_LIMIT`] on an undamped mode).
+    StageIterationFailed {
+        /// The step size.
+        dt: f64,
+        /// Sweeps performed.
+        sweeps: u32,
+        /// Last scaled stage increment (1 = at tolerance; infinite when a
+        /// stage value became non-finite).
+        increment: f64,
+        /// True when the increments grew (divergence), false when the sweep
+        /// cap ran out on a slowly contracting iteration.
+        diverged: bool,
+        /// Divergence only: the spectral radius `rho(J)` (rad/s) of the model
+        /// linearised at the state, from the power iteration of
+        /// [`crate::Rk4`]'s refusal, so that the message names the fastest
+        /// mode and a step that lets the iteration contract; `None` when
+        /// it could not be measured.
+        rate: Option<f64>,
     },
     /// An iterative dense decomposition (Jacobi SVD) did not converge within
     /// its sweep cap.
@@ -183,9 +208,10 @@ pub enum ErrorKind {
         /// name the offending mode and the largest step that could be stable
         /// (`limit / rate`). Within a step (adaptive RK4) it is `value / dt`
         /// from the stages, which see only the modes the state excites;
-        /// [`crate::Rk4`] refines it by a bounded power iteration on the
-        /// model linearised at the state, which finds the fastest mode even
-        /// when it is not excited. `None` for the `max_step` check.
+        /// [`crate::Rk4`] and [`crate::SemiImplicitEuler`] refine it by a
+        /// bounded power iteration on the model linearised at the state,
+        /// which finds the fastest mode even when it is not excited. `None`
+        /// for the `max_step` check.
         rate: Option<f64>,
     },
     /// The adaptive integrator would need a step below its minimum step size.
@@ -241,6 +267,73 @@ pub enum ErrorKind {
     },
 }
 
+/// Where inside a solver an error happened, when that is not the solver's
+/// main iteration: it names the stage and its tolerance in the message.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Stage {
+    /// Position projection onto `Phi = 0` ([`crate::project`], or after an
+    /// integration step when [`crate::StepSettings::projection`] is set).
+    PositionProjection {
+        /// Target `max |Phi|`.
+        tolerance: f64,
+        /// True when run by an integrator after its step.
+        after_step: bool,
+    },
+    /// Velocity projection onto `Phi_q qd + Phi_t = 0`.
+    VelocityProjection {
+        /// Velocity residual above which velocities are projected.
+        tolerance: f64,
+        /// True when run by an integrator after its step.
+        after_step: bool,
+    },
+    /// A model evaluation or acceleration solve inside the stage iteration
+    /// of [`crate::GaussLegendre4`].
+    StageIteration {
+        /// The step size.
+        dt: f64,
+        /// The sweep (from 1; 0 for the start-of-step evaluation).
+        sweep: u32,
+    },
+}
+
+impl fmt::Display for Stage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let when = |after: bool| if after { " after the step" } else { "" };
+        match *self {
+            Stage::PositionProjection {
+                tolerance,
+                after_step,
+            } => write!(
+                f,
+                "position projection{} (tolerance max |Phi| <= {:e})",
+                when(after_step),
+                tolerance
+            ),
+            Stage::VelocityProjection {
+                tolerance,
+                after_step,
+            } => write!(
+                f,
+                "velocity projection{} (tolerance max |Phi_q qd + Phi_t| <= {:e})",
+                when(after_step),
+                tolerance
+            ),
+            Stage::StageIteration { dt, sweep } => write!(
+                f,
+                "Gauss-Legendre stage iteration at step size {:e}, sweep {}",
+                dt, sweep
+            ),
+        }
+    }
+}
+
+/// `dt * omega` below which the fixed-point stage iteration of
+/// [`crate::GaussLegendre4`] contracts on an undamped linear oscillator of
+/// circular frequency `omega`: the iteration matrix is `-(omega dt)^2 A^2`
+/// with `A` the Butcher matrix, whose eigenvalues have `|lambda|^2 = 1/12`,
+/// so the bound is `sqrt(12)`.
+pub const GAUSS_LEGENDRE_CONTRACTION_LIMIT: f64 = 3.464_101_615_137_754_6;
+
 /// A solver error: what went wrong and at which simulation time.
 ///
 /// `t` is the time at which the failure was detected: the start of the step
@@ -254,12 +347,28 @@ pub struct Error {
     pub kind: ErrorKind,
     /// Simulation time at which it happened.
     pub t: f64,
+    /// The stage it happened in, where that is not the solver's main
+    /// iteration (a projection, a Gauss–Legendre stage sweep).
+    pub stage: Option<Stage>,
 }
 
 impl Error {
     /// Creates an error.
     pub const fn new(kind: ErrorKind, t: f64) -> Self {
-        Error { kind, t }
+        Error {
+            kind,
+            t,
+            stage: None,
+        }
+    }
+
+    /// The same error, marked as having happened in `stage` (unless it
+    /// already names a stage).
+    pub const fn in_stage(mut self, stage: Stage) -> Self {
+        if self.stage.is_none() {
+            self.stage = Some(stage);
+        }
+        self
     }
 }
 
@@ -329,10 +438,55 @@ impl fmt::Display for ErrorKind {
                  Y_q P B singular or ill-conditioned (condition estimate {:e} > limit {:e})",
                 condition, limit
             ),
-            ErrorKind::NewtonNotConverged { iterations, residual } => write!(
+            ErrorKind::NewtonNotConverged {
+                iterations,
+                residual,
+                tolerance,
+            } => write!(
                 f,
-                "Newton iteration did not converge in {} iterations (residual {:e})",
-                iterations, residual
+                "Newton iteration did not converge in {} iterations (residual {:e} > tolerance {:e})",
+                iterations, residual, tolerance
+            ),
+            ErrorKind::StageIterationFailed {
+                dt,
+                sweeps,
+                increment,
+                diverged: true,
+                rate,
+            } => {
+                write!(
+                    f,
+                    "Gauss-Legendre stage iteration diverged at step size {:e} (scaled stage \
+                     increment {:.3e} after {} sweeps, growing): the fixed-point iteration \
+                     contracts only for dt * omega below about {:.2}",
+                    dt, increment, sweeps, GAUSS_LEGENDRE_CONTRACTION_LIMIT
+                )?;
+                match rate {
+                    Some(rate) => write!(
+                        f,
+                        "; the fastest mode is at about {:.3e} rad/s ({:.3e} Hz), so steps must \
+                         be below {:.3e} s for it to contract and below about {:.3e} s for it to \
+                         converge quickly",
+                        rate,
+                        rate / (2.0 * core::f64::consts::PI),
+                        GAUSS_LEGENDRE_CONTRACTION_LIMIT / rate,
+                        0.5 * GAUSS_LEGENDRE_CONTRACTION_LIMIT / rate
+                    ),
+                    None => write!(f, "; use a smaller step"),
+                }
+            }
+            ErrorKind::StageIterationFailed {
+                dt,
+                sweeps,
+                increment,
+                diverged: false,
+                ..
+            } => write!(
+                f,
+                "Gauss-Legendre stage iteration did not converge in {} sweeps at step size {:e} \
+                 (scaled stage increment {:.3e} > tolerance 1): use a smaller step or allow more \
+                 sweeps",
+                sweeps, dt, increment
             ),
             ErrorKind::DecompositionNotConverged { sweeps } => {
                 write!(f, "Jacobi SVD did not converge in {} sweeps", sweeps)
@@ -410,7 +564,10 @@ impl fmt::Display for ErrorKind {
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "at t = {} s: {}", self.t, self.kind)
+        match self.stage {
+            Some(stage) => write!(f, "at t = {} s: {}: {}", self.t, stage, self.kind),
+            None => write!(f, "at t = {} s: {}", self.t, self.kind),
+        }
     }
 }
 

@@ -672,6 +672,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                     ErrorKind::NewtonNotConverged {
                         iterations,
                         residual: res,
+                        tolerance: cfg.position_tolerance,
                     },
                     t,
                 ));

@@ -7,7 +7,7 @@
 //! removes the least kinetic energy.
 
 use crate::dynamics::Kkt;
-use crate::error::{Error, ErrorKind, Quantity};
+use crate::error::{Error, ErrorKind, Quantity, Stage};
 use crate::eval;
 use crate::model::Model;
 use crate::state::{inf_norm, Drift, State};
@@ -55,7 +55,10 @@ pub struct ProjectionReport {
 ///
 /// Errors: non-finite model outputs, [`ErrorKind::MassMatrixNotPositiveDefinite`],
 /// [`ErrorKind::SingularConstraintJacobian`], [`ErrorKind::NewtonNotConverged`]
-/// (residual = `max |Phi|` after the last iteration).
+/// (residual = `max |Phi|` after the last iteration, tolerance =
+/// `position_tolerance`). Every error names the projection and its tolerance
+/// in [`Error::stage`] ([`Stage::PositionProjection`] or
+/// [`Stage::VelocityProjection`]).
 pub fn project<M, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
     state: &mut State<NQ>,
@@ -64,18 +67,20 @@ pub fn project<M, const NQ: usize, const NC: usize, const NU: usize>(
 where
     M: Model<NQ, NC, NU>,
 {
-    project_with(model, state, config, 0.0)
+    project_with(model, state, config, 0.0, false)
 }
 
 /// [`project`], optionally (`velocity_from_position_dt > 0`) adding the
 /// position correction divided by that step to the velocities before the
 /// velocity projection (SHAKE-style consistency for schemes with
-/// `q_{n+1} = q_n + dt qd_{n+1}`).
+/// `q_{n+1} = q_n + dt qd_{n+1}`); `after_step` marks the errors' stage as
+/// run by an integrator after its step.
 pub(crate) fn project_with<M, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
     state: &mut State<NQ>,
     config: &ProjectionConfig,
     velocity_from_position_dt: f64,
+    after_step: bool,
 ) -> Result<ProjectionReport, Error>
 where
     M: Model<NQ, NC, NU>,
@@ -83,14 +88,49 @@ where
     if NC == 0 {
         return Ok(ProjectionReport::default());
     }
-    let t = state.t;
     state.check_finite()?;
+    let positions = project_positions(model, state, config).map_err(|e| {
+        e.in_stage(Stage::PositionProjection {
+            tolerance: config.position_tolerance,
+            after_step,
+        })
+    })?;
+    project_velocities(model, state, config, velocity_from_position_dt, positions).map_err(|e| {
+        e.in_stage(Stage::VelocityProjection {
+            tolerance: config.velocity_tolerance,
+            after_step,
+        })
+    })
+}
+
+/// Result of the position part of [`project_with`].
+struct Positions<const NQ: usize, const NC: usize> {
+    /// Projected positions.
+    q: SVector<f64, NQ>,
+    /// Constraint residuals there.
+    phi: SVector<f64, NC>,
+    /// Newton iterations.
+    iterations: u32,
+    /// Drift before (the velocity part still 0).
+    before: Drift,
+}
+
+/// The position part of [`project_with`].
+fn project_positions<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    state: &State<NQ>,
+    config: &ProjectionConfig,
+) -> Result<Positions<NQ, NC>, Error>
+where
+    M: Model<NQ, NC, NU>,
+{
+    let t = state.t;
     let mut q = state.q;
     let m0 = eval::mass(model, &q, t)?;
     let zero_f = SVector::<f64, NQ>::zeros();
     let mut iterations = 0u32;
     let mut phi = eval::constraints(model, &q, t)?;
-    let mut before = Drift {
+    let before = Drift {
         position: inf_norm(&phi),
         velocity: 0.0,
     };
@@ -104,6 +144,7 @@ where
                 ErrorKind::NewtonNotConverged {
                     iterations,
                     residual: res,
+                    tolerance: config.position_tolerance,
                 },
                 t,
             ));
@@ -116,6 +157,34 @@ where
         iterations += 1;
         phi = eval::constraints(model, &q, t)?;
     }
+    Ok(Positions {
+        q,
+        phi,
+        iterations,
+        before,
+    })
+}
+
+/// The velocity part of [`project_with`], at the projected positions `q`;
+/// writes `state` only on success.
+fn project_velocities<M, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    state: &mut State<NQ>,
+    config: &ProjectionConfig,
+    velocity_from_position_dt: f64,
+    positions: Positions<NQ, NC>,
+) -> Result<ProjectionReport, Error>
+where
+    M: Model<NQ, NC, NU>,
+{
+    let Positions {
+        q,
+        phi,
+        iterations,
+        mut before,
+    } = positions;
+    let t = state.t;
+    let zero_f = SVector::<f64, NQ>::zeros();
     let phi_q = eval::constraint_jacobian(model, &q, t)?;
     let phi_t = eval::constraint_time_derivative(model, &q, t)?;
     let mut qd = state.qd;

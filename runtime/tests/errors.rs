@@ -384,17 +384,30 @@ fn newton_not_converged() {
         1e-2,
     );
     assert!(
-        matches!(e.kind, ErrorKind::NewtonNotConverged { iterations: 1, residual } if residual > 1.0),
+        matches!(e.kind, ErrorKind::NewtonNotConverged { iterations: 1, residual, tolerance: 1.0 } if residual > 1.0),
         "{e}"
     );
-    // Gauss-Legendre stage iteration.
+    // Gauss-Legendre stage iteration: out of sweeps while contracting.
     let mut gl = GaussLegendre4 {
         max_iterations: 2,
         ..Default::default()
     };
     let e = step_err(&mut gl, &dp, s, &V::<2>::zeros(), 1e-2);
     assert!(
-        matches!(e.kind, ErrorKind::NewtonNotConverged { iterations: 2, .. }),
+        matches!(
+            e.kind,
+            ErrorKind::StageIterationFailed {
+                sweeps: 2,
+                diverged: false,
+                dt: 1e-2,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        e.to_string()
+            .contains("stage iteration did not converge in 2 sweeps at step size 1e-2"),
         "{e}"
     );
     // Position projection with a zero iteration cap.
@@ -415,6 +428,13 @@ fn newton_not_converged() {
         e.kind,
         ErrorKind::NewtonNotConverged { iterations: 0, .. }
     ));
+    assert!(
+        e.to_string().contains(
+            "position projection (tolerance max |Phi| <= 1e-12): Newton iteration did not \
+             converge in 0 iterations"
+        ),
+        "{e}"
+    );
     assert_eq!(st, before);
     // Inverse kinematics towards an unreachable platform position.
     let fb = FiveBar::<2>::default();

@@ -1,7 +1,9 @@
 //! Two-stage Gauss–Legendre collocation (implicit, symplectic, order 4).
 
-use super::{begin_step, finish_step, qdd_at, Integrator, StepReport, StepSettings};
-use crate::error::{Error, ErrorKind, Quantity};
+use super::{
+    begin_step, finish_step, name_fastest_mode, qdd_at, Integrator, StepReport, StepSettings,
+};
+use crate::error::{Error, ErrorKind, Quantity, Stage};
 use crate::eval;
 use crate::input::Input;
 use crate::linalg::all_finite;
@@ -26,7 +28,18 @@ const A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
 /// Stage iteration: `V_i = qd + dt sum_j a_ij A_j`, `Q_i = q + dt sum_j a_ij V_j`,
 /// `A_i <- qdd(Q_i, V_i, t + c_i dt)` until the implied position and velocity
 /// changes `dt^2 |dA|`, `dt |dA|` are within `atol + rtol |x|`; at most
-/// `max_iterations` sweeps, else [`ErrorKind::NewtonNotConverged`].
+/// `max_iterations` sweeps, else [`ErrorKind::StageIterationFailed`]. On an
+/// undamped mode of circular frequency `omega` the sweep multiplies the
+/// stage error by `(omega dt)^2 / 12` (the eigenvalues of the Butcher matrix
+/// have `|lambda|^2 = 1/12`), so the iteration contracts only for
+/// `dt * omega < sqrt(12)` ([`crate::GAUSS_LEGENDRE_CONTRACTION_LIMIT`]).
+/// When the scaled increment grows in two sweeps in a row, or a stage value
+/// becomes non-finite (checked before any model call sees it), the step
+/// fails at once with [`ErrorKind::StageIterationFailed`] marked
+/// `diverged`, naming the step, the fastest mode of the model linearised at
+/// the state (power iteration, as [`super::Rk4`] does on refusal) and a step
+/// that would let the iteration contract. Errors of the model evaluations
+/// inside the iteration name the sweep ([`crate::Stage::StageIteration`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GaussLegendre4 {
     /// Shared settings.
@@ -75,11 +88,28 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
         begin_step(state, dt, self.settings.max_step)?;
         let (t, h) = (state.t, dt);
         let dyn_cfg = &self.settings.dynamics;
-        let a0 = qdd_at(model, dyn_cfg, &state.q, &state.qd, t, input)?;
+        let in_sweep =
+            |sweep: u32| move |e: Error| e.in_stage(Stage::StageIteration { dt: h, sweep });
+        let failed = |sweeps: u32, increment: f64, diverged: bool| {
+            let e = Error::new(
+                ErrorKind::StageIterationFailed {
+                    dt: h,
+                    sweeps,
+                    increment,
+                    diverged,
+                    rate: None,
+                },
+                t,
+            );
+            name_fastest_mode(e, model, dyn_cfg, state, input)
+        };
+        let a0 = qdd_at(model, dyn_cfg, &state.q, &state.qd, t, input).map_err(in_sweep(0))?;
         let mut acc = [a0, a0];
         let mut vel = [state.qd; 2];
         let mut iterations = 0u32;
         let mut err = f64::INFINITY;
+        // Sweeps in a row whose increment grew: two mean divergence.
+        let mut growing = 0u32;
         while iterations < self.max_iterations {
             iterations += 1;
             for i in 0..2 {
@@ -88,8 +118,15 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
             let mut new = [SVector::<f64, NQ>::zeros(); 2];
             for i in 0..2 {
                 let qi = state.q + (vel[0] * A[i][0] + vel[1] * A[i][1]) * h;
-                new[i] = qdd_at(model, dyn_cfg, &qi, &vel[i], t + C[i] * h, input)?;
+                // A diverging iteration reaches non-finite stage values
+                // first; no model call sees them.
+                if !all_finite(&qi) || !all_finite(&vel[i]) {
+                    return Err(failed(iterations, f64::INFINITY, true));
+                }
+                new[i] = qdd_at(model, dyn_cfg, &qi, &vel[i], t + C[i] * h, input)
+                    .map_err(in_sweep(iterations))?;
             }
+            let previous = err;
             err = 0.0;
             for i in 0..2 {
                 let d = new[i] - acc[i];
@@ -100,27 +137,16 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
                 }
             }
             acc = new;
-            if !all_finite(&acc[0]) || !all_finite(&acc[1]) {
-                return Err(Error::new(
-                    ErrorKind::NewtonNotConverged {
-                        iterations,
-                        residual: f64::INFINITY,
-                    },
-                    t,
-                ));
-            }
             if err <= 1.0 {
                 break;
             }
+            growing = if err > previous { growing + 1 } else { 0 };
+            if growing >= 2 || !err.is_finite() {
+                return Err(failed(iterations, err, true));
+            }
         }
         if !(err <= 1.0) {
-            return Err(Error::new(
-                ErrorKind::NewtonNotConverged {
-                    iterations,
-                    residual: err,
-                },
-                t,
-            ));
+            return Err(failed(iterations, err, false));
         }
         for i in 0..2 {
             vel[i] = state.qd + (acc[0] * A[i][0] + acc[1] * A[i][1]) * h;

@@ -333,6 +333,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
                     ErrorKind::NewtonNotConverged {
                         iterations,
                         residual: f64::INFINITY,
+                        tolerance: 1.0,
                     },
                     t0,
                 ));
@@ -359,6 +360,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
                 ErrorKind::NewtonNotConverged {
                     iterations,
                     residual: err,
+                    tolerance: 1.0,
                 },
                 t0,
             ));

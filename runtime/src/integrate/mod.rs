@@ -8,10 +8,12 @@
 //!   it sees;
 //! * [`AdaptiveRk4`]: RK4 with step-doubling error control;
 //! * [`SemiImplicitEuler`]: symplectic (semi-implicit) Euler, first order,
-//!   one force evaluation per step;
+//!   one force evaluation per step, with RK4's stability estimate (two more
+//!   evaluations) against its bound `dt * rho(J) < 2`;
 //! * [`GaussLegendre4`]: two-stage Gauss–Legendre collocation, implicit,
 //!   symplectic / symmetric, order 4, for accurate long runs of non-stiff
-//!   conservative scenes;
+//!   conservative scenes; its fixed-point stage iteration contracts only
+//!   for `dt * rho(J) < sqrt(12)`, and says so when it diverges;
 //! * [`GeneralizedAlpha`]: implicit generalized-α (Chung–Hulbert, in the
 //!   Arnold–Brüls form) with bounded Newton iterations, for stiff flexible
 //!   models.
@@ -37,6 +39,7 @@ use crate::dynamics::{accelerations, DynamicsConfig};
 use crate::error::{Error, ErrorKind};
 use crate::eval;
 use crate::input::Input;
+use crate::math::sqrt;
 use crate::model::Model;
 use crate::projection::{project_with, ProjectionConfig, ProjectionReport};
 use crate::state::{constraint_drift, Drift, State};
@@ -86,8 +89,9 @@ pub struct StepReport {
     /// ([`AdaptiveRk4`] used as an [`Integrator`]); 0 for the fixed-step
     /// explicit schemes.
     pub iterations: u32,
-    /// Explicit schemes: estimate of `dt * rho(J)` (spectral radius of the
-    /// linearised dynamics) from the RK stages; 0 where not measured.
+    /// Explicit schemes ([`Rk4`], [`AdaptiveRk4`], [`SemiImplicitEuler`]
+    /// with its check on): estimate of `dt * rho(J)` (spectral radius of
+    /// the linearised dynamics) from the RK stages; 0 where not measured.
     pub stability_estimate: f64,
     /// The projection performed after the step, if any.
     pub projection: Option<ProjectionReport>,
@@ -217,7 +221,13 @@ where
     M: Model<NQ, NC, NU>,
 {
     let projection = match &settings.projection {
-        Some(cfg) if NC > 0 => Some(project_with(model, next, cfg, velocity_from_position_dt)?),
+        Some(cfg) if NC > 0 => Some(project_with(
+            model,
+            next,
+            cfg,
+            velocity_from_position_dt,
+            true,
+        )?),
         _ => None,
     };
     let drift = match projection {
@@ -225,4 +235,101 @@ where
         None => constraint_drift(model, next),
     };
     Ok((projection, drift))
+}
+
+/// Power iterations of [`spectral_radius`]: each costs at most four
+/// accelerations.
+const RATE_ITERATIONS: usize = 24;
+
+/// Spectral radius of the Jacobian `J` of `(q, qd) -> (qd, qdd)` at `s`, by
+/// a power iteration on `J^2` (an undamped mode's pair `+-i w` becomes the
+/// real `-w^2`, a decay rate `-s` becomes `s^2`) with finite-difference
+/// products `J v`: [`RATE_ITERATIONS`] iterations from a fixed start vector,
+/// so bounded work. Used only on the refusal paths of [`Rk4`], [`SemiImplicitEuler`] and
+/// [`GaussLegendre4`]; `None` when an
+/// evaluation fails.
+pub(crate) fn spectral_radius<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    dynamics: &DynamicsConfig,
+    s: &State<NQ>,
+    input: &I,
+) -> Option<f64>
+where
+    M: Model<NQ, NC, NU>,
+    I: Input<NU> + ?Sized,
+{
+    let a0 = qdd_at(model, dynamics, &s.q, &s.qd, s.t, input).ok()?;
+    let eps = 1e-7 * (1.0 + s.q.amax() + s.qd.amax());
+    let norm =
+        |x: &SVector<f64, NQ>, y: &SVector<f64, NQ>| sqrt(x.norm_squared() + y.norm_squared());
+    // J (dq, dv) = (dv, A dq + B dv) with A = dqdd/dq, B = dqdd/dqd, each
+    // product by a one-sided difference whose step moves q or qd by eps
+    // whatever the size of dq or dv (the model is linearised, not probed far
+    // away, and a small part is not lost to rounding next to a large one).
+    let apply = |dq: &SVector<f64, NQ>, dv: &SVector<f64, NQ>| {
+        let mut jv = SVector::<f64, NQ>::zeros();
+        for (x, along_q) in [(dq, true), (dv, false)] {
+            let n = sqrt(x.norm_squared());
+            if n > 0.0 {
+                let h = eps / n;
+                let (q, qd) = if along_q {
+                    (s.q + x * h, s.qd)
+                } else {
+                    (s.q, s.qd + x * h)
+                };
+                jv += (qdd_at(model, dynamics, &q, &qd, s.t, input).ok()? - a0) / h;
+            }
+        }
+        Some((*dv, jv))
+    };
+    // A start with a component along every coordinate and velocity.
+    let mut dq = SVector::<f64, NQ>::from_fn(|i, _| 1.0 + 0.37 * i as f64);
+    let mut dv = SVector::<f64, NQ>::from_fn(|i, _| 1.0 - 0.23 * i as f64);
+    let mut rho2 = 0.0;
+    for _ in 0..RATE_ITERATIONS {
+        let n = norm(&dq, &dv);
+        if !(n > 0.0 && n.is_finite()) {
+            return None;
+        }
+        (dq, dv) = (dq / n, dv / n);
+        let (xq, xv) = apply(&dq, &dv)?;
+        (dq, dv) = apply(&xq, &xv)?;
+        rho2 = norm(&dq, &dv);
+    }
+    let rho = sqrt(rho2);
+    rho.is_finite().then_some(rho)
+}
+
+/// A stability refusal ([`ErrorKind::StepTooLarge`] with a rate) or a
+/// diverged Gauss–Legendre stage iteration, with its rate replaced by the
+/// fastest mode of the model linearised at `s` ([`spectral_radius`]): the
+/// stages see only the modes the state excites (and, far beyond the limit,
+/// their estimate is no longer accurate). Other errors pass unchanged.
+pub(crate) fn name_fastest_mode<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+    mut e: Error,
+    model: &M,
+    dynamics: &DynamicsConfig,
+    s: &State<NQ>,
+    input: &I,
+) -> Error
+where
+    M: Model<NQ, NC, NU>,
+    I: Input<NU> + ?Sized,
+{
+    let rate = match &mut e.kind {
+        ErrorKind::StepTooLarge { rate: Some(r), .. } => r,
+        ErrorKind::StageIterationFailed {
+            diverged: true,
+            rate,
+            ..
+        } => {
+            *rate = spectral_radius(model, dynamics, s, input);
+            return e;
+        }
+        _ => return e,
+    };
+    if let Some(rho) = spectral_radius(model, dynamics, s, input) {
+        *rate = rho;
+    }
+    e
 }

@@ -1,6 +1,8 @@
 //! Classical fourth-order Runge–Kutta.
 
-use super::{begin_step, finish_step, qdd_at, Integrator, StepReport, StepSettings};
+use super::{
+    begin_step, finish_step, name_fastest_mode, qdd_at, Integrator, StepReport, StepSettings,
+};
 use crate::dynamics::DynamicsConfig;
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
@@ -53,24 +55,34 @@ impl Rk4 {
     }
 }
 
-/// One RK4 step from `s` without projection; returns the new state and the
-/// stability estimate. Checks the stability estimate against `limit`.
-pub(crate) fn rk4_raw<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+/// The second and third stages of an RK4 step of size `h` from `s` (the
+/// first being `(s.qd, a0)`), and the estimate of `h * rho(J)` from them:
+/// `k3 - k2 = (h/2)^2 J^2 k1 + O(h^3)`, so `(h rho)^2 ~ 4 |k3 - k2| / |k1|`
+/// (exact for a linear oscillator or a linear damper).
+pub(crate) struct HalfStages<const NQ: usize> {
+    pub k2q: SVector<f64, NQ>,
+    pub k2v: SVector<f64, NQ>,
+    pub k3q: SVector<f64, NQ>,
+    pub k3v: SVector<f64, NQ>,
+    pub estimate: f64,
+}
+
+/// Computes [`HalfStages`] (two accelerations).
+pub(crate) fn half_stages<M, I, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
     dynamics: &DynamicsConfig,
     s: &State<NQ>,
+    a0: &SVector<f64, NQ>,
     input: &I,
     h: f64,
-    limit: f64,
-) -> Result<(State<NQ>, f64), Error>
+) -> Result<HalfStages<NQ>, Error>
 where
     M: Model<NQ, NC, NU>,
     I: Input<NU> + ?Sized,
 {
     let t = s.t;
     let half = 0.5 * h;
-    let k1q = s.qd;
-    let k1v = qdd_at(model, dynamics, &s.q, &s.qd, t, input)?;
+    let (k1q, k1v) = (s.qd, *a0);
     let q2 = s.q + k1q * half;
     let v2 = s.qd + k1v * half;
     let k2q = v2;
@@ -86,6 +98,38 @@ where
     } else {
         0.0
     };
+    Ok(HalfStages {
+        k2q,
+        k2v,
+        k3q,
+        k3v,
+        estimate,
+    })
+}
+
+/// One RK4 step from `s` without projection; returns the new state and the
+/// stability estimate. Checks the stability estimate against `limit`.
+pub(crate) fn rk4_raw<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    dynamics: &DynamicsConfig,
+    s: &State<NQ>,
+    input: &I,
+    h: f64,
+    limit: f64,
+) -> Result<(State<NQ>, f64), Error>
+where
+    M: Model<NQ, NC, NU>,
+    I: Input<NU> + ?Sized,
+{
+    let t = s.t;
+    let k1v = qdd_at(model, dynamics, &s.q, &s.qd, t, input)?;
+    let HalfStages {
+        k2q,
+        k2v,
+        k3q,
+        k3v,
+        estimate,
+    } = half_stages(model, dynamics, s, &k1v, input, h)?;
     if estimate > limit {
         return Err(Error::new(
             ErrorKind::StepTooLarge {
@@ -97,6 +141,7 @@ where
             t,
         ));
     }
+    let k1q = s.qd;
     let q4 = s.q + k3q * h;
     let v4 = s.qd + k3v * h;
     let k4q = v4;
@@ -107,68 +152,6 @@ where
     eval::check_result(&q, Quantity::Position, t)?;
     eval::check_result(&qd, Quantity::Velocity, t)?;
     Ok((State { q, qd, t: t + h }, estimate))
-}
-
-/// Power iterations of [`spectral_radius`]: each costs at most four
-/// accelerations.
-const RATE_ITERATIONS: usize = 24;
-
-/// Spectral radius of the Jacobian `J` of `(q, qd) -> (qd, qdd)` at `s`, by
-/// a power iteration on `J^2` (an undamped mode's pair `+-i w` becomes the
-/// real `-w^2`, a decay rate `-s` becomes `s^2`) with finite-difference
-/// products `J v`: [`RATE_ITERATIONS`] iterations from a fixed start vector,
-/// so bounded work. Used only on the refusal path of [`Rk4`]; `None` when an
-/// evaluation fails.
-fn spectral_radius<M, I, const NQ: usize, const NC: usize, const NU: usize>(
-    model: &M,
-    dynamics: &DynamicsConfig,
-    s: &State<NQ>,
-    input: &I,
-) -> Option<f64>
-where
-    M: Model<NQ, NC, NU>,
-    I: Input<NU> + ?Sized,
-{
-    let a0 = qdd_at(model, dynamics, &s.q, &s.qd, s.t, input).ok()?;
-    let eps = 1e-7 * (1.0 + s.q.amax() + s.qd.amax());
-    let norm =
-        |x: &SVector<f64, NQ>, y: &SVector<f64, NQ>| sqrt(x.norm_squared() + y.norm_squared());
-    // J (dq, dv) = (dv, A dq + B dv) with A = dqdd/dq, B = dqdd/dqd, each
-    // product by a one-sided difference whose step moves q or qd by eps
-    // whatever the size of dq or dv (the model is linearised, not probed far
-    // away, and a small part is not lost to rounding next to a large one).
-    let apply = |dq: &SVector<f64, NQ>, dv: &SVector<f64, NQ>| {
-        let mut jv = SVector::<f64, NQ>::zeros();
-        for (x, along_q) in [(dq, true), (dv, false)] {
-            let n = sqrt(x.norm_squared());
-            if n > 0.0 {
-                let h = eps / n;
-                let (q, qd) = if along_q {
-                    (s.q + x * h, s.qd)
-                } else {
-                    (s.q, s.qd + x * h)
-                };
-                jv += (qdd_at(model, dynamics, &q, &qd, s.t, input).ok()? - a0) / h;
-            }
-        }
-        Some((*dv, jv))
-    };
-    // A start with a component along every coordinate and velocity.
-    let mut dq = SVector::<f64, NQ>::from_fn(|i, _| 1.0 + 0.37 * i as f64);
-    let mut dv = SVector::<f64, NQ>::from_fn(|i, _| 1.0 - 0.23 * i as f64);
-    let mut rho2 = 0.0;
-    for _ in 0..RATE_ITERATIONS {
-        let n = norm(&dq, &dv);
-        if !(n > 0.0 && n.is_finite()) {
-            return None;
-        }
-        (dq, dv) = (dq / n, dv / n);
-        let (xq, xv) = apply(&dq, &dv)?;
-        (dq, dv) = apply(&xq, &xv)?;
-        rho2 = norm(&dq, &dv);
-    }
-    let rho = sqrt(rho2);
-    rho.is_finite().then_some(rho)
 }
 
 impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for Rk4 {
@@ -186,20 +169,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
         begin_step(state, dt, self.settings.max_step)?;
         let dynamics = &self.settings.dynamics;
         let (mut next, estimate) = rk4_raw(model, dynamics, state, input, dt, self.stability_limit)
-            .map_err(|mut e| {
-                // The stages see only the modes the state excites (and, far
-                // beyond the limit, their estimate is no longer accurate):
-                // name the fastest mode of the linearised model instead.
-                if let ErrorKind::StepTooLarge {
-                    rate: Some(rate), ..
-                } = &mut e.kind
-                {
-                    if let Some(rho) = spectral_radius(model, dynamics, state, input) {
-                        *rate = rho;
-                    }
-                }
-                e
-            })?;
+            .map_err(|e| name_fastest_mode(e, model, dynamics, state, input))?;
         let (projection, drift) = finish_step(model, &mut next, &self.settings)?;
         *state = next;
         Ok(StepReport {
