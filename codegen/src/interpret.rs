@@ -404,8 +404,24 @@ fn constant_matrix(b: &[Vec<f64>], nq: usize, nu: usize, params: usize) -> Tape 
 }
 
 /// Lower one function's program to a tape.
+/// A function's outputs and where each computed entry goes; a function
+/// returning one scalar has one output vector of length one.
+fn outputs_of(f: &Scheduled) -> (Vec<Output>, Vec<(usize, usize, usize)>) {
+    if f.is_scalar() {
+        let out = Output {
+            name: "out",
+            shape: Shape::Vector,
+            entries: vec![f.ids.clone()],
+        };
+        (vec![out], vec![(0, 0, 0)])
+    } else {
+        (f.outputs.clone(), f.slots.clone())
+    }
+}
+
 fn lower(nq: usize, params: usize, f: &Scheduled) -> Tape {
-    let (program, slots, outputs, uses_qd) = (&f.program, &f.slots, &f.outputs, f.sig.with_qd);
+    let (outputs, slots) = outputs_of(f);
+    let (program, uses_qd) = (&f.program, f.sig.with_qd);
     let shapes: Vec<(usize, usize)> = outputs.iter().map(|o| shape(o, nq)).collect();
     let offsets: Vec<usize> = shapes
         .iter()
@@ -437,7 +453,7 @@ fn lower(nq: usize, params: usize, f: &Scheduled) -> Tape {
         }
     }
     let mut writes = Vec::new();
-    for (code, &(k, i, j)) in program.outputs.iter().zip(slots) {
+    for (code, &(k, i, j)) in program.outputs.iter().zip(&slots) {
         let v = l.value(code);
         let rows = shapes[k].0;
         match outputs[k].shape {
@@ -779,12 +795,12 @@ mod tests {
                 let mut checked = 0;
                 for scheduled in functions(&model, &eq) {
                     let f = Function::from_name(scheduled.sig.name).unwrap();
-                    let outputs = &scheduled.outputs;
+                    let (outputs, _) = outputs_of(&scheduled);
                     let tape = it.tape(f).unwrap();
                     let mut got = vec![f64::NAN; tape.output_len()];
                     tape.eval(&q, &qd, t, &params, &mut scratch, &mut got);
                     let mut want = Vec::new();
-                    for o in outputs {
+                    for o in &outputs {
                         let (rows, cols) = shape(o, nq);
                         for j in 0..cols {
                             for i in 0..rows {
@@ -796,6 +812,7 @@ mod tests {
                             }
                         }
                     }
+                    assert_eq!(got.len(), want.len(), "{name} {}", f.name());
                     let scale = want.iter().fold(1.0f64, |m, w| m.max(w.abs()));
                     for (p, (a, b)) in got.iter().zip(&want).enumerate() {
                         assert!(
