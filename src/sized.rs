@@ -351,8 +351,7 @@ mod tests {
         let dynamic = crate::dynamic::erase(crate::scenes::pendulum::Pendulum::default());
         let p = Padded::<6, 2, 2>::new(&*dynamic).unwrap();
         assert_eq!(p.pad_input_coordinates(), vec![3]);
-        assert!(Padded::<2, 2, 2>::new(&*dynamic)
-            .unwrap_err()
-            .contains("does not fit"));
+        let too_small = Padded::<2, 2, 2>::new(&*dynamic).err().unwrap();
+        assert!(too_small.contains("does not fit"), "{too_small}");
     }
 }
