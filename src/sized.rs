@@ -333,12 +333,12 @@ mod tests {
     fn padded_models_accelerate_like_the_compiled_ones() {
         use crate::scenes::{five_bar, slider_crank};
         compare(
-            slider_crank::SliderCrank::default(),
+            slider_crank::SliderCrank,
             &[0.4, 0.1, 0.3],
             &[1.0, -0.5, 0.2],
         );
         compare(
-            five_bar::FiveBar::default(),
+            five_bar::FiveBar,
             &[0.9, 2.2, 1.4, 0.8, 0.3],
             &[0.5, -0.2, 0.1, 0.3, 0.0],
         );

@@ -175,17 +175,12 @@ fn forced_oscillator_follows_the_closed_form_response() {
         "--dt",
         "0.01",
     ];
-    let (t, _) = simulate(
-        dir.path(),
-        &[&common[..], &["--input", "f=m*sin(3*t)"]].concat(),
-    )
-    .unwrap();
-    let error = max_abs(
-        column(&t, "t")
-            .iter()
-            .zip(column(&t, "x"))
-            .map(|(&t, x)| x - exact(t)),
-    );
+    let error_with = |how: &[&str]| {
+        let (t, _) = simulate(dir.path(), &[&common[..], how].concat()).unwrap();
+        let (time, x) = (column(&t, "t"), column(&t, "x"));
+        max_abs(time.iter().zip(x).map(|(&t, x)| x - exact(t)))
+    };
+    let error = error_with(&["--input", "f=m*sin(3*t)"]);
     println!("forced oscillator, --input: max error {error:e}");
     assert!(error < 1e-7, "{error:e}");
     // The same force as a CSV sampled every millisecond (linear in between).
@@ -195,17 +190,7 @@ fn forced_oscillator_follows_the_closed_form_response() {
         csv += &format!("{tk},{}\n", 2.0 * (3.0 * tk).sin());
     }
     let u = write(dir.path(), "u.csv", &csv);
-    let (t, _) = simulate(
-        dir.path(),
-        &[&common[..], &["--inputs", u.to_str().unwrap()]].concat(),
-    )
-    .unwrap();
-    let error = max_abs(
-        column(&t, "t")
-            .iter()
-            .zip(column(&t, "x"))
-            .map(|(&t, x)| x - exact(t)),
-    );
+    let error = error_with(&["--inputs", u.to_str().unwrap()]);
     println!("forced oscillator, --inputs CSV: max error {error:e}");
     assert!(error < 1e-6, "{error:e}");
 }

@@ -579,7 +579,7 @@ fn make_consistent<const NQ: usize, const NC: usize, const NU: usize>(
     if padded.nc() == 0 {
         return Ok(());
     }
-    let before = state.clone();
+    let before = *state;
     let report = project(padded, state, &ProjectionConfig::default()).map_err(|e| {
         format!("the initial state cannot be made consistent with the constraints: {e}")
     })?;
