@@ -199,6 +199,7 @@ fn forced_oscillator_follows_the_closed_form_response() {
 fn pd_feedback_settles_at_the_static_deflection() {
     let dir = tempfile::tempdir().unwrap();
     let sc = write(dir.path(), "osc.toml", OSCILLATOR);
+    let plot = dir.path().join("pd.svg");
     let (t, _) = simulate(
         dir.path(),
         &[
@@ -210,6 +211,10 @@ fn pd_feedback_settles_at_the_static_deflection() {
             "f=32,16",
             "--target",
             "x=0.1",
+            "--plot",
+            plot.to_str().unwrap(),
+            "--columns",
+            "x,x_dot",
         ],
     )
     .unwrap();
@@ -217,6 +222,11 @@ fn pd_feedback_settles_at_the_static_deflection() {
     let x = *column(&t, "x").last().unwrap();
     println!("PD static deflection {x} vs 0.08");
     assert!((x - 0.08).abs() < 1e-6, "{x}");
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(
+        svg.contains("<svg") && svg.contains("x_dot"),
+        "plot of x and x_dot"
+    );
 }
 
 #[test]
