@@ -13,6 +13,7 @@ pub mod eval;
 pub mod interpreted;
 pub mod plot;
 pub mod progress;
+pub mod sized;
 pub mod table;
 
 /// The generated scene modules (one per file in `scenes/`).

@@ -28,7 +28,8 @@
 //! The public API is the builder and its results, the symbolic model of a
 //! scene ([`Model::load`], [`Model::equations`]) with the expression graph
 //! its terms live in ([`Graph`], [`Node`], [`Id`], [`Symbol`], [`Func`],
-//! [`powi_f64`]), and errors with their position ([`Error`], [`Source`]).
+//! [`powi_f64`]), functions of time in the scene grammar ([`TimeFunction`]),
+//! and errors with their position ([`Error`], [`Source`]).
 
 mod builder;
 mod derive;
@@ -46,6 +47,7 @@ mod reduce;
 mod schedule;
 #[cfg(test)]
 mod tests;
+mod time_function;
 
 pub use builder::{generate_scene, write_if_changed, Builder, Generated, Report};
 pub use derive::Equations;
@@ -55,3 +57,4 @@ pub use export::export_json;
 pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
 pub use model::Model;
 pub use schedule::OpCount;
+pub use time_function::TimeFunction;

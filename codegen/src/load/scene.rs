@@ -130,6 +130,10 @@ pub struct CoordinateDef {
     pub range: Option<Spanned<[f64; 2]>>,
     /// Range of velocities the scene is used in.
     pub velocity_range: Option<Spanned<[f64; 2]>>,
+    /// Initial position for simulations (default 0).
+    pub initial: Option<Spanned<f64>>,
+    /// Initial velocity for simulations (default 0).
+    pub initial_velocity: Option<Spanned<f64>>,
 }
 
 /// An elementary rotation of a frame.

@@ -42,10 +42,34 @@ impl Context<'_> {
                     None => Ok(None),
                 }
             };
+            let range_of_positions = range(&c.range)?;
+            let velocity_range = range(&c.velocity_range)?;
+            let initial = |v: &Option<Spanned<f64>>,
+                           key: &str,
+                           within: Option<[f64; 2]>|
+             -> Result<f64, Error> {
+                let Some(v) = v else { return Ok(0.0) };
+                let x = *v.get_ref();
+                let at = v.span().start;
+                let ctx = format!("coordinate `{}`", c.name.get_ref());
+                if !x.is_finite() {
+                    return Err(self.err(at, Some(&ctx), format!("`{key}` is not finite ({x})")));
+                }
+                if let Some([lo, hi]) = within.filter(|[lo, hi]| !(*lo..=*hi).contains(&x)) {
+                    return Err(self.err(
+                        at,
+                        Some(&ctx),
+                        format!("`{key}` = {x} lies outside the declared range [{lo}, {hi}]"),
+                    ));
+                }
+                Ok(x)
+            };
             out.push(Coordinate {
                 name: c.name.get_ref().clone(),
-                range: range(&c.range)?,
-                velocity_range: range(&c.velocity_range)?,
+                initial: initial(&c.initial, "initial", range_of_positions)?,
+                initial_velocity: initial(&c.initial_velocity, "initial_velocity", velocity_range)?,
+                range: range_of_positions,
+                velocity_range,
             });
         }
         self.scope.coordinates = out.iter().map(|c| c.name.clone()).collect();
@@ -93,5 +117,46 @@ impl Context<'_> {
             self.parameter_values.insert(name.get_ref().clone(), value);
         }
         Ok(runtime)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use crate::error::Source;
+    use crate::model::Model;
+
+    fn load(coordinate: &str) -> Result<Model, crate::error::Error> {
+        let text = format!(
+            "name = \"s\"\n[[coordinates]]\nname = \"x\"\n{coordinate}\n\
+             [[components]]\nname = \"m\"\ntype = \"point_mass\"\nmass = 1.0\n\
+             position = [\"x\", 0, 0]\n"
+        );
+        Model::from_source(&Source::new(Path::new("s.toml"), text))
+    }
+
+    #[test]
+    fn initial_state_keys_default_to_zero_and_are_checked() {
+        let m = load("").unwrap();
+        assert_eq!(
+            (m.coordinates[0].initial, m.coordinates[0].initial_velocity),
+            (0.0, 0.0)
+        );
+        let m = load("initial = 0.25\ninitial_velocity = -2.0").unwrap();
+        assert_eq!(
+            (m.coordinates[0].initial, m.coordinates[0].initial_velocity),
+            (0.25, -2.0)
+        );
+        let e = load("range = [-1.0, 1.0]\ninitial = 1.5").unwrap_err();
+        assert_eq!(e.line, 5, "{e}");
+        assert!(
+            e.to_string()
+                .contains("coordinate `x`: `initial` = 1.5 lies outside"),
+            "{e}"
+        );
+        let e = load("velocity_range = [-1.0, 1.0]\ninitial_velocity = -3.0").unwrap_err();
+        assert!(e.message.contains("`initial_velocity` = -3"), "{e}");
+        assert!(load("initial = nan").is_err());
     }
 }

@@ -41,6 +41,11 @@ pub struct Coordinate {
     pub range: Option<[f64; 2]>,
     /// Declared velocity range.
     pub velocity_range: Option<[f64; 2]>,
+    /// Initial position of a simulation (scene key `initial`, default 0).
+    pub initial: f64,
+    /// Initial velocity of a simulation (scene key `initial_velocity`,
+    /// default 0).
+    pub initial_velocity: f64,
 }
 
 /// A parameter left as an input of the generated model.

@@ -408,6 +408,8 @@ impl Link {
                 name: cname.clone(),
                 range: Some([-amplitude, amplitude]),
                 velocity_range: Some([-w * amplitude, w * amplitude]),
+                initial: 0.0,
+                initial_velocity: 0.0,
             });
             cx.scope.coordinates.push(cname);
         }

@@ -1,0 +1,414 @@
+//! `flexdyn simulate` end to end, against closed forms: the period of a
+//! small-amplitude pendulum, energy conservation, the forced response of a
+//! linear oscillator driven by `--input` and by a CSV, PD feedback's static
+//! deflection, the constraint drift of a four-bar started off its
+//! constraints, an interpreted scene file against the compiled scene; and
+//! bad input refused with clear errors, leaving no files.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use flexdyn::table::Table;
+
+const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
+
+fn scene(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(format!("{name}.toml"))
+}
+
+/// A linear oscillator `m x'' + k x = f` (m = 2, k = 8: omega = 2).
+const OSCILLATOR: &str = r#"
+name = "forced_oscillator"
+gravity = [0, 0, 0]
+[parameters]
+m = 2.0
+k = 8.0
+[[coordinates]]
+name = "x"
+range = [-1.0, 1.0]
+[[components]]
+name = "mass"
+type = "point_mass"
+mass = "m"
+position = ["x", 0, 0]
+[[components]]
+name = "spring"
+type = "spring"
+stiffness = "k"
+expression = "x"
+[[actuators]]
+name = "f"
+coordinate = "x"
+"#;
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Run `flexdyn simulate` with `args` plus `--csv dir/out.csv --quiet`:
+/// the table, or the error text. On failure, checks that `dir` holds no
+/// output (partial or temporary) besides the given `inputs`.
+fn simulate(dir: &Path, args: &[&str]) -> Result<(Table, String), String> {
+    let csv = dir.join("out.csv");
+    let before: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let out = Command::new(BIN)
+        .arg("simulate")
+        .args(args)
+        .arg("--csv")
+        .arg(&csv)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    if out.status.success() {
+        let table = Table::read(&csv).unwrap();
+        std::fs::remove_file(&csv).unwrap();
+        return Ok((table, stderr));
+    }
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let after: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(before, after, "files left behind after: {stderr}");
+    Err(stderr)
+}
+
+fn column(t: &Table, name: &str) -> Vec<f64> {
+    t.column(name).unwrap()
+}
+
+fn max_abs(v: impl Iterator<Item = f64>) -> f64 {
+    v.fold(0.0, |m, x| m.max(x.abs()))
+}
+
+#[test]
+fn small_amplitude_pendulum_has_the_closed_form_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = write(
+        dir.path(),
+        "s.json",
+        r#"{"q": [0.01], "qd": [0.0], "t": 0}"#,
+    );
+    let pendulum = scene("pendulum");
+    let args = ["--scene", pendulum.to_str().unwrap(), "--duration", "3"];
+    let (t, _) = simulate(
+        dir.path(),
+        &[
+            &args[..],
+            &["--dt", "0.001", "--initial", s.to_str().unwrap()],
+        ]
+        .concat(),
+    )
+    .unwrap();
+    let (time, theta) = (column(&t, "t"), column(&t, "theta"));
+    // Downward zero crossings, linearly interpolated.
+    let crossings: Vec<f64> = (1..theta.len())
+        .filter(|&k| theta[k - 1] > 0.0 && theta[k] <= 0.0)
+        .map(|k| time[k - 1] + theta[k - 1] / (theta[k - 1] - theta[k]) * 0.001)
+        .collect();
+    let period = crossings[1] - crossings[0];
+    // T = 2 pi sqrt(l/g) (1 + theta0^2/16 + ...), l = 0.5, g = 9.81.
+    let exact =
+        2.0 * std::f64::consts::PI * (0.5f64 / 9.81).sqrt() * (1.0 + 0.01f64.powi(2) / 16.0);
+    let error = (period - exact).abs() / exact;
+    println!("pendulum period {period} vs {exact}: relative error {error:e}");
+    assert!(error < 1e-8, "period {period} vs {exact}");
+}
+
+#[test]
+fn conservative_pendulum_conserves_energy_with_every_integrator() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = write(dir.path(), "s.json", r#"{"q": [1.0], "qd": [0.5], "t": 0}"#);
+    for (integrator, dt, tolerance) in [
+        ("adaptive-rk4", "0.01", 1e-9),
+        ("rk4", "0.001", 1e-11),
+        ("gauss-legendre", "0.001", 1e-11),
+        ("semi-implicit-euler", "0.0005", 2e-3),
+        ("gen-alpha", "0.001", 5e-6),
+    ] {
+        let (t, _) = simulate(
+            dir.path(),
+            &[
+                "--scene",
+                scene("pendulum").to_str().unwrap(),
+                "--duration",
+                "2",
+                "--dt",
+                dt,
+                "--initial",
+                s.to_str().unwrap(),
+                "--integrator",
+                integrator,
+            ],
+        )
+        .unwrap();
+        let e: Vec<f64> = column(&t, "T")
+            .iter()
+            .zip(column(&t, "V"))
+            .map(|(a, b)| a + b)
+            .collect();
+        let drift = max_abs(e.iter().map(|x| x - e[0])) / e[0].abs();
+        println!("{integrator} at dt {dt}: relative energy drift {drift:e}");
+        assert!(drift < tolerance, "{integrator}: energy drift {drift:e}");
+    }
+}
+
+#[test]
+fn forced_oscillator_follows_the_closed_form_response() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = write(dir.path(), "osc.toml", OSCILLATOR);
+    // f = m sin(3 t) from rest: x = F/(m (w^2 - W^2)) (sin W t - W/w sin w t).
+    let exact = |t: f64| 2.0 / (2.0 * (4.0 - 9.0)) * ((3.0 * t).sin() - 1.5 * (2.0 * t).sin());
+    let common = [
+        "--scene",
+        sc.to_str().unwrap(),
+        "--duration",
+        "5",
+        "--dt",
+        "0.01",
+    ];
+    let error_with = |how: &[&str]| {
+        let (t, _) = simulate(dir.path(), &[&common[..], how].concat()).unwrap();
+        let (time, x) = (column(&t, "t"), column(&t, "x"));
+        max_abs(time.iter().zip(x).map(|(&t, x)| x - exact(t)))
+    };
+    let error = error_with(&["--input", "f=m*sin(3*t)"]);
+    println!("forced oscillator, --input: max error {error:e}");
+    assert!(error < 1e-7, "{error:e}");
+    // The same force as a CSV sampled every millisecond (linear in between).
+    let mut csv = String::from("t,f\n");
+    for k in 0..=5000 {
+        let tk = k as f64 * 1e-3;
+        csv += &format!("{tk},{}\n", 2.0 * (3.0 * tk).sin());
+    }
+    let u = write(dir.path(), "u.csv", &csv);
+    let error = error_with(&["--inputs", u.to_str().unwrap()]);
+    println!("forced oscillator, --inputs CSV: max error {error:e}");
+    assert!(error < 1e-6, "{error:e}");
+}
+
+#[test]
+fn pd_feedback_settles_at_the_static_deflection() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = write(dir.path(), "osc.toml", OSCILLATOR);
+    let plot = dir.path().join("pd.svg");
+    let (t, _) = simulate(
+        dir.path(),
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--duration",
+            "10",
+            "--pd",
+            "f=32,16",
+            "--target",
+            "x=0.1",
+            "--plot",
+            plot.to_str().unwrap(),
+            "--columns",
+            "x,x_dot",
+        ],
+    )
+    .unwrap();
+    // k x = kp (0.1 - x): x = 0.1 kp / (k + kp) = 0.08.
+    let x = *column(&t, "x").last().unwrap();
+    println!("PD static deflection {x} vs 0.08");
+    assert!((x - 0.08).abs() < 1e-6, "{x}");
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(
+        svg.contains("<svg") && svg.contains("x_dot"),
+        "plot of x and x_dot"
+    );
+}
+
+#[test]
+fn four_bar_started_off_its_constraints_is_projected_and_stays_on_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = write(
+        dir.path(),
+        "s.json",
+        r#"{"q": [0.5, 0.52, 0.01], "qd": [1.0, 0.0, 0.0], "t": 0}"#,
+    );
+    let (t, stderr) = simulate(
+        dir.path(),
+        &[
+            "--scene",
+            scene("four_bar").to_str().unwrap(),
+            "--duration",
+            "2",
+            "--initial",
+            s.to_str().unwrap(),
+        ],
+    )
+    .unwrap();
+    assert!(
+        stderr.contains("projected onto the constraints: th2 0.52 ->"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("th1_dot 1.0 ->"), "{stderr}");
+    let drift = max_abs(column(&t, "drift").into_iter());
+    let e: Vec<f64> = column(&t, "T")
+        .iter()
+        .zip(column(&t, "V"))
+        .map(|(a, b)| a + b)
+        .collect();
+    let energy = max_abs(e.iter().map(|x| x - e[0]));
+    println!("four-bar: max drift {drift:e}, energy change {energy:e}");
+    assert!(drift < 1e-10, "{drift:e}");
+    assert!(energy < 1e-6, "{energy:e}");
+    assert!(
+        column(&t, "th1").iter().any(|&x| (x - 0.5).abs() > 0.5),
+        "it moves"
+    );
+}
+
+#[test]
+fn interpreted_scene_file_gives_the_compiled_scenes_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scene("double_pendulum")).unwrap();
+    let copy = text.replace(
+        "name = \"double_pendulum\"",
+        "name = \"my_double_pendulum\"",
+    );
+    assert_ne!(copy, text);
+    let copied = write(dir.path(), "my.toml", &copy);
+    let s = write(
+        dir.path(),
+        "s.json",
+        r#"{"q": [0.7, -0.3], "qd": [0.0, 1.0], "t": 0}"#,
+    );
+    let run = |path: &Path| {
+        let args = [
+            "--scene",
+            path.to_str().unwrap(),
+            "--duration",
+            "1",
+            "--initial",
+        ];
+        simulate(dir.path(), &[&args[..], &[s.to_str().unwrap()]].concat())
+            .unwrap()
+            .0
+    };
+    let (compiled, interpreted) = (run(&scene("double_pendulum")), run(&copied));
+    assert_eq!(compiled.to_csv(), interpreted.to_csv());
+    assert_eq!(compiled.rows.len(), 101);
+}
+
+#[test]
+fn bad_input_is_refused_clearly_and_leaves_no_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = write(d, "osc.toml", OSCILLATOR);
+    let base = ["--scene", sc.to_str().unwrap(), "--duration", "1"];
+    let fails = |extra: &[&str], expected: &str| {
+        let e = simulate(d, &[&base[..], extra].concat()).unwrap_err();
+        assert!(e.contains(expected), "expected `{expected}` in: {e}");
+    };
+    fails(&["--input", "g=1"], "unknown actuator `g`");
+    fails(&["--input", "f=sin(t"], "--input f: `sin(t`:1:");
+    fails(&["--input", "f=x*t"], "not the coordinate `x`");
+    fails(&["--input", "f=omega*t"], "undefined symbol `omega`");
+    fails(
+        &["--input", "f=1", "--pd", "f=1,1", "--target", "x=0"],
+        "actuator `f` is given twice",
+    );
+    fails(&["--dt", "0"], "--dt must be a positive");
+    fails(&["--dt=-0.1"], "--dt must be a positive");
+    fails(&["--integrator", "euler"], "unknown integrator `euler`");
+    fails(&["--pd", "f=1,1"], "no target for coordinate `x`");
+    let u = write(d, "bad_column.csv", "t,f,g\n0,1,2\n1,1,2\n");
+    fails(
+        &["--inputs", u.to_str().unwrap()],
+        "bad_column.csv: column `g` is neither",
+    );
+    let u = write(d, "no_t.csv", "time,f\n0,1\n");
+    fails(
+        &["--inputs", u.to_str().unwrap()],
+        "no_t.csv: no column `t`",
+    );
+    let u = write(d, "back.csv", "t,f\n0,1\n0.5,1\n0.4,1\n");
+    fails(
+        &["--inputs", u.to_str().unwrap()],
+        "back.csv: line 4: t = 0.4 does not increase",
+    );
+    let u = write(d, "twice.csv", "t,f\n0,1\n1,1\n");
+    fails(
+        &["--inputs", u.to_str().unwrap(), "--input", "f=1"],
+        "actuator `f` is given twice",
+    );
+    // An error after the CSV was written (the plot) leaves neither file.
+    fails(&["--plot", d.join("p.jpg").to_str().unwrap()], "p.jpg");
+    fails(
+        &[
+            "--plot",
+            d.join("p.png").to_str().unwrap(),
+            "--columns",
+            "x,y",
+        ],
+        "no column `y`",
+    );
+    // A step beyond RK4's stability bound: a 1000 rad/s mode started moving.
+    let stiff = OSCILLATOR
+        .replace("k = 8.0", "k = 2.0e6")
+        .replace("range = [-1.0, 1.0]", "range = [-1.0, 1.0]\ninitial = 0.01");
+    let st = write(d, "stiff.toml", &stiff);
+    let e = simulate(
+        d,
+        &[
+            "--scene",
+            st.to_str().unwrap(),
+            "--duration",
+            "1",
+            "--integrator",
+            "rk4",
+        ],
+    )
+    .unwrap_err();
+    assert!(e.contains("too large"), "{e}");
+    // Constraints that no nearby state satisfies: a circle, started at its
+    // centre, where the constraint Jacobian vanishes.
+    let circle = r#"
+name = "circle"
+[[coordinates]]
+name = "x"
+[[coordinates]]
+name = "y"
+[[components]]
+name = "mass"
+type = "point_mass"
+mass = 1.0
+position = ["x", "y", 0]
+[[constraints]]
+name = "ring"
+expression = "x*x + y*y - 1"
+"#;
+    let c = write(d, "circle.toml", circle);
+    let e = simulate(d, &["--scene", c.to_str().unwrap(), "--duration", "1"]).unwrap_err();
+    assert!(e.contains("initial state cannot be made consistent"), "{e}");
+    let s = write(
+        d,
+        "s.json",
+        r#"{"q": [0.6, 0.8, 0.0], "qd": [0, 0], "t": 0}"#,
+    );
+    let e = simulate(
+        d,
+        &[
+            "--scene",
+            c.to_str().unwrap(),
+            "--duration",
+            "1",
+            "--initial",
+            s.to_str().unwrap(),
+        ],
+    )
+    .unwrap_err();
+    assert!(e.contains("has 2 coordinates, got 3 positions"), "{e}");
+}
