@@ -1,13 +1,13 @@
 //! The spatial parallel robot of the paper on flexdyn: its scenes (the rigid
 //! robot and its flexible variants, generated at build time from `scenes/`),
 //! geometry and closed-form inverse kinematics ([`robot`]), the circle and
-//! inverse and forward dynamics along it ([`robot`], [`servo`]), and the
+//! inverse and forward dynamics along it ([`robot`], with the runtime's
+//! servo constraints and joint PD loop, `flexdyn_runtime::control`), and the
 //! speed-against-error study behind `docs/performance.md` ([`report`]).
 //! The `parallel-robot` binary drives them from the command line.
 
 pub mod report;
 pub mod robot;
-pub mod servo;
 
 /// The generated robot scene modules (one per file in `scenes/`).
 #[allow(missing_docs)]

@@ -4,6 +4,14 @@
 //!
 //! Coordinate order (as in `scenes/parallel_robot_rigid.toml`):
 //! `[th11, th12, th13, th21, th22, th23, th31, th32, th33, px, py, pz]`.
+//!
+//! Inverse and forward dynamics along the circle for every robot scene:
+//! the rigid robot's algebraic inverse dynamics ([`inverse_along`]), the
+//! flexible scenes' servo-constrained inverse dynamics ([`flexible_inverse`],
+//! the runtime's [`flexdyn_runtime::control::Servo`] on the platform centre)
+//! and forward runs with the joint-space PD loop ([`simulate_rows`], the
+//! runtime's [`flexdyn_runtime::control::JointPd`]), all from the robot in
+//! static equilibrium on its path ([`initial_state`]).
 
 use std::f64::consts::PI;
 use std::fmt;
@@ -244,7 +252,7 @@ pub type RigidSolution = flexdyn_runtime::InverseSolution<12, 9, 3>;
 /// call per time, warm-started from the previous one). `tick` is called after
 /// each time. Errors name the time and what went wrong. Generic over the
 /// dimensions for [`with_robot_model!`]; a scene with more coordinates than
-/// the rigid robot's needs [`crate::servo::flexible_inverse`] instead.
+/// the rigid robot's needs [`flexible_inverse`] instead.
 pub fn inverse_along<M, const NQ: usize, const NC: usize>(
     model: &M,
     g: &Geometry,
@@ -350,7 +358,7 @@ pub struct InverseRow {
 /// Inverse dynamics of any robot scene along `circle` at `times`: the rigid
 /// robot's algebraic solve ([`inverse_along`]) when the scene has only the
 /// rigid coordinates, the servo-constrained integration of the elastic
-/// coordinates ([`crate::servo::flexible_inverse`], one step per interval of
+/// coordinates ([`flexible_inverse`], one step per interval of
 /// `times`) otherwise.
 pub fn inverse_rows<M, const NQ: usize, const NC: usize>(
     model: &M,
@@ -373,13 +381,13 @@ where
         qd: qd.to_vec(),
     };
     if layout.is_flexible() {
-        let samples = crate::servo::flexible_inverse(model, &layout, g, circle, times, tick)?;
+        let samples = flexible_inverse(model, &layout, g, circle, times, tick)?;
         Ok(samples
             .iter()
             .map(|s| {
                 row(
                     s.state.t,
-                    s.tau,
+                    s.tau.into(),
                     s.state.q.as_slice(),
                     s.state.qd.as_slice(),
                 )
@@ -399,6 +407,125 @@ where
             })
             .collect())
     }
+}
+
+/// Spectral radius at infinite frequency of the generalized-alpha scheme of
+/// [`flexible_inverse`] and of forward runs ([`simulate`]): 0 (asymptotic
+/// annihilation), so that the elastic and joint modes the step cannot
+/// resolve (all of them at 0.005 s: the first link mode is 157 Hz) are
+/// damped out within a step or two instead of ringing in the torques; the
+/// resolved, slow response stays second-order accurate.
+pub const SERVO_RHO_INF: f64 = 0.0;
+
+/// Inverse dynamics of a robot scene with its elastic coordinates
+/// integrated: the runtime's servo constraints on the platform centre
+/// ([`flexdyn_runtime::control::Servo`], the coordinates `px, py, pz`
+/// prescribed along `circle`) integrated by generalized-alpha
+/// (`rho_inf` = [`SERVO_RHO_INF`], coordinate projection after every step),
+/// one step per interval of `times` (evenly spaced and increasing; the
+/// paper's 0.005 s step for the CLI), from the robot in static equilibrium
+/// on the path at `times[0]` ([`initial_state`]). Returns the state and the
+/// torques at every time; `tick` is called after each.
+///
+/// Each step is a predictor-corrector pair: a trial step of the servo model
+/// gives the torques at the step's end; the step taken is the plain model's
+/// under the torques interpolated linearly over the step, from the same
+/// integrator memory. So the recorded trajectory is exactly the one that
+/// `parallel-robot simulate` reproduces (same scheme and step) from the
+/// torque table. This is [`flexdyn_runtime::control::servo_run`]'s scheme
+/// except that the trial step is taken without the coordinate projection,
+/// so that the torques are those at the state its Newton iteration
+/// converged to: projecting the trial state moves the stiff elastic
+/// coordinates off the iteration's accelerations, and the torques there
+/// differ by up to 3 N m at 10 rad/s; at the coarse steps of the hard cases
+/// (0.05 s) the run then fails (singular Newton matrix after seven steps).
+/// `servo_run` offers no way to switch the trial's projection off. For a
+/// scene with no elastic coordinates this reproduces the rigid inverse
+/// dynamics. Every point of the path is checked against the closed-form
+/// inverse kinematics first, which tells precisely why one cannot be reached.
+pub fn flexible_inverse<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    layout: &Layout,
+    g: &Geometry,
+    circle: &Circle,
+    times: &[f64],
+    tick: &mut dyn FnMut(),
+) -> Result<Vec<flexdyn_runtime::control::ServoSample<NQ, 3>>, String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
+    use flexdyn_runtime::control::{Coordinates, Servo, ServoConfig, ServoSample, Target};
+    use flexdyn_runtime::integrate::{GeneralizedAlpha, StepSettings};
+    use flexdyn_runtime::nalgebra::SVector;
+    use flexdyn_runtime::{Integrator, Linear};
+    let Some(&t0) = times.first() else {
+        return Ok(Vec::new());
+    };
+    let dt = times.get(1).map_or(0.0, |t1| t1 - t0);
+    if let Some(k) = times.windows(2).position(|w| {
+        let step = w[1] - w[0];
+        !(step > 0.0 && (step - dt).abs() <= 1e-9 * dt)
+    }) {
+        return Err(format!(
+            "the inverse-dynamics times must increase in even steps: t = {} s after t = {} s \
+             (step {dt} s from t = {t0} s)",
+            times[k + 1],
+            times[k]
+        ));
+    }
+    for &t in times {
+        inverse_kinematics(g, circle.at(t)[0]).map_err(|e| format!("at t = {t} s: {e}"))?;
+    }
+    let [p0, v0, _] = circle.at(t0);
+    let mut state = initial_state(model, layout, g, t0, p0, v0)?;
+    let path = |t: f64| {
+        let [p, v, a] = circle.at(t);
+        Target {
+            position: p.into(),
+            velocity: v.into(),
+            acceleration: a.into(),
+        }
+    };
+    let settings = StepSettings::with_projection();
+    // The servo's closure stabilisation must be the integrator's.
+    let servo_config = ServoConfig {
+        dynamics: settings.dynamics,
+        ..Default::default()
+    };
+    let servo = Servo::new(model, Coordinates(layout.platform), path, servo_config)
+        .map_err(|e| e.to_string())?;
+    let config = flexdyn_runtime::GeneralizedAlphaConfig {
+        rho_inf: SERVO_RHO_INF,
+        filter_start: false,
+        ..Default::default()
+    };
+    let mut integ = GeneralizedAlpha::<NQ, NC>::new(settings, config);
+    let err = |e: flexdyn_runtime::Error| e.to_string();
+    let mut tau = servo.solve(&state.q, &state.qd, t0).map_err(err)?.tau;
+    let mut out = Vec::with_capacity(times.len());
+    out.push(ServoSample { state, tau });
+    tick();
+    let zero = SVector::<f64, 3>::zeros();
+    for _ in 1..times.len() {
+        // The trial step without the projection (see above).
+        let mut trial_integ = integ;
+        trial_integ.settings.projection = None;
+        let mut trial = state;
+        Integrator::<NQ, NC, 3>::step(&mut trial_integ, &servo, &mut trial, &zero, dt)
+            .map_err(|e| servo.take_failure().unwrap_or(e).to_string())?;
+        let next = servo.solve(&trial.q, &trial.qd, trial.t).map_err(err)?.tau;
+        let input = Linear {
+            t0: state.t,
+            tau0: tau,
+            t1: trial.t,
+            tau1: next,
+        };
+        Integrator::<NQ, NC, 3>::step(&mut integ, model, &mut state, &input, dt).map_err(err)?;
+        tau = next;
+        out.push(ServoSample { state, tau });
+        tick();
+    }
+    Ok(out)
 }
 
 /// Actuator torques sampled in time, linearly interpolated between samples
@@ -576,7 +703,7 @@ where
 }
 
 /// Forward dynamics of a robot model (rigid or flexible; wrap it in
-/// [`crate::servo::Feedback`] for a control loop) from `state` under
+/// [`flexdyn_runtime::control::Feedback`] for a control loop) from `state` under
 /// `torques`, with steps of `dt`, recording the state every `every` steps
 /// (and at the start), for `steps` steps. `tick` is called after each step.
 #[allow(clippy::too_many_arguments)]
@@ -639,7 +766,7 @@ where
         }
         Scheme::GeneralizedAlpha => {
             let config = flexdyn_runtime::GeneralizedAlphaConfig {
-                rho_inf: crate::servo::SERVO_RHO_INF,
+                rho_inf: SERVO_RHO_INF,
                 filter_start: false,
                 ..Default::default()
             };
@@ -764,16 +891,31 @@ where
 {
     let layout = Layout::of(model)?;
     let start = initial_state(model, &layout, g, t0, p, v)?;
+    use flexdyn_runtime::control::{Feedback, FeedbackLaw, JointPd, Target};
+    use flexdyn_runtime::nalgebra::SVector;
     let pd = pd
-        .map(|s| crate::servo::JointPd::new(s.kp, s.kd, s.reference.clone(), layout.actuated))
+        .map(|s| {
+            let reference = s.reference.clone();
+            JointPd::<_, NQ, 3>::new(layout.actuated, [s.kp; 3], [s.kd; 3], move |t: f64| {
+                Target {
+                    position: reference.at(t).into(),
+                    velocity: reference.rate_at(t).into(),
+                    acceleration: SVector::zeros(),
+                }
+            })
+            .map_err(|e| match e.kind {
+                flexdyn_runtime::ErrorKind::InvalidParameter { what, value, .. } => {
+                    format!("invalid PD gain: {what} = {value}")
+                }
+                _ => e.to_string(),
+            })
+        })
         .transpose()?;
     let states = match &pd {
         Some(pd) => {
-            let closed = crate::servo::Feedback {
+            let closed = Feedback {
                 inner: model,
-                law: |q: &flexdyn_runtime::nalgebra::SVector<f64, NQ>,
-                      qd: &flexdyn_runtime::nalgebra::SVector<f64, NQ>,
-                      t: f64| pd.torques(q, qd, t),
+                law: |q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64| pd.input(q, qd, t),
             };
             simulate(&closed, scheme, start, torques, dt, steps, every, tick)?
         }
@@ -782,12 +924,12 @@ where
     Ok(states
         .iter()
         .map(|s| {
-            let mut phi = flexdyn_runtime::nalgebra::SVector::<f64, NC>::zeros();
+            let mut phi = SVector::<f64, NC>::zeros();
             model.constraints(&s.q, s.t, &mut phi);
             let ff = torques.at(s.t);
             let fb = pd
                 .as_ref()
-                .map_or([0.0; 3], |pd| pd.torques(&s.q, &s.qd, s.t));
+                .map_or(SVector::zeros(), |pd| pd.input(&s.q, &s.qd, s.t));
             SimRow {
                 t: s.t,
                 p: layout.platform.map(|i| s.q[i]),

@@ -12,6 +12,7 @@
 
 use std::f64::consts::PI;
 
+use flexdyn::runtime::control::Feedback;
 use flexdyn::runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use flexdyn::runtime::{
     constraint_drift, AdaptiveRk4, ErrorKind, GaussLegendre4, GeneralizedAlpha,
@@ -22,7 +23,6 @@ use flexdyn_parallel_robot::robot::{
     InverseRow, Layout, PdSettings, Scheme, TorqueTable,
 };
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible::ParallelRobotFlexible;
-use flexdyn_parallel_robot::servo::Feedback;
 
 const NQ: usize = 39;
 const NC: usize = 12;
@@ -152,10 +152,10 @@ fn held<'a>(
     layout: &Layout,
     tau_g: [f64; 3],
     th0: [f64; 3],
-) -> Feedback<'a, ParallelRobotFlexible, impl Fn(&V, &V, f64) -> [f64; 3]> {
+) -> Feedback<'a, ParallelRobotFlexible, impl Fn(&V, &V, f64) -> SVector<f64, 3>> {
     let act = layout.actuated;
-    let law = move |q: &V, _: &V, _: f64| -> [f64; 3] {
-        std::array::from_fn(|j| tau_g[j] + KP * (th0[j] - q[act[j]]))
+    let law = move |q: &V, _: &V, _: f64| -> SVector<f64, 3> {
+        SVector::from_fn(|j, _| tau_g[j] + KP * (th0[j] - q[act[j]]))
     };
     Feedback { inner: model, law }
 }

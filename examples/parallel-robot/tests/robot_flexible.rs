@@ -19,14 +19,13 @@ use flexdyn::runtime::{
     total_energy, ErrorKind, GeneralizedAlphaConfig, Integrator, Model, Rk4, State,
 };
 use flexdyn_parallel_robot::robot::{
-    initial_state, inverse_along, output_times, simulate, Circle, Geometry, Layout, Scheme,
-    TorqueTable,
+    flexible_inverse, initial_state, inverse_along, output_times, simulate, Circle, Geometry,
+    Layout, Scheme, TorqueTable,
 };
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible::ParallelRobotFlexible;
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible_joints::ParallelRobotFlexibleJoints;
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible_links::ParallelRobotFlexibleLinks;
 use flexdyn_parallel_robot::scenes::parallel_robot_rigid::ParallelRobotRigid;
-use flexdyn_parallel_robot::servo::flexible_inverse;
 
 const DT: f64 = 0.005;
 
@@ -403,7 +402,7 @@ where
     )
     .unwrap();
     (
-        samples.iter().map(|s| s.tau).collect(),
+        samples.iter().map(|s| s.tau.into()).collect(),
         samples.iter().map(|s| s.state).collect(),
     )
 }
@@ -422,7 +421,7 @@ fn servo_inverse_dynamics_of_the_rigid_scene_is_the_rigid_inverse_dynamics() {
         &mut || {},
     )
     .unwrap();
-    let servo: Vec<[f64; 3]> = samples.iter().map(|s| s.tau).collect();
+    let servo: Vec<[f64; 3]> = samples.iter().map(|s| s.tau.into()).collect();
     let d = max_diff(&servo, &rigid_torques(2.0, &times));
     // The servo run integrates the motion (generalized-alpha, 0.005 s) where the
     // algebraic solve is exact at each time: they agree to the integration
@@ -634,10 +633,10 @@ fn free_vibration_conserves_energy_with_the_implicit_scheme() {
         initial_state(&model, &layout, &geometry(), 0.0, [0.0, 0.0, 0.7], [0.0; 3]).unwrap();
     let kp = 2000.0;
     let th0 = layout.actuated.map(|i| state.q[i]);
-    let held = flexdyn_parallel_robot::servo::Feedback {
+    let held = flexdyn::runtime::control::Feedback {
         inner: &model,
-        law: |q: &SVector<f64, 39>, _: &SVector<f64, 39>, _: f64| -> [f64; 3] {
-            std::array::from_fn(|j| kp * (th0[j] - q[layout.actuated[j]]))
+        law: |q: &SVector<f64, 39>, _: &SVector<f64, 39>, _: f64| -> SVector<f64, 3> {
+            SVector::from_fn(|j, _| kp * (th0[j] - q[layout.actuated[j]]))
         },
     };
     let energy = |s: &State<39>| {
@@ -910,7 +909,7 @@ fn cli_contract_holds_for_the_flexible_scenes() {
         "-5",
     ]);
     assert!(
-        !ok && err.contains("PD gains must be finite and non-negative"),
+        !ok && err.contains("invalid PD gain: proportional gain kp (finite, >= 0) = -5"),
         "{err}"
     );
 }
