@@ -328,9 +328,9 @@ fn flexible_robot_explicit_schemes_fail_at_coarse_steps_as_the_spectrum_predicts
     );
     assert!(r.reached && mean <= RK4_LIMIT / w_max, "{mean}");
 
-    // Symplectic Euler (no stability check of its own): stable below
-    // dt w_max = 2, and at the coarse steps it stops with an error (the
-    // projection's Newton iteration or a non-finite result), never with a
+    // Symplectic Euler: stable below dt w_max = 2; its stability check
+    // (like RK4's) refuses the coarse steps, naming the fastest mode, and any
+    // other failure is an error (the projection's Newton iteration), never a
     // non-finite state; through the pipeline the error points to gen-alpha.
     let dt = 0.9 * SIE_LIMIT / w_max;
     let mut s = s0;
