@@ -14,6 +14,7 @@ pub mod interpreted;
 pub mod inverse;
 pub mod plot;
 pub mod progress;
+pub mod sized;
 pub mod table;
 
 /// The generated scene modules (one per file in `scenes/`).

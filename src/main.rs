@@ -20,6 +20,7 @@ enum Command {
     Generate(cli::generate::Args),
     Export(cli::export::Args),
     Eval(cli::eval::Args),
+    Simulate(cli::simulate::Args),
 }
 
 fn main() -> ExitCode {
@@ -27,6 +28,7 @@ fn main() -> ExitCode {
         Command::Generate(args) => cli::generate::run(&args),
         Command::Export(args) => cli::export::run(&args),
         Command::Eval(args) => cli::eval::run(&args, &cli::eval::COMPILED_SCENES),
+        Command::Simulate(args) => cli::simulate::run(&args, &cli::eval::COMPILED_SCENES),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

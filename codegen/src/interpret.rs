@@ -437,6 +437,11 @@ fn lower(nq: usize, params: usize, f: &Scheduled) -> Tape {
         }
     }
     let mut writes = Vec::new();
+    if f.is_scalar() {
+        // A function returning one scalar: a 1 x 1 output.
+        let v = l.value(&program.outputs[0]);
+        return l.finish(uses_qd, vec![(v, 0)], vec![(1, 1)]);
+    }
     for (code, &(k, i, j)) in program.outputs.iter().zip(slots) {
         let v = l.value(code);
         let rows = shapes[k].0;

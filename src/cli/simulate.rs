@@ -1,0 +1,668 @@
+//! `flexdyn simulate`: forward dynamics of any scene file under given
+//! inputs, written as CSV (and optionally plotted).
+//!
+//! The scene runs as a fixed-size runtime model ([`crate::sized`]): a
+//! compiled-in scene by its compiled module (when the file describes the same
+//! model, checked bitwise at a sample state), any other by the interpreter.
+//! The initial state (the scene's `initial` / `initial_velocity`, or
+//! `--initial`) is projected onto `Phi(q, t) = 0` and `Phi_q qd + Phi_t = 0`
+//! (`flexdyn_runtime::project`: mass-weighted minimum-norm corrections).
+//! Inputs per actuator: a function of time (`--input`), a column of a CSV
+//! (`--inputs`, linear in between), or joint PD feedback (`--pd`, through
+//! `control::JointPd` and `control::Feedback`) towards a target given as a
+//! function of time (`--target`) or a CSV column; zero otherwise.
+
+use std::path::PathBuf;
+
+use flexdyn_runtime::control::{Feedback, JointPd, Target};
+use flexdyn_runtime::{
+    project, AdaptiveRk4, FromFn, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig,
+    Integrator, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State, StepSettings,
+};
+use nalgebra::SVector;
+
+use crate::cli::eval::Compiled;
+use crate::codegen::TimeFunction;
+use crate::dynamic::DynModel;
+use crate::eval::check_state;
+use crate::plot::{line_plot, Labels, Series};
+use crate::progress::Progress;
+use crate::sized::{with_padding, Padded, Sized};
+use crate::table::{Outputs, Table};
+
+/// The integrators `--integrator` accepts.
+pub const INTEGRATORS: [&str; 5] = [
+    "adaptive-rk4",
+    "rk4",
+    "semi-implicit-euler",
+    "gauss-legendre",
+    "gen-alpha",
+];
+
+/// Simulate a scene from its initial state under inputs; write the motion as
+/// CSV: `t`, every coordinate, `<name>_dot` of every velocity, `T`, `V`,
+/// `drift` (norm of the constraint residuals).
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scene file (any; a compiled-in scene runs compiled).
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Interpret the scene file even when a scene of its name is compiled in.
+    #[arg(long)]
+    pub interpret: bool,
+    /// Simulated time span, s.
+    #[arg(long)]
+    pub duration: f64,
+    /// Output step, s; also the step of the fixed-step integrators.
+    #[arg(long, default_value_t = 0.01)]
+    pub dt: f64,
+    /// Initial state as JSON (`{"q": [..], "qd": [..], "t": 0}`); default:
+    /// the scene's `initial` / `initial_velocity` values.
+    #[arg(long)]
+    pub initial: Option<PathBuf>,
+    /// Input of an actuator as a function of time: `NAME=EXPR` (scene
+    /// grammar with `t` and the scene's parameters). Repeatable.
+    #[arg(long = "input", value_name = "NAME=EXPR")]
+    pub inputs_expr: Vec<String>,
+    /// Inputs from a CSV: column `t` (increasing), actuator columns by name,
+    /// and PD targets as columns named after coordinates; linear in between,
+    /// held constant outside.
+    #[arg(long = "inputs", value_name = "U.csv")]
+    pub inputs_csv: Option<PathBuf>,
+    /// Joint PD feedback on an actuator, `NAME=KP,KD`, towards the target of
+    /// the coordinate the actuator drives (`--target` or a CSV column).
+    #[arg(long, value_name = "NAME=KP,KD")]
+    pub pd: Vec<String>,
+    /// Target of a PD-driven coordinate: `COORD=EXPR`.
+    #[arg(long, value_name = "COORD=EXPR")]
+    pub target: Vec<String>,
+    /// Integrator: adaptive-rk4 (default), rk4, semi-implicit-euler,
+    /// gauss-legendre, gen-alpha.
+    #[arg(long, default_value = "adaptive-rk4")]
+    pub integrator: String,
+    /// Relative tolerance of adaptive-rk4 (absolute: 1/100 of it).
+    #[arg(long, default_value_t = 1e-8)]
+    pub tolerance: f64,
+    /// Output CSV.
+    #[arg(long)]
+    pub csv: PathBuf,
+    /// Plot of the chosen columns (`.png` or `.svg`).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Columns to plot, comma-separated (default: the coordinates).
+    #[arg(long, value_delimiter = ',')]
+    pub columns: Vec<String>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// A signal of time: a function, or a column of the inputs CSV.
+enum Signal {
+    Function(TimeFunction),
+    Column { t: Vec<f64>, v: Vec<f64> },
+}
+
+impl Signal {
+    /// Value and rate at `t`.
+    fn at(&self, t: f64) -> (f64, f64) {
+        match self {
+            Signal::Function(f) => {
+                let [v, d, _] = f.eval(t);
+                (v, d)
+            }
+            Signal::Column { t: ts, v } => {
+                let k = ts.partition_point(|&x| x <= t);
+                if k == 0 {
+                    (v[0], 0.0)
+                } else if k == ts.len() {
+                    (v[k - 1], 0.0)
+                } else {
+                    let slope = (v[k] - v[k - 1]) / (ts[k] - ts[k - 1]);
+                    (v[k - 1] + slope * (t - ts[k - 1]), slope)
+                }
+            }
+        }
+    }
+}
+
+/// What drives one actuator.
+enum Drive {
+    Zero,
+    Open(Signal),
+    /// PD gains on the coordinate the actuator drives, towards its target.
+    Pd {
+        coordinate: usize,
+        kp: f64,
+        kd: f64,
+        target: Signal,
+    },
+}
+
+/// Everything the run needs, checked.
+struct Setup<'a> {
+    model: &'a dyn DynModel,
+    drives: Vec<Drive>,
+    state: crate::eval::State,
+    duration: f64,
+    dt: f64,
+    integrator: &'a str,
+    tolerance: f64,
+    quiet: bool,
+}
+
+/// Run the command on the scenes of `compiled`.
+pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
+    if !(args.dt > 0.0 && args.dt.is_finite()) {
+        return Err(format!(
+            "--dt must be a positive number of seconds, got {}",
+            args.dt
+        ));
+    }
+    if !(args.duration > 0.0 && args.duration.is_finite()) {
+        return Err(format!(
+            "--duration must be positive, got {}",
+            args.duration
+        ));
+    }
+    if !INTEGRATORS.contains(&args.integrator.as_str()) {
+        return Err(format!(
+            "unknown integrator `{}` (integrators: {})",
+            args.integrator,
+            INTEGRATORS.join(", ")
+        ));
+    }
+    if !(args.tolerance > 0.0 && args.tolerance < 1.0) {
+        return Err(format!(
+            "--tolerance must lie in (0, 1), got {}",
+            args.tolerance
+        ));
+    }
+    let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    let mut model = load_model(args, compiled, &parsed.name)?;
+    let state = initial_state(args, &parsed, model.as_mut())?;
+    let model = &*model;
+    let columns = output_columns(model);
+    let plotted: Vec<String> = match args.columns.is_empty() {
+        true => model.coordinates().iter().map(|c| c.to_string()).collect(),
+        false => args.columns.clone(),
+    };
+    if let Some(bad) = plotted.iter().find(|c| !columns.contains(c)) {
+        return Err(format!(
+            "--columns: no column `{bad}` (columns: {})",
+            columns.join(", ")
+        ));
+    }
+    let setup = Setup {
+        model,
+        drives: drives(args, &parsed, model)?,
+        state,
+        duration: args.duration,
+        dt: args.dt,
+        integrator: &args.integrator,
+        tolerance: args.tolerance,
+        quiet: args.quiet,
+    };
+    let table = with_padding(model, setup)??;
+    let mut outputs = Outputs::default();
+    outputs.write(&args.csv, |tmp| table.write(tmp))?;
+    if let Some(plot) = &args.plot {
+        let series: Vec<Series> = plotted
+            .iter()
+            .map(|c| {
+                let (t, v) = (table.column("t"), table.column(c));
+                Series {
+                    label: c,
+                    points: t
+                        .into_iter()
+                        .flatten()
+                        .zip(v.into_iter().flatten())
+                        .collect(),
+                }
+            })
+            .collect();
+        let title = format!("{} ({})", model.name(), args.integrator);
+        let labels = Labels {
+            title: &title,
+            x: "t",
+            y: "",
+        };
+        outputs.write(plot, |tmp| line_plot(tmp, &labels, &series))?;
+    }
+    outputs.commit()
+}
+
+/// The compiled-in model when the file describes it (same terms, bitwise, at
+/// a sample state), else the interpreted file.
+fn load_model(args: &Args, compiled: &Compiled, name: &str) -> Result<Box<dyn DynModel>, String> {
+    let interpreted = crate::interpreted::InterpretedModel::load(&args.scene)?;
+    match (compiled.model)(name).filter(|_| !args.interpret) {
+        Some(c) if same_terms(c.as_ref(), &interpreted) => Ok(c),
+        Some(_) => {
+            eprintln!(
+                "note: {} differs from the compiled-in scene `{name}`: interpreting it",
+                args.scene.display()
+            );
+            Ok(Box::new(interpreted))
+        }
+        None => Ok(Box::new(interpreted)),
+    }
+}
+
+/// Whether two models give the same terms at a sample state.
+fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
+    if a.coordinates() != b.coordinates() || a.actuators() != b.actuators() || a.nc() != b.nc() {
+        return false;
+    }
+    let q: Vec<f64> = (0..a.nq()).map(|i| 0.3 + 0.17 * i as f64).collect();
+    let qd: Vec<f64> = (0..a.nq()).map(|i| -0.4 + 0.23 * i as f64).collect();
+    let t = 0.37;
+    a.mass_matrix(&q, t) == b.mass_matrix(&q, t)
+        && a.bias(&q, &qd, t) == b.bias(&q, &qd, t)
+        && a.constraints(&q, t) == b.constraints(&q, t)
+        && a.actuator_map() == b.actuator_map()
+        && a.potential_energy(&q, t) == b.potential_energy(&q, t)
+}
+
+/// The state to start from (not yet projected), with `--initial`'s runtime
+/// parameters set on `model`.
+fn initial_state(
+    args: &Args,
+    parsed: &crate::codegen::Model,
+    model: &mut dyn DynModel,
+) -> Result<crate::eval::State, String> {
+    let Some(path) = &args.initial else {
+        return Ok(crate::eval::State {
+            q: parsed.coordinates.iter().map(|c| c.initial).collect(),
+            qd: parsed
+                .coordinates
+                .iter()
+                .map(|c| c.initial_velocity)
+                .collect(),
+            t: 0.0,
+            params: Default::default(),
+        });
+    };
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let s: crate::eval::State =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    check_state(model, &s, 0).map_err(|e| format!("{}: {e}", path.display()))?;
+    for (name, &value) in &s.params {
+        if !value.is_finite() || !model.set_parameter(name, value) {
+            return Err(format!(
+                "{}: `{name}` = {value} is not a runtime parameter value of scene `{}` \
+                 (runtime parameters: {})",
+                path.display(),
+                model.name(),
+                model.parameters().join(", ")
+            ));
+        }
+    }
+    Ok(s)
+}
+
+/// `NAME=VALUE` split at the first `=`.
+fn assignment<'a>(option: &str, text: &'a str) -> Result<(&'a str, &'a str), String> {
+    text.split_once('=')
+        .map(|(n, v)| (n.trim(), v.trim()))
+        .ok_or_else(|| format!("{option} `{text}`: expected NAME=VALUE"))
+}
+
+/// The drive of every actuator from `--input`, `--inputs`, `--pd`, `--target`.
+fn drives(
+    args: &Args,
+    parsed: &crate::codegen::Model,
+    model: &dyn DynModel,
+) -> Result<Vec<Drive>, String> {
+    let actuators = model.actuators();
+    let coordinates = model.coordinates();
+    let actuator = |option: &str, name: &str| {
+        actuators.iter().position(|a| *a == name).ok_or_else(|| {
+            format!(
+                "{option}: unknown actuator `{name}` (actuators of `{}`: {})",
+                model.name(),
+                list(&actuators)
+            )
+        })
+    };
+    let function = |option: &str, text: &str| {
+        TimeFunction::parse(parsed, text)
+            .map(Signal::Function)
+            .map_err(|e| format!("{option}: {e}"))
+    };
+    let mut drives: Vec<Drive> = actuators.iter().map(|_| Drive::Zero).collect();
+    let mut given: Vec<Option<String>> = vec![None; actuators.len()];
+    let mut set = |j: usize, by: String, drive: Drive, drives: &mut Vec<Drive>| {
+        if let Some(before) = &given[j] {
+            return Err(format!(
+                "actuator `{}` is given twice ({before} and {by})",
+                actuators[j]
+            ));
+        }
+        given[j] = Some(by);
+        drives[j] = drive;
+        Ok(())
+    };
+    for text in &args.inputs_expr {
+        let (name, expr) = assignment("--input", text)?;
+        let j = actuator(&format!("--input `{text}`"), name)?;
+        let signal = function(&format!("--input {name}"), expr)?;
+        set(
+            j,
+            format!("--input {name}"),
+            Drive::Open(signal),
+            &mut drives,
+        )?;
+    }
+    let mut targets: Vec<Option<(String, Signal)>> = coordinates.iter().map(|_| None).collect();
+    if let Some(path) = &args.inputs_csv {
+        let table = Table::read(path)?;
+        let file = path.display();
+        let t = table.column("t").map_err(|_| {
+            format!(
+                "{file}: no column `t` (columns: {})",
+                table.columns.join(", ")
+            )
+        })?;
+        if t.is_empty() {
+            return Err(format!("{file}: no rows"));
+        }
+        if let Some(k) = (1..t.len()).find(|&k| t[k] <= t[k - 1]) {
+            return Err(format!(
+                "{file}: line {}: t = {} does not increase (previous row: {})",
+                k + 2,
+                t[k],
+                t[k - 1]
+            ));
+        }
+        for name in table.columns.iter().filter(|c| *c != "t") {
+            let v = table.column(name)?;
+            let signal = Signal::Column { t: t.clone(), v };
+            let by = format!("column `{name}` of {file}");
+            if let Some(j) = actuators.iter().position(|a| a == name) {
+                set(j, by, Drive::Open(signal), &mut drives)?;
+            } else if let Some(i) = coordinates.iter().position(|c| c == name) {
+                targets[i] = Some((by, signal));
+            } else {
+                return Err(format!(
+                    "{file}: column `{name}` is neither an actuator nor a coordinate of `{}` \
+                     (actuators: {}; coordinates: {})",
+                    model.name(),
+                    list(&actuators),
+                    list(&coordinates)
+                ));
+            }
+        }
+    }
+    for text in &args.target {
+        let (name, expr) = assignment("--target", text)?;
+        let i = coordinates.iter().position(|c| *c == name).ok_or_else(|| {
+            format!(
+                "--target `{text}`: unknown coordinate `{name}` (coordinates: {})",
+                list(&coordinates)
+            )
+        })?;
+        if let Some((by, _)) = &targets[i] {
+            return Err(format!(
+                "target of `{name}` is given twice ({by} and --target)"
+            ));
+        }
+        targets[i] = Some((
+            "--target".into(),
+            function(&format!("--target {name}"), expr)?,
+        ));
+    }
+    let b = model.actuator_map();
+    for text in &args.pd {
+        let (name, gains) = assignment("--pd", text)?;
+        let j = actuator(&format!("--pd `{text}`"), name)?;
+        let parsed_gains: Vec<f64> = gains
+            .split(',')
+            .map(|g| g.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("--pd `{text}`: gains must be numbers KP,KD: {e}"))?;
+        let [kp, kd] = parsed_gains[..] else {
+            return Err(format!("--pd `{text}`: expected two gains, KP,KD"));
+        };
+        if !(kp.is_finite() && kd.is_finite() && kp >= 0.0 && kd >= 0.0) {
+            return Err(format!("--pd `{text}`: gains must be finite and >= 0"));
+        }
+        let driven: Vec<usize> = (0..b.nrows()).filter(|&i| b[(i, j)] != 0.0).collect();
+        let [coordinate] = driven[..] else {
+            return Err(format!(
+                "--pd `{text}`: actuator `{name}` drives {} coordinates; PD feedback needs \
+                 exactly one",
+                driven.len()
+            ));
+        };
+        let Some((_, target)) = targets[coordinate].take() else {
+            return Err(format!(
+                "--pd `{text}`: no target for coordinate `{}` (give --target {}=EXPR or a \
+                 column `{}` in --inputs)",
+                coordinates[coordinate], coordinates[coordinate], coordinates[coordinate]
+            ));
+        };
+        let drive = Drive::Pd {
+            coordinate,
+            kp,
+            kd,
+            target,
+        };
+        set(j, format!("--pd {name}"), drive, &mut drives)?;
+    }
+    if let Some((i, (by, _))) = targets
+        .iter()
+        .enumerate()
+        .find_map(|(i, t)| t.as_ref().map(|t| (i, t)))
+    {
+        return Err(format!(
+            "{by} sets a target for coordinate `{}`, but no --pd drives it",
+            coordinates[i]
+        ));
+    }
+    Ok(drives)
+}
+
+fn list(names: &[&str]) -> String {
+    match names.is_empty() {
+        true => "none".into(),
+        false => names.join(", "),
+    }
+}
+
+/// `t`, coordinates, `<name>_dot`, `T`, `V`, `drift`.
+fn output_columns(model: &dyn DynModel) -> Vec<String> {
+    let mut columns = vec!["t".to_string()];
+    columns.extend(model.coordinates().iter().map(|c| c.to_string()));
+    columns.extend(model.coordinates().iter().map(|c| format!("{c}_dot")));
+    columns.extend(["T", "V", "drift"].map(String::from));
+    columns
+}
+
+impl Sized for Setup<'_> {
+    type Output = Result<Table, String>;
+
+    fn run<const NQ: usize, const NC: usize, const NU: usize>(
+        self,
+        padded: &Padded<'_, NQ, NC, NU>,
+    ) -> Result<Table, String> {
+        let model = self.model;
+        let mut state = State::new(
+            padded.pad(&self.state.q),
+            padded.pad(&self.state.qd),
+            self.state.t,
+        );
+        make_consistent(padded, &mut state)?;
+        // Actuator j on coordinate joints[j]; actuators without PD get zero gains.
+        let mut joints = [0usize; NU];
+        let (mut kp, mut kd) = ([0.0; NU], [0.0; NU]);
+        for (j, d) in self.drives.iter().enumerate() {
+            if let Drive::Pd {
+                coordinate,
+                kp: p,
+                kd: d,
+                ..
+            } = d
+            {
+                (joints[j], kp[j], kd[j]) = (*coordinate, *p, *d);
+            }
+        }
+        let drives = &self.drives;
+        let reference = |t: f64| {
+            let mut target = Target {
+                position: SVector::<f64, NU>::zeros(),
+                velocity: SVector::zeros(),
+                acceleration: SVector::zeros(),
+            };
+            for (j, d) in drives.iter().enumerate() {
+                if let Drive::Pd { target: s, .. } = d {
+                    (target.position[j], target.velocity[j]) = s.at(t);
+                }
+            }
+            target
+        };
+        let law = JointPd::<_, NQ, NU>::new(joints, kp, kd, reference)
+            .map_err(|e| format!("--pd: {e}"))?;
+        let closed = Feedback::new(padded, law);
+        let open = FromFn(|t: f64| {
+            let mut u = SVector::<f64, NU>::zeros();
+            for (j, d) in drives.iter().enumerate() {
+                if let Drive::Open(s) = d {
+                    u[j] = s.at(t).0;
+                }
+            }
+            u
+        });
+        let settings = match model.nc() {
+            0 => StepSettings::default(),
+            _ => StepSettings::with_projection(),
+        };
+        let run = Run {
+            model,
+            duration: self.duration,
+            dt: self.dt,
+            quiet: self.quiet,
+        };
+        match self.integrator {
+            "rk4" => run.go(Rk4::new(settings), &closed, &open, state),
+            "semi-implicit-euler" => {
+                run.go(SemiImplicitEuler::new(settings), &closed, &open, state)
+            }
+            "gauss-legendre" => run.go(GaussLegendre4::new(settings), &closed, &open, state),
+            "gen-alpha" => run.go(
+                GeneralizedAlpha::<NQ, NC>::new(settings, GeneralizedAlphaConfig::default()),
+                &closed,
+                &open,
+                state,
+            ),
+            _ => {
+                let atol = self.tolerance * 1e-2;
+                eprintln!(
+                    "integrator: adaptive RK4, relative tolerance {:e}, absolute {atol:e}",
+                    self.tolerance
+                );
+                let mut g = AdaptiveRk4::new(self.tolerance, atol);
+                g.settings = settings;
+                run.go(g, &closed, &open, state)
+            }
+        }
+    }
+}
+
+/// Project the initial state onto the constraints, reporting what changed;
+/// an error when it cannot be done.
+fn make_consistent<const NQ: usize, const NC: usize, const NU: usize>(
+    padded: &Padded<'_, NQ, NC, NU>,
+    state: &mut State<NQ>,
+) -> Result<(), String> {
+    if padded.nc() == 0 {
+        return Ok(());
+    }
+    let before = state.clone();
+    let report = project(padded, state, &ProjectionConfig::default()).map_err(|e| {
+        format!("the initial state cannot be made consistent with the constraints: {e}")
+    })?;
+    let names = padded.model().coordinates();
+    for (what, suffix, a, b) in [
+        ("position", "", &before.q, &state.q),
+        ("velocity", "_dot", &before.qd, &state.qd),
+    ] {
+        for (i, name) in names.iter().enumerate() {
+            if a[i] != b[i] {
+                eprintln!(
+                    "initial {what} projected onto the constraints: {name}{suffix} {:?} -> {:?} \
+                     ({:+e})",
+                    a[i],
+                    b[i],
+                    b[i] - a[i]
+                );
+            }
+        }
+    }
+    if report.iterations > 0 || report.velocity_projected {
+        eprintln!(
+            "initial constraint residuals: position {:e} -> {:e}, velocity {:e} -> {:e}",
+            report.before.position,
+            report.after.position,
+            report.before.velocity,
+            report.after.velocity
+        );
+    }
+    Ok(())
+}
+
+/// The time loop and its output.
+struct Run<'a> {
+    model: &'a dyn DynModel,
+    duration: f64,
+    dt: f64,
+    quiet: bool,
+}
+
+impl Run<'_> {
+    fn go<G, M, I, const NQ: usize, const NC: usize, const NU: usize>(
+        &self,
+        mut integrator: G,
+        model: &M,
+        input: &I,
+        mut state: State<NQ>,
+    ) -> Result<Table, String>
+    where
+        G: Integrator<NQ, NC, NU>,
+        M: Model<NQ, NC, NU>,
+        I: flexdyn_runtime::Input<NU>,
+    {
+        let columns = output_columns(self.model);
+        let names: Vec<&str> = columns.iter().map(String::as_str).collect();
+        let mut table = Table::new(&names);
+        let t0 = state.t;
+        let steps = (self.duration / self.dt - 1e-9).ceil().max(1.0) as usize;
+        table.push(self.row(&state));
+        let mut progress = Progress::new(steps as u64, "simulate", self.quiet);
+        for k in 1..=steps {
+            let end = (t0 + k as f64 * self.dt).min(t0 + self.duration);
+            let h = end - state.t;
+            integrator
+                .step(model, &mut state, input, h)
+                .map_err(|e| format!("step {k} (t = {} s, dt = {h} s): {e}", state.t))?;
+            state.t = end;
+            table.push(self.row(&state));
+            progress.inc();
+        }
+        progress.finish();
+        Ok(table)
+    }
+
+    fn row<const NQ: usize>(&self, s: &State<NQ>) -> Vec<f64> {
+        let nq = self.model.nq();
+        let (q, qd) = (&s.q.as_slice()[..nq], &s.qd.as_slice()[..nq]);
+        let mut row = vec![s.t];
+        row.extend_from_slice(q);
+        row.extend_from_slice(qd);
+        row.push(self.model.kinetic_energy(q, qd, s.t));
+        row.push(self.model.potential_energy(q, s.t));
+        row.push(self.model.constraints(q, s.t).norm());
+        row
+    }
+}
