@@ -259,7 +259,9 @@ where
     let free: Vec<usize> = (0..problem.coordinates.len())
         .filter(|i| !index.contains(i))
         .collect();
-    let jf = DMatrix::from_fn(problem.constraints.len(), free.len(), |r, c| phi_q[(r, free[c])]);
+    let jf = DMatrix::from_fn(problem.constraints.len(), free.len(), |r, c| {
+        phi_q[(r, free[c])]
+    });
     let sv = jf.singular_values();
     let condition = sv.max() / sv.min();
     format!(
@@ -316,9 +318,10 @@ where
         dt,
         problem.times.len() - 1,
         |s| match servo.solve::<NQ, NC, NU>(&s.state.q, &s.state.qd, s.state.t) {
+            // The output times exactly (the state's time sums the steps).
             Ok(x) => out.push(
                 problem,
-                s.state.t,
+                problem.times[out.t.len().min(problem.times.len() - 1)],
                 s.tau.as_slice(),
                 s.state.q.as_slice(),
                 x.lambda.as_slice(),
@@ -487,6 +490,7 @@ impl Solution {
         self.t.push(t);
         self.tau.push(tau[..problem.actuators.len()].to_vec());
         self.q.push(q[..problem.coordinates.len()].to_vec());
-        self.lambda.push(lambda[..problem.constraints.len()].to_vec());
+        self.lambda
+            .push(lambda[..problem.constraints.len()].to_vec());
     }
 }
