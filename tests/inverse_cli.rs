@@ -161,7 +161,11 @@ fn cart_pole_servo_integrates_the_free_pole_and_gives_the_cart_force() {
         let t = out.t[k];
         assert!((out.q[k][0] - motion(t)[0]).abs() < 1e-6, "t = {t}: x");
         let [th, thd] = pole_angle(motion, t);
-        assert!((out.q[k][1] - th).abs() < 1e-4, "t = {t}: theta {} vs {th}", out.q[k][1]);
+        assert!(
+            (out.q[k][1] - th).abs() < 1e-4,
+            "t = {t}: theta {} vs {th}",
+            out.q[k][1]
+        );
         // F = (mc + m) x'' + m l/2 (theta'' cos - theta'^2 sin).
         let xdd = motion(t)[2];
         let thdd = 1.5 / l * (9.81 * th.sin() - xdd * th.cos());
@@ -216,4 +220,162 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
     let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &slider).unwrap_err();
     assert!(e.contains("at t = 0 s"), "{e}");
     println!("{e}");
+}
+
+const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
+
+fn scene(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}.toml"))
+}
+
+/// Runs `flexdyn inverse` with `args` writing `out.csv` in `dir`: the CSV
+/// text, or the error output.
+fn inverse(dir: &std::path::Path, args: &[&str]) -> Result<String, String> {
+    let csv = dir.join("out.csv");
+    let out = std::process::Command::new(BIN)
+        .arg("inverse")
+        .args(args)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    match out.status.success() {
+        true => Ok(std::fs::read_to_string(&csv).unwrap()),
+        false => {
+            assert!(!csv.exists(), "a failed run left {}", csv.display());
+            Err(String::from_utf8_lossy(&out.stderr).into_owned())
+        }
+    }
+}
+
+#[test]
+fn command_on_the_padded_slider_crank_matches_the_compiled_solve() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("motion.toml"),
+        "[prescribe]\ntheta = \"0.3 + 4*t + t*t/2\"\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("s.json"),
+        r#"{"q": [0.3, 0.1, 0.4], "qd": [0, 0, 0]}"#,
+    )
+    .unwrap();
+    let sc = scene("slider_crank");
+    let motion = d.join("motion.toml");
+    let start = d.join("s.json");
+    let text = inverse(
+        d,
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--interpret",
+            "--duration",
+            "1",
+            "--dt",
+            "0.01",
+            "--motion",
+            motion.to_str().unwrap(),
+            "--initial",
+            start.to_str().unwrap(),
+        ],
+    )
+    .unwrap();
+    let table = flexdyn::table::Table::parse(&text).unwrap();
+    let f = |t: f64| [0.3 + 4.0 * t + t * t / 2.0, 4.0 + t, 1.0];
+    let problem = Problem {
+        coordinates: names(&["theta", "phi", "x"]),
+        constraints: names(&["closure_x", "closure_y"]),
+        actuators: names(&["tau"]),
+        prescribed: vec![Prescribed {
+            coordinate: 0,
+            motion: &f,
+        }],
+        held_inputs: vec![],
+        held_free: vec![],
+        guess: vec![0.3, 0.1, 0.4],
+        times: times(1.0, 0.01),
+    };
+    let direct = solve::<_, 3, 2, 1, 1>(&SliderCrank, &problem).unwrap();
+    let tau = table.column("tau").unwrap();
+    let x = table.column("x").unwrap();
+    let lambda = table.column("lambda_1").unwrap();
+    assert_eq!(tau.len(), 101);
+    for k in 0..101 {
+        assert!((tau[k] - direct.tau[k][0]).abs() < 1e-9, "{k}");
+        assert!((x[k] - direct.q[k][2]).abs() < 1e-12, "{k}");
+        assert!((lambda[k] - direct.lambda[k][1]).abs() < 1e-9, "{k}");
+    }
+}
+
+#[test]
+fn command_refuses_bad_prescriptions_clearly_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene("slider_crank");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "--scene",
+            sc.to_str().unwrap(),
+            "--duration",
+            "0.1",
+            "--dt",
+            "0.01",
+        ];
+        args.extend_from_slice(extra);
+        inverse(d, &args).unwrap_err()
+    };
+    let e = run(&["--prescribe", "alpha=t"]);
+    assert!(
+        e.contains("`alpha` is not a coordinate") && e.contains("theta, phi, x"),
+        "{e}"
+    );
+    let e = run(&["--prescribe", "theta=2*+t"]);
+    assert!(e.contains("--prescribe theta"), "{e}");
+    let e = run(&["--prescribe", "theta=phi"]);
+    assert!(e.contains("not the coordinate `phi`"), "{e}");
+    let e = run(&["--prescribe", "theta=t", "--prescribe", "x=0.4"]);
+    assert!(e.contains("does not determine the actuator inputs"), "{e}");
+    let e = run(&[]);
+    assert!(e.contains("0 prescribed"), "{e}");
+    let e = run(&["--prescribe", "theta=t", "--dt", "0"]);
+    assert!(e.contains("--dt"), "{e}");
+    std::fs::write(d.join("m.toml"), "[prescribe]\ntheta = 3\n").unwrap();
+    let m = d.join("m.toml");
+    let e = run(&["--motion", m.to_str().unwrap()]);
+    assert!(e.contains("prescribe.theta") && e.contains("string"), "{e}");
+}
+
+#[test]
+fn command_on_an_interpreted_pendulum_gives_the_closed_form_torque() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene("pendulum");
+    let text = inverse(
+        dir.path(),
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--interpret",
+            "--duration",
+            "1",
+            "--dt",
+            "0.05",
+            "--prescribe",
+            "theta=0.8*sin(3*t)",
+        ],
+    )
+    .unwrap();
+    let table = flexdyn::table::Table::parse(&text).unwrap();
+    let (t, tau) = (table.column("t").unwrap(), table.column("tau").unwrap());
+    for k in 0..t.len() {
+        let th = 0.8 * (3.0 * t[k]).sin();
+        let want = 0.25 * (-7.2 * (3.0 * t[k]).sin()) + 9.81 * 0.5 * th.sin();
+        assert!(
+            (tau[k] - want).abs() < 1e-10,
+            "t = {}: {} vs {want}",
+            t[k],
+            tau[k]
+        );
+    }
 }
