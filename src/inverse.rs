@@ -26,7 +26,8 @@ use flexdyn_runtime::control::{servo_run, Coordinates, Servo, ServoConfig, Targe
 use flexdyn_runtime::integrate::{GeneralizedAlpha, StepSettings};
 use flexdyn_runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use flexdyn_runtime::{
-    GeneralizedAlphaConfig, InverseConfig, InverseDynamics, InverseSolution, Model, State,
+    ErrorKind, GeneralizedAlphaConfig, InverseConfig, InverseDynamics, InverseSolution, Model,
+    State,
 };
 
 /// A prescribed coordinate: its index and its motion `t -> [p, p', p'']`.
@@ -152,9 +153,10 @@ where
     let rank_error = |e: flexdyn_runtime::Error| {
         format!(
             "at t = {} s: the prescription of {prescribed_names} does not determine the \
-             actuator inputs ({}), or the pose is singular: {e}",
+             actuator inputs ({}), or the pose is singular: {}",
             e.t,
-            problem.actuators.join(", ")
+            problem.actuators.join(", "),
+            e.kind
         )
     };
     if np + nc == nq {
@@ -216,8 +218,12 @@ where
                 &mut sol,
             )
             .map_err(|e| match e.kind {
-                flexdyn_runtime::ErrorKind::SingularActuation { .. } => rank_error(e),
-                _ => position_error(model, problem, &index, &x.position, &start, t, e),
+                ErrorKind::SingularActuation { .. } => rank_error(e),
+                ErrorKind::SingularConstraintJacobian { .. }
+                | ErrorKind::NewtonNotConverged { .. } => {
+                    position_error(model, problem, &index, &x.position, &start, t, e)
+                }
+                _ => e.to_string(),
             })?;
         out.push(
             problem,
@@ -265,7 +271,7 @@ where
     let sv = jf.singular_values();
     let condition = sv.max() / sv.min();
     format!(
-        "at t = {t} s: the constraints cannot be solved for the coordinates {} ({e}); \
+        "at t = {t} s: the constraints cannot be solved for the coordinates {} ({}); \
          from the previous solution, constraint `{}` (multiplier `lambda_{worst}`) is \
          violated most (|Phi| = {:.3e}) and the Jacobian of those coordinates has condition \
          {condition:.3e}: a singular pose, or a prescription the mechanism cannot follow",
@@ -273,6 +279,7 @@ where
             .map(|&i| format!("`{}`", problem.coordinates[i]))
             .collect::<Vec<_>>()
             .join(", "),
+        e.kind,
         problem.constraints.get(worst).map_or("", String::as_str),
         phi[worst].abs()
     )

@@ -62,25 +62,30 @@ fn crank_pose(theta: f64) -> [f64; 3] {
     [theta, phi, r * theta.cos() + lr * phi.cos()]
 }
 
-#[test]
-fn slider_crank_matches_closed_form_kinematics_and_power_balance() {
-    let w = 4.0;
-    let motion = move |t: f64| [0.3 + w * t + 0.5 * t * t, w + t, 1.0];
+/// The compiled slider-crank with `theta` prescribed, over 1 s at 0.01 s.
+fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> flexdyn::inverse::Solution {
     let problem = Problem {
         coordinates: names(&["theta", "phi", "x"]),
         constraints: names(&["closure_x", "closure_y"]),
         actuators: names(&["tau"]),
         prescribed: vec![Prescribed {
             coordinate: 0,
-            motion: &motion,
+            motion,
         }],
         held_inputs: vec![],
         held_free: vec![],
         guess: vec![0.3, 0.1, 0.4],
         times: times(1.0, 0.01),
     };
+    solve::<_, 3, 2, 1, 1>(&SliderCrank, &problem).unwrap()
+}
+
+#[test]
+fn slider_crank_matches_closed_form_kinematics_and_power_balance() {
+    let w = 4.0;
+    let motion = move |t: f64| [0.3 + w * t + 0.5 * t * t, w + t, 1.0];
     let model = SliderCrank;
-    let out = solve::<_, 3, 2, 1, 1>(&model, &problem).unwrap();
+    let out = crank_solve(&motion);
     // Energy along the closed-form motion, velocities by central differences.
     let energy = |t: f64| {
         let h = 1e-5;
@@ -283,21 +288,7 @@ fn command_on_the_padded_slider_crank_matches_the_compiled_solve() {
     )
     .unwrap();
     let table = flexdyn::table::Table::parse(&text).unwrap();
-    let f = |t: f64| [0.3 + 4.0 * t + t * t / 2.0, 4.0 + t, 1.0];
-    let problem = Problem {
-        coordinates: names(&["theta", "phi", "x"]),
-        constraints: names(&["closure_x", "closure_y"]),
-        actuators: names(&["tau"]),
-        prescribed: vec![Prescribed {
-            coordinate: 0,
-            motion: &f,
-        }],
-        held_inputs: vec![],
-        held_free: vec![],
-        guess: vec![0.3, 0.1, 0.4],
-        times: times(1.0, 0.01),
-    };
-    let direct = solve::<_, 3, 2, 1, 1>(&SliderCrank, &problem).unwrap();
+    let direct = crank_solve(&|t: f64| [0.3 + 4.0 * t + t * t / 2.0, 4.0 + t, 1.0]);
     let tau = table.column("tau").unwrap();
     let x = table.column("x").unwrap();
     let lambda = table.column("lambda_1").unwrap();
@@ -341,6 +332,12 @@ fn command_refuses_bad_prescriptions_clearly_and_writes_nothing() {
     assert!(e.contains("0 prescribed"), "{e}");
     let e = run(&["--prescribe", "theta=t", "--dt", "0"]);
     assert!(e.contains("--dt"), "{e}");
+    // The slider beyond the reach of crank and rod (0.4 m).
+    let e = run(&["--prescribe", "x=0.5"]);
+    assert!(
+        e.contains("at t = 0 s") && e.contains("`theta`, `phi`") && e.contains("condition"),
+        "{e}"
+    );
     std::fs::write(d.join("m.toml"), "[prescribe]\ntheta = 3\n").unwrap();
     let m = d.join("m.toml");
     let e = run(&["--motion", m.to_str().unwrap()]);

@@ -127,7 +127,7 @@ pub fn prescriptions(
         let file: toml::Table = text
             .parse()
             .map_err(|e| format!("motion file {where_}: {e}"))?;
-        for key in file.keys().filter(|k| *k != "prescribe") {
+        if let Some(key) = file.keys().find(|k| *k != "prescribe") {
             return Err(format!(
                 "motion file {where_}: unknown key `{key}` (only a `[prescribe]` table)"
             ));

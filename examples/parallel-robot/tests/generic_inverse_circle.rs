@@ -54,6 +54,15 @@ fn generic(scene: &str, duration: f64, dt: f64) -> (Vec<f64>, Vec<[f64; 3]>) {
     (t, rows)
 }
 
+/// The robot's own inverse dynamics (`parallel-robot inverse`) at `t`.
+fn robot_inverse<M, const NQ: usize, const NC: usize>(model: &M, t: &[f64]) -> Vec<[f64; 3]>
+where
+    M: flexdyn::runtime::Model<NQ, NC, 3>,
+{
+    let rows = inverse_rows(model, &Geometry::SPEC, &Circle::paper(2.0), t, &mut || {}).unwrap();
+    rows.iter().map(|r| r.tau).collect()
+}
+
 fn largest_difference(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
     assert_eq!(a.len(), b.len());
     a.iter()
@@ -65,15 +74,7 @@ fn largest_difference(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 #[test]
 fn rigid_robot_circle_torques_match_the_robot_inverse() {
     let (t, tau) = generic("rigid", 3.2, 0.01);
-    let rows = inverse_rows(
-        &ParallelRobotRigid,
-        &Geometry::SPEC,
-        &Circle::paper(2.0),
-        &t,
-        &mut || {},
-    )
-    .unwrap();
-    let reference: Vec<[f64; 3]> = rows.iter().map(|r| r.tau).collect();
+    let reference = robot_inverse(&ParallelRobotRigid, &t);
     let d = largest_difference(&tau, &reference);
     println!("rigid robot: largest torque difference {d:.3e} N m");
     assert!(d <= 1e-9, "{d}");
@@ -86,15 +87,7 @@ fn rigid_robot_circle_torques_match_the_robot_inverse() {
 #[test]
 fn flexible_robot_circle_torques_are_close_to_the_robot_inverse() {
     let (t, tau) = generic("flexible", 0.5, 0.005);
-    let rows = inverse_rows(
-        &ParallelRobotFlexible::default(),
-        &Geometry::SPEC,
-        &Circle::paper(2.0),
-        &t,
-        &mut || {},
-    )
-    .unwrap();
-    let reference: Vec<[f64; 3]> = rows.iter().map(|r| r.tau).collect();
+    let reference = robot_inverse(&ParallelRobotFlexible::default(), &t);
     let d = largest_difference(&tau, &reference);
     let scale = reference
         .iter()
