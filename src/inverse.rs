@@ -312,7 +312,10 @@ where
     let mut state = State { q, qd, t: t0 };
     let servo = Servo::new(model, Coordinates(index), target, ServoConfig::default())
         .map_err(|e| e.to_string())?;
+    // L-stable (rho_inf = 0), as the robot's servo: the elastic modes a
+    // step of the rigid motion does not resolve are damped, not rung.
     let config = GeneralizedAlphaConfig {
+        rho_inf: 0.0,
         filter_start: false,
         ..Default::default()
     };
