@@ -138,14 +138,14 @@ fn flexible_robot_circle_torques_are_close_to_the_robot_inverse() {
     assert_eq!(out.method, Method::Servo);
     let tau: Vec<[f64; 3]> = out.tau.iter().map(|x| [x[0], x[1], x[2]]).collect();
     let reference = robot_inverse(&model, &t);
-    for k in [0, 1, 2, 5, 10, 50, 100] {
-        println!("t = {}: generic {:?} robot {:?}", t[k], tau[k], reference[k]);
-    }
-    let d = largest_difference(&tau, &reference);
+    // The two start from different elastic rates (here: least kinetic
+    // energy; the robot: zero), a transient the L-stable scheme damps
+    // within a few steps; compared from 0.1 s on.
+    let d = largest_difference(&tau[20..], &reference[20..]);
     let scale = reference
         .iter()
         .flat_map(|r| r.iter().map(|x| x.abs()))
         .fold(0.0, f64::max);
-    println!("flexible robot: largest torque difference {d:.3e} N m (largest torque {scale:.3e})");
-    assert!(d <= 1e-2 * scale, "{d} vs {scale}");
+    println!("flexible robot: largest torque difference from 0.1 s {d:.3e} N m (largest torque {scale:.3e})");
+    assert!(d <= 2e-3 * scale, "{d} vs {scale}");
 }
