@@ -30,12 +30,15 @@ use flexdyn_runtime::{
     State,
 };
 
-/// A prescribed coordinate: its index and its motion `t -> [p, p', p'']`.
+/// A motion `t -> [p, p', p'']`.
+pub type Motion<'a> = &'a dyn Fn(f64) -> [f64; 3];
+
+/// A prescribed coordinate: its index and its motion.
 pub struct Prescribed<'a> {
     /// Index of the coordinate.
     pub coordinate: usize,
     /// Value, first and second time derivative at `t`.
-    pub motion: &'a dyn Fn(f64) -> [f64; 3],
+    pub motion: Motion<'a>,
 }
 
 /// What to solve: the real sizes of the scene (a padded model has more),
@@ -124,7 +127,7 @@ where
         ));
     }
     let zero = |_: f64| [0.0; 3];
-    let mut motions: Vec<(usize, &dyn Fn(f64) -> [f64; 3])> = problem
+    let mut motions: Vec<(usize, Motion<'_>)> = problem
         .prescribed
         .iter()
         .map(|p| (p.coordinate, p.motion))
