@@ -11,6 +11,7 @@ pub mod cli;
 pub mod dynamic;
 pub mod eval;
 pub mod interpreted;
+pub mod inverse;
 pub mod plot;
 pub mod progress;
 pub mod sized;

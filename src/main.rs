@@ -21,6 +21,7 @@ enum Command {
     Export(cli::export::Args),
     Eval(cli::eval::Args),
     Simulate(cli::simulate::Args),
+    Inverse(cli::inverse::Args),
 }
 
 fn main() -> ExitCode {
@@ -29,6 +30,7 @@ fn main() -> ExitCode {
         Command::Export(args) => cli::export::run(&args),
         Command::Eval(args) => cli::eval::run(&args, &cli::eval::COMPILED_SCENES),
         Command::Simulate(args) => cli::simulate::run(&args, &cli::eval::COMPILED_SCENES),
+        Command::Inverse(args) => cli::inverse::run(&args, &cli::eval::COMPILED_SCENES),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

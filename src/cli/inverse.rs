@@ -1,0 +1,276 @@
+//! `flexdyn inverse`: the actuator inputs, constraint forces and coordinates
+//! of any scene along a prescribed motion of some of its coordinates
+//! ([`crate::inverse`] has the method). Prescriptions are functions of `t`
+//! in the scene's expression grammar ([`crate::codegen::TimeFunction`]),
+//! given as `--prescribe NAME=EXPR` or in a motion file:
+//!
+//! ```toml
+//! [prescribe]
+//! px = "0.1*cos(2*t)"
+//! ```
+//!
+//! A `--prescribe` of a coordinate the motion file also names replaces the
+//! file's. The scene runs through [`crate::sized::with_padding`]: compiled
+//! in, or interpreted.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::cli::eval::Compiled;
+use crate::codegen::TimeFunction;
+use crate::dynamic::DynModel;
+use crate::inverse::{solve, Prescribed, Problem, Solution};
+use crate::sized::{with_padding, Padded, Sized, LADDER};
+use crate::table::{Outputs, Table};
+use flexdyn_runtime::nalgebra::{SMatrix, SVector};
+use flexdyn_runtime::Model;
+
+/// Inverse dynamics of a scene along prescribed coordinates.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scene file: a compiled-in scene runs compiled, any other interpreted.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// Interpret the scene file even when a scene of its name is compiled in.
+    #[arg(long)]
+    pub interpret: bool,
+    /// Duration, s (outputs at 0, dt, 2 dt, ..., duration).
+    #[arg(long)]
+    pub duration: f64,
+    /// Output step, s (also the integration step when free coordinates are
+    /// integrated).
+    #[arg(long)]
+    pub dt: f64,
+    /// A prescribed coordinate: `NAME=EXPR`, a function of `t` and the
+    /// scene's parameters (repeat for each).
+    #[arg(long = "prescribe", value_name = "NAME=EXPR")]
+    pub prescribe: Vec<String>,
+    /// Motion file (TOML, a `[prescribe]` table of `NAME = "EXPR"`).
+    #[arg(long)]
+    pub motion: Option<PathBuf>,
+    /// Newton's starting point: a state in the `eval` format
+    /// (`{"q": [..], "qd": [..], "t": 0}`; only `q` is used). Default: the
+    /// scene's `initial` values (0 where not given).
+    #[arg(long)]
+    pub initial: Option<PathBuf>,
+    /// Output CSV: `t`, the actuators, the coordinates, `lambda_<k>` for each
+    /// constraint `k`.
+    #[arg(long)]
+    pub csv: PathBuf,
+}
+
+/// Run the command on the scenes of `compiled`.
+pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
+    let scene = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    let times = output_times(args.duration, args.dt)?;
+    let prescribed = prescriptions(&scene, &args.prescribe, args.motion.as_deref())?;
+    let guess = match &args.initial {
+        Some(path) => initial_guess(path, scene.coordinates.len())?,
+        None => scene.coordinates.iter().map(|c| c.initial).collect(),
+    };
+    let model: Box<dyn DynModel> = match (compiled.model)(&scene.name) {
+        Some(m) if !args.interpret => m,
+        _ => Box::new(crate::interpreted::InterpretedModel::load(&args.scene)?),
+    };
+    let job = Job {
+        coordinates: scene.coordinates.iter().map(|c| c.name.clone()).collect(),
+        constraints: scene.constraints.iter().map(|c| c.name.clone()).collect(),
+        actuators: scene.actuators.iter().map(|a| a.name.clone()).collect(),
+        prescribed,
+        guess,
+        times,
+    };
+    let (columns, solution) = (job.columns(), with_padding(model.as_ref(), job)??);
+    let mut table = Table::new(&columns.iter().map(String::as_str).collect::<Vec<_>>());
+    for (k, &t) in solution.t.iter().enumerate() {
+        let mut row = vec![t];
+        row.extend(&solution.tau[k]);
+        row.extend(&solution.q[k]);
+        row.extend(&solution.lambda[k]);
+        table.push(row);
+    }
+    let mut outputs = Outputs::default();
+    outputs.write(&args.csv, |path| table.write(path))?;
+    outputs.commit()
+}
+
+/// Output times `0, dt, ..., duration` (the last within rounding).
+pub fn output_times(duration: f64, dt: f64) -> Result<Vec<f64>, String> {
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(format!(
+            "--dt must be a positive number of seconds, got {dt}"
+        ));
+    }
+    if !(duration.is_finite() && duration >= 0.0) {
+        return Err(format!(
+            "--duration must be a non-negative number of seconds, got {duration}"
+        ));
+    }
+    let steps = (duration / dt * (1.0 + 1e-12)).floor() as usize;
+    Ok((0..=steps).map(|k| k as f64 * dt).collect())
+}
+
+/// The prescriptions of the motion file, then of the command line (which
+/// replace the file's for the same coordinate), as coordinate indices with
+/// their functions of time. Errors name the coordinate (listing the valid
+/// ones), the expression and where in it.
+pub fn prescriptions(
+    scene: &crate::codegen::Model,
+    prescribe: &[String],
+    motion: Option<&Path>,
+) -> Result<Vec<(usize, TimeFunction)>, String> {
+    let mut texts = BTreeMap::<String, (String, String)>::new();
+    if let Some(path) = motion {
+        let where_ = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("cannot read motion file {where_}: {e}"))?;
+        let file: toml::Table = text
+            .parse()
+            .map_err(|e| format!("motion file {where_}: {e}"))?;
+        if let Some(key) = file.keys().find(|k| *k != "prescribe") {
+            return Err(format!(
+                "motion file {where_}: unknown key `{key}` (only a `[prescribe]` table)"
+            ));
+        }
+        let table = file
+            .get("prescribe")
+            .and_then(toml::Value::as_table)
+            .ok_or_else(|| format!("motion file {where_}: no `[prescribe]` table"))?;
+        for (name, value) in table {
+            let expr = value.as_str().ok_or_else(|| {
+                format!("motion file {where_}: `prescribe.{name}` must be a string expression")
+            })?;
+            let at = format!("motion file {where_}, `prescribe.{name}`");
+            texts.insert(name.clone(), (expr.to_owned(), at));
+        }
+    }
+    let mut given = Vec::new();
+    for item in prescribe {
+        let (name, expr) = item
+            .split_once('=')
+            .ok_or_else(|| format!("--prescribe `{item}`: expected NAME=EXPR"))?;
+        let name = name.trim();
+        if given.contains(&name) {
+            return Err(format!("--prescribe: `{name}` is prescribed twice"));
+        }
+        given.push(name);
+        let at = format!("--prescribe {name}");
+        texts.insert(name.to_owned(), (expr.to_owned(), at));
+    }
+    let names: Vec<&str> = scene.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let mut out = Vec::with_capacity(texts.len());
+    for (name, (expr, at)) in texts {
+        let index = names.iter().position(|n| *n == name).ok_or_else(|| {
+            format!(
+                "{at}: `{name}` is not a coordinate of scene `{}` (its coordinates: {})",
+                scene.name,
+                names.join(", ")
+            )
+        })?;
+        let f = TimeFunction::parse(scene, &expr).map_err(|e| format!("{at}: {e}"))?;
+        out.push((index, f));
+    }
+    out.sort_by_key(|(i, _)| *i);
+    Ok(out)
+}
+
+/// `q` of a state file in the `eval` format, checked against the scene.
+fn initial_guess(path: &Path, nq: usize) -> Result<Vec<f64>, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let state: crate::eval::State =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    if state.q.len() != nq || state.q.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "{}: `q` must hold {nq} finite values (one per coordinate), got {:?}",
+            path.display(),
+            state.q
+        ));
+    }
+    Ok(state.q)
+}
+
+/// The inverse-dynamics problem, solved on the padded model.
+struct Job {
+    coordinates: Vec<String>,
+    constraints: Vec<String>,
+    actuators: Vec<String>,
+    prescribed: Vec<(usize, TimeFunction)>,
+    guess: Vec<f64>,
+    times: Vec<f64>,
+}
+
+impl Job {
+    /// The CSV's columns.
+    fn columns(&self) -> Vec<String> {
+        let mut columns = vec!["t".to_owned()];
+        columns.extend(self.actuators.iter().cloned());
+        columns.extend(self.coordinates.iter().cloned());
+        columns.extend((0..self.constraints.len()).map(|k| format!("lambda_{k}")));
+        columns
+    }
+}
+
+impl Sized for Job {
+    type Output = Result<Solution, String>;
+
+    fn run<const NQ: usize, const NC: usize, const NU: usize>(
+        self,
+        model: &Padded<'_, NQ, NC, NU>,
+    ) -> Self::Output {
+        // The inverse dynamics holds every pad coordinate that no pad
+        // constraint fixes: `NQ - NC` prescribed and held coordinates when
+        // the real ones are all determined. One size per rung of the ladder.
+        const P0: usize = LADDER[0].0 - LADDER[0].1;
+        const P1: usize = LADDER[1].0 - LADDER[1].1;
+        const P2: usize = LADDER[2].0 - LADDER[2].1;
+        match NQ - NC {
+            P0 => self.solve::<NQ, NC, NU, P0>(model),
+            P1 => self.solve::<NQ, NC, NU, P1>(model),
+            P2 => self.solve::<NQ, NC, NU, P2>(model),
+            n => Err(format!(
+                "internal: no inverse-dynamics size for {n} prescribed coordinates"
+            )),
+        }
+    }
+}
+
+impl Job {
+    fn solve<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>(
+        self,
+        model: &Padded<'_, NQ, NC, NU>,
+    ) -> Result<Solution, String> {
+        let held_inputs = model.pad_input_coordinates();
+        // The pad constraints' coordinates: the one column of each pad row.
+        let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
+        model.constraint_jacobian(&SVector::zeros(), 0.0, &mut phi_q);
+        let constrained = |i: usize| (model.nc()..NC).any(|r| phi_q[(r, i)] != 0.0);
+        let held_free = (model.nq()..NQ)
+            .filter(|&i| !constrained(i) && !held_inputs.contains(&i))
+            .collect();
+        let motions: Vec<_> = self
+            .prescribed
+            .iter()
+            .map(|(_, f)| move |t: f64| f.eval(t))
+            .collect();
+        let problem = Problem {
+            prescribed: self
+                .prescribed
+                .iter()
+                .zip(&motions)
+                .map(|((i, _), motion)| Prescribed {
+                    coordinate: *i,
+                    motion,
+                })
+                .collect(),
+            held_inputs,
+            held_free,
+            coordinates: self.coordinates,
+            constraints: self.constraints,
+            actuators: self.actuators,
+            guess: self.guess,
+            times: self.times,
+        };
+        solve::<_, NQ, NC, NU, NP>(model, &problem)
+    }
+}

@@ -1,0 +1,378 @@
+//! `flexdyn::inverse` on compiled-in scenes against independent references:
+//! the pendulum's closed-form torque, the slider-crank's closed-form
+//! kinematics and its power balance, the cart-pole's free pole integrated
+//! under the servo against an independent integration of its equation, and
+//! clear errors for prescriptions that do not determine the inputs.
+
+use flexdyn::inverse::{solve, Method, Prescribed, Problem};
+use flexdyn::runtime::nalgebra::SVector;
+use flexdyn::runtime::Model;
+use flexdyn::scenes::{cart_pole::CartPole, pendulum::Pendulum, slider_crank::SliderCrank};
+
+fn names(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+fn times(duration: f64, dt: f64) -> Vec<f64> {
+    (0..=(duration / dt).round() as usize)
+        .map(|k| k as f64 * dt)
+        .collect()
+}
+
+#[test]
+fn pendulum_torque_is_the_closed_form() {
+    let (a, w) = (0.8, 3.0);
+    let motion = move |t: f64| {
+        let (s, c) = (w * t).sin_cos();
+        [a * s, a * w * c, -a * w * w * s]
+    };
+    let problem = Problem {
+        coordinates: names(&["theta"]),
+        constraints: vec![],
+        actuators: names(&["tau"]),
+        prescribed: vec![Prescribed {
+            coordinate: 0,
+            motion: &motion,
+        }],
+        held_inputs: vec![],
+        held_free: vec![],
+        guess: vec![0.0],
+        times: times(2.0, 0.01),
+    };
+    let out = solve::<_, 1, 0, 1, 1>(&Pendulum::default(), &problem).unwrap();
+    assert_eq!(out.method, Method::Determined);
+    let (m, l, g) = (1.0, 0.5, 9.81);
+    for (k, &t) in out.t.iter().enumerate() {
+        let [th, _, thdd] = motion(t);
+        let want = m * l * l * thdd + m * g * l * th.sin();
+        assert!(
+            (out.tau[k][0] - want).abs() < 1e-10,
+            "t = {t}: {} vs {want}",
+            out.tau[k][0]
+        );
+        assert!((out.q[k][0] - th).abs() < 1e-14);
+    }
+}
+
+/// Closed-form slider-crank kinematics: `phi = asin(r sin(theta) / lr)`,
+/// `x = r cos(theta) + lr cos(phi)`.
+fn crank_pose(theta: f64) -> [f64; 3] {
+    let (r, lr) = (0.1, 0.3);
+    let phi = (r * theta.sin() / lr).asin();
+    [theta, phi, r * theta.cos() + lr * phi.cos()]
+}
+
+/// The compiled slider-crank with `theta` prescribed, over 1 s at 0.01 s.
+fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> flexdyn::inverse::Solution {
+    let problem = Problem {
+        coordinates: names(&["theta", "phi", "x"]),
+        constraints: names(&["closure_x", "closure_y"]),
+        actuators: names(&["tau"]),
+        prescribed: vec![Prescribed {
+            coordinate: 0,
+            motion,
+        }],
+        held_inputs: vec![],
+        held_free: vec![],
+        guess: vec![0.3, 0.1, 0.4],
+        times: times(1.0, 0.01),
+    };
+    solve::<_, 3, 2, 1, 1>(&SliderCrank, &problem).unwrap()
+}
+
+#[test]
+fn slider_crank_matches_closed_form_kinematics_and_power_balance() {
+    let w = 4.0;
+    let motion = move |t: f64| [0.3 + w * t + 0.5 * t * t, w + t, 1.0];
+    let model = SliderCrank;
+    let out = crank_solve(&motion);
+    // Energy along the closed-form motion, velocities by central differences.
+    let energy = |t: f64| {
+        let h = 1e-5;
+        let q = SVector::<f64, 3>::from(crank_pose(motion(t)[0]));
+        let (qp, qm) = (crank_pose(motion(t + h)[0]), crank_pose(motion(t - h)[0]));
+        let qd = SVector::<f64, 3>::from_fn(|i, _| (qp[i] - qm[i]) / (2.0 * h));
+        model.kinetic_energy(&q, &qd, t) + model.potential_energy(&q, t)
+    };
+    for (k, &t) in out.t.iter().enumerate().skip(1).take(out.t.len() - 2) {
+        let want = crank_pose(motion(t)[0]);
+        for i in 0..3 {
+            assert!((out.q[k][i] - want[i]).abs() < 1e-12, "t = {t}, q[{i}]");
+        }
+        // The constraints are scleronomic: tau theta' = dE/dt.
+        let h = 1e-4;
+        let power = (energy(t + h) - energy(t - h)) / (2.0 * h);
+        let tau = out.tau[k][0];
+        assert!(
+            (tau * motion(t)[1] - power).abs() < 1e-5 * (1.0 + power.abs()),
+            "t = {t}: tau theta' = {} vs dE/dt = {power}",
+            tau * motion(t)[1]
+        );
+    }
+}
+
+/// `theta'' = 3/(2 l) (g sin(theta) - x'' cos(theta))` of the cart-pole's
+/// uniform pole (from its Lagrangian), by RK4 at a fine step.
+fn pole_angle(x: impl Fn(f64) -> [f64; 3], until: f64) -> [f64; 2] {
+    let (l, g) = (1.0, 9.81);
+    let f = |t: f64, y: [f64; 2]| {
+        let xdd = x(t)[2];
+        [y[1], 1.5 / l * (g * y[0].sin() - xdd * y[0].cos())]
+    };
+    let steps = (until / 1e-5).round() as usize;
+    let h = until / steps as f64;
+    let mut y = [std::f64::consts::PI, 0.0];
+    for k in 0..steps {
+        let t = k as f64 * h;
+        let add = |y: [f64; 2], d: [f64; 2], c: f64| [y[0] + c * d[0], y[1] + c * d[1]];
+        let k1 = f(t, y);
+        let k2 = f(t + h / 2.0, add(y, k1, h / 2.0));
+        let k3 = f(t + h / 2.0, add(y, k2, h / 2.0));
+        let k4 = f(t + h, add(y, k3, h));
+        for i in 0..2 {
+            y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+    }
+    y
+}
+
+#[test]
+fn cart_pole_servo_integrates_the_free_pole_and_gives_the_cart_force() {
+    // The cart follows x(t); the pole (not prescribed, not actuated) swings
+    // from rest hanging down (its static equilibrium from a guess near it).
+    let motion = |t: f64| {
+        let (s, c) = (3.0 * t).sin_cos();
+        [0.2 * (1.0 - c), 0.6 * s, 1.8 * c]
+    };
+    let problem = Problem {
+        coordinates: names(&["x", "theta"]),
+        constraints: vec![],
+        actuators: names(&["force"]),
+        prescribed: vec![Prescribed {
+            coordinate: 0,
+            motion: &motion,
+        }],
+        held_inputs: vec![],
+        held_free: vec![],
+        guess: vec![0.0, 3.0],
+        times: times(1.0, 0.001),
+    };
+    let out = solve::<_, 2, 0, 1, 1>(&CartPole, &problem).unwrap();
+    assert_eq!(out.method, Method::Servo);
+    assert_eq!(out.t.len(), 1001);
+    let (mc, m, l) = (1.0, 0.1, 1.0);
+    let scale = (mc + m) * 1.8;
+    for k in (0..=1000).step_by(100) {
+        let t = out.t[k];
+        assert!((out.q[k][0] - motion(t)[0]).abs() < 1e-6, "t = {t}: x");
+        let [th, thd] = pole_angle(motion, t);
+        assert!(
+            (out.q[k][1] - th).abs() < 1e-4,
+            "t = {t}: theta {} vs {th}",
+            out.q[k][1]
+        );
+        // F = (mc + m) x'' + m l/2 (theta'' cos - theta'^2 sin).
+        let xdd = motion(t)[2];
+        let thdd = 1.5 / l * (9.81 * th.sin() - xdd * th.cos());
+        let force = (mc + m) * xdd + m * l / 2.0 * (thdd * th.cos() - thd * thd * th.sin());
+        assert!(
+            (out.tau[k][0] - force).abs() < 1e-3 * scale,
+            "t = {t}: force {} vs {force}",
+            out.tau[k][0]
+        );
+    }
+}
+
+#[test]
+fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
+    let motion = |t: f64| [t, 1.0, 0.0];
+    let base = || Problem {
+        coordinates: names(&["theta", "phi", "x"]),
+        constraints: names(&["closure_x", "closure_y"]),
+        actuators: names(&["tau"]),
+        prescribed: vec![],
+        held_inputs: vec![],
+        held_free: vec![],
+        guess: vec![0.3, 0.1, 0.4],
+        times: times(0.1, 0.01),
+    };
+    // No prescription at all: fewer than the actuators.
+    let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &base()).unwrap_err();
+    assert!(e.contains("does not determine the actuator inputs"), "{e}");
+    // Two prescriptions for one actuator.
+    let mut two = base();
+    two.prescribed = vec![
+        Prescribed {
+            coordinate: 0,
+            motion: &motion,
+        },
+        Prescribed {
+            coordinate: 2,
+            motion: &motion,
+        },
+    ];
+    let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &two).unwrap_err();
+    assert!(e.contains("2 prescribed") && e.contains("`x`"), "{e}");
+    // The slider's position prescribed: it determines the pose (two
+    // branches), but at the dead centre the crank's torque cannot move it.
+    let mut slider = base();
+    let dead_centre = |_: f64| [0.4, 0.0, 0.0];
+    slider.prescribed = vec![Prescribed {
+        coordinate: 2,
+        motion: &dead_centre,
+    }];
+    slider.guess = vec![0.0, 0.0, 0.4];
+    let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &slider).unwrap_err();
+    assert!(e.contains("at t = 0 s"), "{e}");
+    println!("{e}");
+}
+
+const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
+
+fn scene(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}.toml"))
+}
+
+/// Runs `flexdyn inverse` with `args` writing `out.csv` in `dir`: the CSV
+/// text, or the error output.
+fn inverse(dir: &std::path::Path, args: &[&str]) -> Result<String, String> {
+    let csv = dir.join("out.csv");
+    let out = std::process::Command::new(BIN)
+        .arg("inverse")
+        .args(args)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    match out.status.success() {
+        true => Ok(std::fs::read_to_string(&csv).unwrap()),
+        false => {
+            assert!(!csv.exists(), "a failed run left {}", csv.display());
+            Err(String::from_utf8_lossy(&out.stderr).into_owned())
+        }
+    }
+}
+
+#[test]
+fn command_on_the_padded_slider_crank_matches_the_compiled_solve() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("motion.toml"),
+        "[prescribe]\ntheta = \"0.3 + 4*t + t*t/2\"\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("s.json"),
+        r#"{"q": [0.3, 0.1, 0.4], "qd": [0, 0, 0]}"#,
+    )
+    .unwrap();
+    let sc = scene("slider_crank");
+    let motion = d.join("motion.toml");
+    let start = d.join("s.json");
+    let text = inverse(
+        d,
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--interpret",
+            "--duration",
+            "1",
+            "--dt",
+            "0.01",
+            "--motion",
+            motion.to_str().unwrap(),
+            "--initial",
+            start.to_str().unwrap(),
+        ],
+    )
+    .unwrap();
+    let table = flexdyn::table::Table::parse(&text).unwrap();
+    let direct = crank_solve(&|t: f64| [0.3 + 4.0 * t + t * t / 2.0, 4.0 + t, 1.0]);
+    let tau = table.column("tau").unwrap();
+    let x = table.column("x").unwrap();
+    let lambda = table.column("lambda_1").unwrap();
+    assert_eq!(tau.len(), 101);
+    for k in 0..101 {
+        assert!((tau[k] - direct.tau[k][0]).abs() < 1e-9, "{k}");
+        assert!((x[k] - direct.q[k][2]).abs() < 1e-12, "{k}");
+        assert!((lambda[k] - direct.lambda[k][1]).abs() < 1e-9, "{k}");
+    }
+}
+
+#[test]
+fn command_refuses_bad_prescriptions_clearly_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sc = scene("slider_crank");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "--scene",
+            sc.to_str().unwrap(),
+            "--duration",
+            "0.1",
+            "--dt",
+            "0.01",
+        ];
+        args.extend_from_slice(extra);
+        inverse(d, &args).unwrap_err()
+    };
+    let e = run(&["--prescribe", "alpha=t"]);
+    assert!(
+        e.contains("`alpha` is not a coordinate") && e.contains("theta, phi, x"),
+        "{e}"
+    );
+    let e = run(&["--prescribe", "theta=2*+t"]);
+    assert!(e.contains("--prescribe theta"), "{e}");
+    let e = run(&["--prescribe", "theta=phi"]);
+    assert!(e.contains("not the coordinate `phi`"), "{e}");
+    let e = run(&["--prescribe", "theta=t", "--prescribe", "x=0.4"]);
+    assert!(e.contains("does not determine the actuator inputs"), "{e}");
+    let e = run(&[]);
+    assert!(e.contains("0 prescribed"), "{e}");
+    let e = run(&["--prescribe", "theta=t", "--dt", "0"]);
+    assert!(e.contains("--dt"), "{e}");
+    // The slider beyond the reach of crank and rod (0.4 m).
+    let e = run(&["--prescribe", "x=0.5"]);
+    assert!(
+        e.contains("at t = 0 s") && e.contains("`theta`, `phi`") && e.contains("condition"),
+        "{e}"
+    );
+    std::fs::write(d.join("m.toml"), "[prescribe]\ntheta = 3\n").unwrap();
+    let m = d.join("m.toml");
+    let e = run(&["--motion", m.to_str().unwrap()]);
+    assert!(e.contains("prescribe.theta") && e.contains("string"), "{e}");
+}
+
+#[test]
+fn command_on_an_interpreted_pendulum_gives_the_closed_form_torque() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = scene("pendulum");
+    let text = inverse(
+        dir.path(),
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--interpret",
+            "--duration",
+            "1",
+            "--dt",
+            "0.05",
+            "--prescribe",
+            "theta=0.8*sin(3*t)",
+        ],
+    )
+    .unwrap();
+    let table = flexdyn::table::Table::parse(&text).unwrap();
+    let (t, tau) = (table.column("t").unwrap(), table.column("tau").unwrap());
+    for k in 0..t.len() {
+        let th = 0.8 * (3.0 * t[k]).sin();
+        let want = 0.25 * (-7.2 * (3.0 * t[k]).sin()) + 9.81 * 0.5 * th.sin();
+        assert!(
+            (tau[k] - want).abs() < 1e-10,
+            "t = {}: {} vs {want}",
+            t[k],
+            tau[k]
+        );
+    }
+}
