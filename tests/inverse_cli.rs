@@ -96,8 +96,8 @@ fn slider_crank_matches_closed_form_kinematics_and_power_balance() {
     };
     for (k, &t) in out.t.iter().enumerate().skip(1).take(out.t.len() - 2) {
         let want = crank_pose(motion(t)[0]);
-        for i in 0..3 {
-            assert!((out.q[k][i] - want[i]).abs() < 1e-12, "t = {t}, q[{i}]");
+        for (i, w) in want.iter().enumerate() {
+            assert!((out.q[k][i] - w).abs() < 1e-12, "t = {t}, q[{i}]");
         }
         // The constraints are scleronomic: tau theta' = dE/dt.
         let h = 1e-4;
