@@ -4,7 +4,7 @@
 //! scene file is generated in memory and interpreted
 //! ([`crate::interpreted`]): bitwise the same numbers.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::dynamic::DynModel;
 use crate::eval::{check_state, evaluate, States};
@@ -47,6 +47,47 @@ pub struct Compiled {
     pub perturbed_scenes: &'static [&'static str],
     /// The default model of a perturbed build, by name.
     pub perturbed_model: fn(&str) -> Option<Box<dyn DynModel>>,
+}
+
+impl Compiled {
+    /// The model of a scene file: the compiled-in one when the file
+    /// describes it (same terms, bitwise, at a sample state; so an edited
+    /// copy of a shipped scene is never answered by the stale compiled
+    /// module), else the file interpreted. `interpret` forces the latter.
+    pub fn load(
+        &self,
+        scene: &Path,
+        name: &str,
+        interpret: bool,
+    ) -> Result<Box<dyn DynModel>, String> {
+        let interpreted = crate::interpreted::InterpretedModel::load(scene)?;
+        match (self.model)(name).filter(|_| !interpret) {
+            Some(c) if same_terms(c.as_ref(), &interpreted) => Ok(c),
+            Some(_) => {
+                eprintln!(
+                    "note: {} differs from the compiled-in scene `{name}`: interpreting it",
+                    scene.display()
+                );
+                Ok(Box::new(interpreted))
+            }
+            None => Ok(Box::new(interpreted)),
+        }
+    }
+}
+
+/// Whether two models give the same terms at a sample state.
+fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
+    if a.coordinates() != b.coordinates() || a.actuators() != b.actuators() || a.nc() != b.nc() {
+        return false;
+    }
+    let q: Vec<f64> = (0..a.nq()).map(|i| 0.3 + 0.17 * i as f64).collect();
+    let qd: Vec<f64> = (0..a.nq()).map(|i| -0.4 + 0.23 * i as f64).collect();
+    let t = 0.37;
+    a.mass_matrix(&q, t) == b.mass_matrix(&q, t)
+        && a.bias(&q, &qd, t) == b.bias(&q, &qd, t)
+        && a.constraints(&q, t) == b.constraints(&q, t)
+        && a.actuator_map() == b.actuator_map()
+        && a.potential_energy(&q, t) == b.potential_energy(&q, t)
 }
 
 /// The generic scenes of `scenes/`, compiled into this crate.

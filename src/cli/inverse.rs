@@ -18,7 +18,6 @@ use std::path::{Path, PathBuf};
 
 use crate::cli::eval::Compiled;
 use crate::codegen::TimeFunction;
-use crate::dynamic::DynModel;
 use crate::inverse::{solve, Prescribed, Problem, Solution};
 use crate::sized::{with_padding, Padded, Sized, LADDER};
 use crate::table::{Outputs, Table};
@@ -68,10 +67,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         Some(path) => initial_guess(path, scene.coordinates.len())?,
         None => scene.coordinates.iter().map(|c| c.initial).collect(),
     };
-    let model: Box<dyn DynModel> = match (compiled.model)(&scene.name) {
-        Some(m) if !args.interpret => m,
-        _ => Box::new(crate::interpreted::InterpretedModel::load(&args.scene)?),
-    };
+    let model = compiled.load(&args.scene, &scene.name, args.interpret)?;
     let job = Job {
         coordinates: scene.coordinates.iter().map(|c| c.name.clone()).collect(),
         constraints: scene.constraints.iter().map(|c| c.name.clone()).collect(),

@@ -179,7 +179,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         ));
     }
     let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
-    let mut model = load_model(args, compiled, &parsed.name)?;
+    let mut model = compiled.load(&args.scene, &parsed.name, args.interpret)?;
     let state = initial_state(args, &parsed, model.as_mut())?;
     let model = &*model;
     let columns = output_columns(model);
@@ -230,38 +230,6 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         outputs.write(plot, |tmp| line_plot(tmp, &labels, &series))?;
     }
     outputs.commit()
-}
-
-/// The compiled-in model when the file describes it (same terms, bitwise, at
-/// a sample state), else the interpreted file.
-fn load_model(args: &Args, compiled: &Compiled, name: &str) -> Result<Box<dyn DynModel>, String> {
-    let interpreted = crate::interpreted::InterpretedModel::load(&args.scene)?;
-    match (compiled.model)(name).filter(|_| !args.interpret) {
-        Some(c) if same_terms(c.as_ref(), &interpreted) => Ok(c),
-        Some(_) => {
-            eprintln!(
-                "note: {} differs from the compiled-in scene `{name}`: interpreting it",
-                args.scene.display()
-            );
-            Ok(Box::new(interpreted))
-        }
-        None => Ok(Box::new(interpreted)),
-    }
-}
-
-/// Whether two models give the same terms at a sample state.
-fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
-    if a.coordinates() != b.coordinates() || a.actuators() != b.actuators() || a.nc() != b.nc() {
-        return false;
-    }
-    let q: Vec<f64> = (0..a.nq()).map(|i| 0.3 + 0.17 * i as f64).collect();
-    let qd: Vec<f64> = (0..a.nq()).map(|i| -0.4 + 0.23 * i as f64).collect();
-    let t = 0.37;
-    a.mass_matrix(&q, t) == b.mass_matrix(&q, t)
-        && a.bias(&q, &qd, t) == b.bias(&q, &qd, t)
-        && a.constraints(&q, t) == b.constraints(&q, t)
-        && a.actuator_map() == b.actuator_map()
-        && a.potential_energy(&q, t) == b.potential_energy(&q, t)
 }
 
 /// The state to start from (not yet projected), with `--initial`'s runtime
