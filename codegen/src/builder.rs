@@ -20,9 +20,10 @@ use quote::quote;
 
 use crate::derive::{derive, Equations};
 use crate::emit::{emit, struct_name, CoefficientPerturbation, FunctionReport};
+use crate::emit_c::CInterface;
 use crate::error::{Error, Source};
 use crate::load::{load, resolve, LoadedScene};
-use crate::model::{build, Model};
+use crate::model::{build, Model, Precision};
 use crate::prune::prune;
 use crate::reduce;
 use crate::schedule::{functions, OpCount};
@@ -82,8 +83,13 @@ pub struct Generated {
     pub source: String,
     /// Numbers of coordinates, constraints and actuators.
     pub dims: (usize, usize, usize),
+    /// The scalar type of the module.
+    pub precision: Precision,
     /// Operation counts per emitted function.
     pub functions: Vec<FunctionReport>,
+    /// The C header of the module's `extern "C"` wrappers, when the builder
+    /// asked for the C interface ([`Builder::c_interface`]).
+    pub c_header: Option<String>,
     /// Time spent parsing, deriving and emitting.
     pub elapsed: Duration,
 }
@@ -117,7 +123,15 @@ impl fmt::Display for Generated {
 /// crate at its default path `flexdyn_runtime`.
 pub fn generate_scene(path: &Path) -> Result<Generated, Error> {
     let runtime = runtime_path(DEFAULT_RUNTIME_PATH)?;
-    generate_perturbed(path, &runtime, &[])
+    generate_perturbed(
+        path,
+        &Options {
+            runtime: &runtime,
+            perturbations: &[],
+            c_interface: false,
+            precision: None,
+        },
+    )
 }
 
 /// The runtime path as a Rust path: `a::b`, `::a::b` or `crate::a`, without
@@ -140,19 +154,43 @@ fn runtime_path(text: &str) -> Result<syn::Path, Error> {
     Ok(path)
 }
 
-/// [`generate_scene`] for the runtime at `runtime`, applying the
-/// perturbation among `perturbations` that names this scene (an error if it
-/// finds no such coefficient).
-fn generate_perturbed(
-    path: &Path,
-    runtime: &syn::Path,
-    perturbations: &[CoefficientPerturbation],
-) -> Result<Generated, Error> {
+/// How a scene is emitted.
+struct Options<'a> {
+    /// The runtime crate's path in emitted code.
+    runtime: &'a syn::Path,
+    /// Test-only perturbations of coefficients.
+    perturbations: &'a [CoefficientPerturbation],
+    /// Whether to add the C interface.
+    c_interface: bool,
+    /// The precision, overriding the scene's.
+    precision: Option<Precision>,
+}
+
+/// [`generate_scene`] with `options`, applying the perturbation among
+/// `options.perturbations` that names this scene (an error if it finds no
+/// such coefficient).
+fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error> {
     let start = Instant::now();
     let mut model = Model::load(path)?;
+    if let Some(p) = options.precision {
+        model.precision = p;
+    }
+    if options.c_interface && model.precision != Precision::F64 {
+        return Err(Error {
+            file: path.to_path_buf(),
+            line: 0,
+            column: 0,
+            context: None,
+            message: "the C interface is generated for f64 models only (the scene or the builder asks for f32)".into(),
+        });
+    }
+    let (runtime, perturbations) = (options.runtime, options.perturbations);
     let eq = model.equations()?;
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
     let functions = functions(&model, &eq);
+    let c = options
+        .c_interface
+        .then(|| CInterface::new(&model, &functions));
     let (emitted, applied) = emit(&model, &eq, functions, runtime, perturbation);
     if let (Some(c), false) = (perturbation, applied) {
         return Err(Error {
@@ -170,8 +208,13 @@ fn generate_perturbed(
         name: model.name.clone(),
         scene: path.to_path_buf(),
         sources: model.sources.clone(),
-        source: emitted.source,
+        source: match &c {
+            Some(c) => emitted.source + &c.rust(runtime),
+            None => emitted.source,
+        },
+        c_header: c.map(|c| c.header()),
         dims: (model.nq(), model.constraints.len(), model.actuators.len()),
+        precision: model.precision,
         functions: emitted.functions,
         elapsed: start.elapsed(),
     })
@@ -187,6 +230,8 @@ pub struct Builder {
     index: Option<Index>,
     runtime_path: Option<String>,
     perturbations: Vec<CoefficientPerturbation>,
+    c_interface: bool,
+    precision: Option<Precision>,
 }
 
 /// Settings of the index module.
@@ -266,6 +311,27 @@ impl Builder {
         self
     }
 
+    /// Also emit the C interface: `extern "C"` wrappers of every generated
+    /// function and of the runtime's inverse dynamics in each module
+    /// (`#[no_mangle]`, named `<scene>_<function>`, caller-owned arrays,
+    /// status codes instead of panics), and the header `<scene>.h` beside
+    /// it. The wrappers need `unsafe` (raw pointers); the default module has
+    /// none.
+    pub fn c_interface(mut self, yes: bool) -> Builder {
+        self.c_interface = yes;
+        self
+    }
+
+    /// Generate every scene in `precision`, whatever its scene file says
+    /// (scene key `precision`, default `f64`). An `f32` module offers the
+    /// model's functions as inherent `f32` methods instead of implementing
+    /// the runtime's (`f64`) `Model` trait, so it cannot go into the index
+    /// module or get the C interface: both are errors.
+    pub fn precision(mut self, precision: Precision) -> Builder {
+        self.precision = Some(precision);
+        self
+    }
+
     /// Test only: multiply coefficient `index` of the emitted function
     /// `function` of scene `scene` by `1 + relative`, to prove that a
     /// validation catches a wrong term in generated code. The module's header
@@ -330,7 +396,15 @@ impl Builder {
         }
         let mut scenes: Vec<Generated> = Vec::new();
         for f in &files {
-            let g = generate_perturbed(f, &runtime, &self.perturbations)?;
+            let g = generate_perturbed(
+                f,
+                &Options {
+                    runtime: &runtime,
+                    perturbations: &self.perturbations,
+                    c_interface: self.c_interface,
+                    precision: self.precision,
+                },
+            )?;
             if self.rerun_if_changed {
                 for s in g.sources.iter().filter(|s| !files.contains(s)) {
                     println!("cargo:rerun-if-changed={}", s.display());
@@ -378,6 +452,27 @@ impl Builder {
             .iter()
             .map(|s| (out_dir.join(format!("{}.rs", s.name)), s.source.clone()))
             .collect();
+        outputs.extend(scenes.iter().filter_map(|s| {
+            let h = s.c_header.clone()?;
+            Some((out_dir.join(format!("{}.h", s.name)), h))
+        }));
+        if let (Some(index), Some(s)) = (
+            &self.index,
+            scenes.iter().find(|s| s.precision != Precision::F64),
+        ) {
+            return Err(Error {
+                file: s.scene.clone(),
+                line: 0,
+                column: 0,
+                context: None,
+                message: format!(
+                    "scene `{}` is generated in {}: the index module `{}` needs f64 models",
+                    s.name,
+                    s.precision.rust_type(),
+                    index.file
+                ),
+            });
+        }
         if let Some(index) = &self.index {
             let text = index_source(&scenes, index).map_err(|message| Error {
                 file: PathBuf::from(&index.file),
@@ -413,7 +508,9 @@ pub fn write_if_changed(path: &Path, text: &str) -> std::io::Result<bool> {
     if std::fs::read(path).is_ok_and(|old| old == text.as_bytes()) {
         return Ok(false);
     }
-    let tmp = path.with_extension("rs.tmp");
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
     std::fs::write(&tmp, text)?;
     std::fs::rename(&tmp, path)?;
     Ok(true)

@@ -9,7 +9,7 @@ use quote::{format_ident, quote};
 
 use crate::derive::Equations;
 use crate::expr::{Graph, Id, Symbol};
-use crate::model::Model;
+use crate::model::{Model, Precision};
 use crate::schedule::{Code, Function, OpCount, Program, Shape, Stmt};
 
 /// Operation counts of one emitted function.
@@ -109,8 +109,13 @@ fn scale_coefficient(p: &mut Program, index: usize, factor: f64) -> bool {
         .any(|c| visit(c, &mut left, factor))
 }
 
-fn lit(x: f64) -> TokenStream {
-    let text = format!("{:?}", x.abs());
+/// The literal `x` in `precision`: for `f32` the shortest text of the
+/// nearest `f32`, so that the compiler rounds once.
+fn lit(x: f64, precision: Precision) -> TokenStream {
+    let text = match precision {
+        Precision::F64 => format!("{:?}", x.abs()),
+        Precision::F32 => format!("{:?}", x.abs() as f32),
+    };
     let l: Literal = text
         .parse()
         .unwrap_or_else(|_| Literal::f64_unsuffixed(x.abs()));
@@ -138,6 +143,24 @@ const PRODUCT: u8 = 2;
 const ATOM: u8 = 3;
 
 impl Emitter<'_> {
+    fn lit(&self, x: f64) -> TokenStream {
+        lit(x, self.model.precision)
+    }
+
+    /// The scalar type, `f64` or `f32`.
+    fn real(&self) -> proc_macro2::Ident {
+        format_ident!("{}", self.model.precision.rust_type())
+    }
+
+    /// `pub` for the inherent methods of an `f32` model, nothing in the
+    /// trait impl of an `f64` one.
+    fn vis(&self) -> TokenStream {
+        match self.model.precision {
+            Precision::F64 => quote!(),
+            Precision::F32 => quote!(pub),
+        }
+    }
+
     fn param_ident(&self, i: u32) -> proc_macro2::Ident {
         format_ident!("{}", self.model.runtime_parameters[i as usize].name)
     }
@@ -171,7 +194,7 @@ impl Emitter<'_> {
                 let p = self.param_ident(*i);
                 quote!(self.#p)
             }
-            Code::Lit(x) => lit(*x),
+            Code::Lit(x) => self.lit(*x),
             Code::Sum { constant, terms } => self.sum(*constant, terms),
             Code::Prod { num, den } => {
                 let num_t: Vec<TokenStream> = num.iter().map(|f| self.code(f, ATOM)).collect();
@@ -213,7 +236,7 @@ impl Emitter<'_> {
         if a == 1.0 {
             self.code(t, PRODUCT)
         } else {
-            let l = lit(a);
+            let l = self.lit(a);
             let t = self.code(t, PRODUCT);
             quote!(#l * #t)
         }
@@ -234,13 +257,13 @@ impl Emitter<'_> {
             }
         }
         if first && constant != 0.0 {
-            out = lit(constant);
+            out = self.lit(constant);
             first = false;
         } else if constant > 0.0 {
-            let l = lit(constant);
+            let l = self.lit(constant);
             out = quote!(#out + #l);
         } else if constant < 0.0 {
-            let l = lit(-constant);
+            let l = self.lit(-constant);
             out = quote!(#out - #l);
         }
         for (c, t) in &neg {
@@ -277,7 +300,8 @@ impl Emitter<'_> {
                 .collect();
             for group in vars.chunks(DECLARATION_GROUP) {
                 let n = usize_lit(group.len());
-                out.extend(quote!(let [#(#group),*]: [f64; #n];));
+                let real = self.real();
+                out.extend(quote!(let [#(#group),*]: [#real; #n];));
             }
         }
         let bind = if flat { quote!(let) } else { quote!() };
@@ -327,6 +351,7 @@ impl Emitter<'_> {
         let (sig, outputs, slots, p) = (&f.sig, &f.outputs, &f.slots, &f.program);
         let used = self.inputs(&f.ids);
         let body = self.stmts(p);
+        let (real, vis) = (self.real(), self.vis());
         let mut assigns = TokenStream::new();
         let mut args = TokenStream::new();
         for (k, o) in outputs.iter().enumerate() {
@@ -340,13 +365,13 @@ impl Emitter<'_> {
             match o.shape {
                 Shape::Vector => {
                     let len = usize_lit(o.entries.first().map_or(0, Vec::len));
-                    args.extend(quote!(#arg: &mut SVector<f64, #len>,));
+                    args.extend(quote!(#arg: &mut SVector<#real, #len>,));
                 }
                 Shape::Matrix { symmetric } => {
                     let rows = o.entries.len();
                     let cols = self.model.nq();
                     let (r, c) = (usize_lit(rows), usize_lit(cols));
-                    args.extend(quote!(#arg: &mut SMatrix<f64, #r, #c>,));
+                    args.extend(quote!(#arg: &mut SMatrix<#real, #r, #c>,));
                     let full = if symmetric {
                         rows * (rows + 1) / 2
                     } else {
@@ -377,14 +402,14 @@ impl Emitter<'_> {
         let doc = sig.doc;
         let (ret, tail) = optional_output(sig.optional);
         let qd_arg = if sig.with_qd {
-            quote!(#qd: &SVector<f64, #nq>,)
+            quote!(#qd: &SVector<#real, #nq>,)
         } else {
             quote!()
         };
         quote! {
             #[doc = #doc]
             #[inline]
-            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #args) #ret {
+            #vis fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #t: #real, #args) #ret {
                 #body
                 #assigns
                 #tail
@@ -402,15 +427,16 @@ impl Emitter<'_> {
         let e = self.code(&p.outputs[0], SUM);
         let (q, qd, t) = input_idents(used);
         let fname = format_ident!("{}", name);
+        let (real, vis) = (self.real(), self.vis());
         let qd_arg = if with_qd {
-            quote!(#qd: &SVector<f64, #nq>,)
+            quote!(#qd: &SVector<#real, #nq>,)
         } else {
             quote!()
         };
         quote! {
             #[doc = #doc]
             #[inline]
-            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64) -> f64 {
+            #vis fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #t: #real) -> #real {
                 #body
                 #e
             }
@@ -474,6 +500,7 @@ pub fn emit(
     let nu = model.actuators.len();
     let (nq_l, nc_l, nu_l) = (usize_lit(n), usize_lit(nc), usize_lit(nu));
     let sname = format_ident!("{}", struct_name(&model.name));
+    let (real, vis) = (e.real(), e.vis());
     let scene = model.name.as_str();
 
     // The trait's functions, then the optional outputs (the trait's
@@ -500,7 +527,7 @@ pub fn emit(
         for (j, &g) in row.iter().enumerate() {
             if g != 0.0 {
                 let (il, jl) = (usize_lit(i), usize_lit(j));
-                let l = lit(g);
+                let l = lit(g, model.precision);
                 b_assigns.extend(quote!(b[(#il, #jl)] = #l;));
             }
         }
@@ -512,11 +539,11 @@ pub fn emit(
     let fields = model.runtime_parameters.iter().map(|p| {
         let id = format_ident!("{}", p.name);
         let doc = format!("Runtime parameter (nominal value {:?}).", p.value);
-        quote!(#[doc = #doc] pub #id: f64,)
+        quote!(#[doc = #doc] pub #id: #real,)
     });
     let defaults = model.runtime_parameters.iter().map(|p| {
         let id = format_ident!("{}", p.name);
-        let v = lit(p.value);
+        let v = lit(p.value, model.precision);
         quote!(#id: #v,)
     });
     let struct_doc = format!(
@@ -532,8 +559,8 @@ pub fn emit(
             quote!(#name => self.#id = value,)
         });
         quote! {
-            const PARAMETERS: &'static [&'static str] = &[#(#names),*];
-            fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+            #vis const PARAMETERS: &'static [&'static str] = &[#(#names),*];
+            #vis fn set_parameter(&mut self, name: &str, value: #real) -> bool {
                 match name {
                     #(#arms)*
                     _ => return false,
@@ -574,8 +601,36 @@ pub fn emit(
             unused_parens
         )]
     };
+    let consts = quote! {
+        #vis const NAME: &'static str = #scene;
+        #vis const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
+        #vis const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];
+    };
+    let members = quote! {
+        #consts
+        #core
+        #[inline]
+        #vis fn actuator_map(&self, #b_arg: &mut SMatrix<#real, #nq_l, #nu_l>) {
+            #b_assigns
+        }
+        #scalars
+        #parameters
+        #optional
+    };
+    // An f64 model implements the runtime's trait; an f32 one has the same
+    // functions as inherent methods, with the runtime's f32 functions.
+    let (math, implementation) = match model.precision {
+        Precision::F64 => (
+            quote!(use #runtime::math;),
+            quote!(impl #runtime::Model<#nq_l, #nc_l, #nu_l> for #sname { #members }),
+        ),
+        Precision::F32 => (
+            quote!(use #runtime::math::f32 as math;),
+            quote!(impl #sname { #members }),
+        ),
+    };
     let tokens = quote! {
-        use #runtime::math;
+        #math
         use #runtime::nalgebra::{SMatrix, SVector};
 
         /// Number of generalized coordinates.
@@ -588,19 +643,7 @@ pub fn emit(
         #struct_def
 
         #lints
-        impl #runtime::Model<#nq_l, #nc_l, #nu_l> for #sname {
-            const NAME: &'static str = #scene;
-            const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
-            const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];
-            #core
-            #[inline]
-            fn actuator_map(&self, #b_arg: &mut SMatrix<f64, #nq_l, #nu_l>) {
-                #b_assigns
-            }
-            #scalars
-            #parameters
-            #optional
-        }
+        #implementation
     };
     let file: syn::File = syn::parse2(tokens).expect("emitted tokens form a valid Rust file");
     let body = prettyplease::unparse(&file);
@@ -623,6 +666,11 @@ pub fn emit(
          // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)\n\n",
         "total", total.adds, total.muls, total.divs, total.calls
     ));
+    if model.precision == Precision::F32 {
+        header.push_str(
+            "// Precision f32: inherent methods of the model struct (the runtime's `Model` trait is f64).\n\n",
+        );
+    }
     if let (Some(c), true) = (perturbation, e.perturbed) {
         header.push_str(&format!(
             "// TEST ONLY: coefficient {} of `{}` deliberately multiplied by 1 + {:e}.\n\n",

@@ -16,7 +16,9 @@
 //! 6. `schedule`: a straight-line program per emitted function (common
 //!    subexpressions, shared pairs of factors and terms);
 //! 7. `emit`: the formatted Rust module, naming the runtime crate by the
-//!    path [`Builder::runtime_path`] (default `flexdyn_runtime`).
+//!    path [`Builder::runtime_path`] (default `flexdyn_runtime`); with
+//!    [`Builder::c_interface`], `emit_c` adds its `extern "C"` wrappers and
+//!    writes the C header.
 //!
 //! [`interpret`] is emit's twin for run time: it lowers the same scheduled
 //!    programs to instruction tapes that compute, bitwise, what the emitted
@@ -34,6 +36,7 @@
 mod builder;
 mod derive;
 mod emit;
+mod emit_c;
 mod error;
 mod export;
 mod expr;
@@ -55,6 +58,6 @@ pub use emit::FunctionReport;
 pub use error::{Error, Source};
 pub use export::export_json;
 pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
-pub use model::Model;
+pub use model::{Model, Precision};
 pub use schedule::OpCount;
 pub use time_function::TimeFunction;

@@ -5,8 +5,9 @@ use std::path::PathBuf;
 
 /// Generate the Rust module of one or more scenes into a directory.
 ///
-/// Writes `<scene name>.rs` per scene, only when its content changed, and
-/// nothing at all if any scene has an error.
+/// Writes `<scene name>.rs` per scene (and `<scene name>.h` with
+/// `--c-header`), only when its content changed, and nothing at all if any
+/// scene has an error.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scene file(s) to generate.
@@ -18,6 +19,14 @@ pub struct Args {
     /// Output directory.
     #[arg(long, default_value = "generated")]
     pub out: PathBuf,
+    /// Also write the C interface: `extern "C"` wrappers in each module and
+    /// the C header `<scene name>.h` beside it (see docs/embedded.md).
+    #[arg(long)]
+    pub c_header: bool,
+    /// Scalar type of the generated code, overriding the scene's `precision`
+    /// (`f32`: inherent methods instead of the runtime's f64 `Model` trait).
+    #[arg(long, value_parser = ["f64", "f32"])]
+    pub precision: Option<String>,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -25,7 +34,14 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(args: &Args) -> Result<(), String> {
-    let mut builder = crate::codegen::Builder::new().out_dir(&args.out);
+    let mut builder = crate::codegen::Builder::new()
+        .out_dir(&args.out)
+        .c_interface(args.c_header);
+    match args.precision.as_deref() {
+        Some("f32") => builder = builder.precision(crate::codegen::Precision::F32),
+        Some(_) => builder = builder.precision(crate::codegen::Precision::F64),
+        None => {}
+    }
     for s in &args.scene {
         builder = builder.scene(s);
     }

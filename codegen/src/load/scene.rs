@@ -437,6 +437,8 @@ pub struct SceneDef {
     /// `forces` (Coriolis, potential and damping forces separately).
     #[serde(default)]
     pub outputs: Vec<Spanned<String>>,
+    /// Scalar type of the generated code: `f64` (default) or `f32`.
+    pub precision: Option<Spanned<String>>,
 }
 
 /// A scene derived from another scene file by a reduction: "model only what

@@ -2,7 +2,7 @@
 //! gain) and the optional outputs a scene asks for.
 
 use super::context::Context;
-use super::{Actuator, Coordinate, Outputs};
+use super::{Actuator, Coordinate, Outputs, Precision};
 use crate::error::Error;
 use crate::load::check_ident;
 use crate::load::scene::SceneDef;
@@ -39,6 +39,22 @@ impl Context<'_> {
             });
         }
         Ok(actuators)
+    }
+
+    /// The scene's `precision` (default `f64`).
+    pub(super) fn precision(&self, def: &SceneDef) -> Result<Precision, Error> {
+        match &def.precision {
+            None => Ok(Precision::F64),
+            Some(p) => match p.get_ref().as_str() {
+                "f64" => Ok(Precision::F64),
+                "f32" => Ok(Precision::F32),
+                other => Err(self.err(
+                    p.span().start,
+                    None,
+                    format!("unknown precision `{other}` (known: f64, f32)"),
+                )),
+            },
+        }
     }
 
     /// The optional outputs named by the scene.

@@ -59,6 +59,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
     }
     let actuators = cx.actuators(def, &coordinates)?;
     let outputs = cx.outputs(def)?;
+    let precision = cx.precision(def)?;
     Ok(Model {
         name: def.name.get_ref().clone(),
         graph: cx.graph,
@@ -69,6 +70,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         constraints,
         actuators,
         outputs,
+        precision,
         flexible_links: cx.flexible,
         drop_below: None,
         sources: vec![scene.source.path().to_path_buf()],

@@ -104,6 +104,30 @@ pub struct Outputs {
     pub bias_jacobians: bool,
 }
 
+/// Scalar type of the generated code (scene key `precision`,
+/// `Builder::precision`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Precision {
+    /// `f64`: the module implements the runtime's `Model` trait.
+    #[default]
+    F64,
+    /// `f32` (for microcontrollers with a single-precision FPU): the module's
+    /// functions are inherent methods of the model struct with the same
+    /// signatures in `f32`, calling the runtime's `math::f32`; the runtime's
+    /// solvers, which are `f64`, do not take such a model.
+    F32,
+}
+
+impl Precision {
+    /// The Rust type name, `f64` or `f32`.
+    pub fn rust_type(self) -> &'static str {
+        match self {
+            Precision::F64 => "f64",
+            Precision::F32 => "f32",
+        }
+    }
+}
+
 /// The finite-element data behind a `flexible_link` component, built
 /// numerically when the scene is read.
 #[derive(Debug, Clone)]
@@ -156,6 +180,8 @@ pub struct Model {
     pub actuators: Vec<Actuator>,
     /// Optional outputs.
     pub outputs: Outputs,
+    /// Scalar type of the generated code.
+    pub precision: Precision,
     /// Finite-element data of the flexible links, in component order.
     pub flexible_links: Vec<FlexibleLink>,
     /// Relative tolerance below which summands of the mass matrix and bias

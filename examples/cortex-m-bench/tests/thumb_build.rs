@@ -1,5 +1,6 @@
 //! The runtime and the generated modules of the rigid robot and of a
-//! flexible scene (the spin-up beam) build for the Cortex-M4F
+//! flexible scene (the spin-up beam), in f64 and in f32, build for the
+//! Cortex-M4F
 //! (`thumbv7em-none-eabihf`, no `std`, no allocator), and the generated
 //! functions reach no panic machinery: the firmware's `terms` program calls
 //! every one of them and nothing else, so its linked image (unreachable code
@@ -25,21 +26,17 @@ fn generated_functions_build_for_cortex_m4f_without_panic_paths() {
         "the check finds no panic machinery in the control program"
     );
 
-    // The generated functions are really in the image (once per model), and
-    // nothing allocates or keeps static state.
+    // The generated functions are really in the image (one caller per
+    // model and precision), and nothing allocates or keeps static state.
     let names: Vec<String> = symbols(&terms)
         .unwrap()
         .into_iter()
         .map(|s| s.name)
         .collect();
-    assert_eq!(
-        names.iter().filter(|n| *n == "terms::all_terms").count(),
-        2,
-        "{names:?}"
-    );
-    assert!(names
-        .iter()
-        .any(|n| n.contains("ParallelRobotRigid") && n.ends_with("::dynamics_terms")));
+    for caller in ["rigid_f64", "beam_f64", "rigid_f32", "beam_f32"] {
+        let name = format!("terms::{caller}");
+        assert!(names.contains(&name), "no {name} in {names:?}");
+    }
     assert!(
         !names.iter().any(|n| n.contains("__rust_alloc")),
         "{names:?}"

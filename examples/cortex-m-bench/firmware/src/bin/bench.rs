@@ -10,7 +10,7 @@
 use core::hint::black_box;
 
 use flexdyn_cortex_m_firmware::{exit, line, measure, overhead, start_timer, thousand_nops, Cost};
-use flexdyn_runtime::nalgebra::{SMatrix, SVector};
+use flexdyn_runtime::nalgebra::{SMatrix, SVector, Scalar};
 use flexdyn_runtime::Model;
 
 #[path = "../models.rs"]
@@ -19,7 +19,72 @@ mod models;
 mod motion;
 use models::{parallel_robot_rigid as rigid, spin_up_beam as beam};
 
-type V12 = SVector<f64, 12>;
+/// The state at which the terms are measured: the robot's pose at `t = 0`
+/// on the circle (the first `NQ` values of `Q0` for another model) and
+/// some velocities.
+/// (`real` rounds to the model's scalar type).
+fn state<T: Scalar, const NQ: usize>(real: fn(f64) -> T) -> (SVector<T, NQ>, SVector<T, NQ>) {
+    let q = SVector::from_fn(|i, _| real(motion::Q0[i % 12]));
+    let qd = SVector::from_fn(|i, _| real(0.1 * i as f64 - 0.5));
+    (black_box(q), black_box(qd))
+}
+
+/// Measures the fused terms of model `$model` (module `$m` of `models`) in
+/// scalar type `$real`, reported as `$name.dynamics_terms`.
+macro_rules! measure_fused {
+    ($name:literal, $model:expr, $m:ident, $real:ty, $zero:expr) => {{
+        use models::$m::{NC, NQ};
+        let model = black_box($model);
+        let (q, qd) = state::<$real, NQ>(|x| x as $real);
+        let t: $real = black_box(0.0);
+        let mut m = SMatrix::<$real, NQ, NQ>::zeros();
+        let mut h = SVector::<$real, NQ>::zeros();
+        let mut phi_q = SMatrix::<$real, NC, NQ>::zeros();
+        let mut gamma = SVector::<$real, NC>::zeros();
+        report(
+            concat!($name, ".dynamics_terms"),
+            measure($zero, &mut || {
+                model.dynamics_terms(&q, &qd, t, &mut m, &mut h, &mut phi_q, &mut gamma)
+            }),
+        );
+        black_box((&m, &h, &phi_q, &gamma));
+    }};
+}
+
+/// Measures the model's separate terms, then the fused ones.
+macro_rules! measure_terms {
+    ($name:literal, $model:expr, $m:ident, $real:ty, $zero:expr) => {{
+        use models::$m::{NC, NQ};
+        let model = black_box($model);
+        let (q, qd) = state::<$real, NQ>(|x| x as $real);
+        let t: $real = black_box(0.0);
+        let mut m = SMatrix::<$real, NQ, NQ>::zeros();
+        let mut h = SVector::<$real, NQ>::zeros();
+        let mut phi = SVector::<$real, NC>::zeros();
+        let mut phi_q = SMatrix::<$real, NC, NQ>::zeros();
+        let mut gamma = SVector::<$real, NC>::zeros();
+        report(
+            concat!($name, ".mass_matrix"),
+            measure($zero, &mut || model.mass_matrix(&q, t, &mut m)),
+        );
+        report(
+            concat!($name, ".bias"),
+            measure($zero, &mut || model.bias(&q, &qd, t, &mut h)),
+        );
+        report(
+            concat!($name, ".constraints_and_jacobian"),
+            measure($zero, &mut || {
+                model.constraints_and_jacobian(&q, t, &mut phi, &mut phi_q)
+            }),
+        );
+        report(
+            concat!($name, ".constraint_rhs"),
+            measure($zero, &mut || model.constraint_rhs(&q, &qd, t, &mut gamma)),
+        );
+        black_box((&m, &h, &phi, &phi_q, &gamma));
+        measure_fused!($name, $model, $m, $real, $zero);
+    }};
+}
 
 fn report(name: &str, c: Cost) {
     line(format_args!("count {name} {} {}", c.instructions, c.stack));
@@ -32,53 +97,28 @@ fn main() -> ! {
     report("nop1000", measure(zero, &mut || thousand_nops()));
 
     let model = rigid::ParallelRobotRigid;
-    let q = black_box(V12::from(motion::Q0));
-    let qd = black_box(V12::from_fn(|i, _| 0.1 * i as f64 - 0.5));
-    let t = black_box(0.0);
-    let mut m = SMatrix::<f64, 12, 12>::zeros();
-    let mut h = V12::zeros();
-    let mut phi = SVector::<f64, 9>::zeros();
-    let mut phi_q = SMatrix::<f64, 9, 12>::zeros();
-    let mut gamma = SVector::<f64, 9>::zeros();
-    report(
-        "rigid.mass_matrix",
-        measure(zero, &mut || model.mass_matrix(&q, t, &mut m)),
+    measure_terms!("rigid", model, parallel_robot_rigid, f64, zero);
+    measure_terms!(
+        "rigid_f32",
+        models::f32::parallel_robot_rigid::ParallelRobotRigid,
+        parallel_robot_rigid,
+        f32,
+        zero
     );
-    report(
-        "rigid.bias",
-        measure(zero, &mut || model.bias(&q, &qd, t, &mut h)),
+    measure_fused!(
+        "spin_up_beam",
+        beam::SpinUpBeam::default(),
+        spin_up_beam,
+        f64,
+        zero
     );
-    report(
-        "rigid.constraints_and_jacobian",
-        measure(zero, &mut || {
-            model.constraints_and_jacobian(&q, t, &mut phi, &mut phi_q)
-        }),
+    measure_fused!(
+        "spin_up_beam_f32",
+        models::f32::spin_up_beam::SpinUpBeam::default(),
+        spin_up_beam,
+        f32,
+        zero
     );
-    report(
-        "rigid.constraint_rhs",
-        measure(zero, &mut || model.constraint_rhs(&q, &qd, t, &mut gamma)),
-    );
-    report(
-        "rigid.dynamics_terms",
-        measure(zero, &mut || {
-            model.dynamics_terms(&q, &qd, t, &mut m, &mut h, &mut phi_q, &mut gamma)
-        }),
-    );
-    black_box((&m, &h, &phi, &phi_q, &gamma));
-
-    let beam = black_box(beam::SpinUpBeam::default());
-    let bq = black_box(SVector::<f64, 5>::from_fn(|i, _| 0.1 * i as f64));
-    let mut bm = SMatrix::<f64, 5, 5>::zeros();
-    let mut bh = SVector::<f64, 5>::zeros();
-    let mut bphi_q = SMatrix::<f64, 1, 5>::zeros();
-    let mut bgamma = SVector::<f64, 1>::zeros();
-    report(
-        "spin_up_beam.dynamics_terms",
-        measure(zero, &mut || {
-            beam.dynamics_terms(&bq, &bq, t, &mut bm, &mut bh, &mut bphi_q, &mut bgamma)
-        }),
-    );
-    black_box((&bm, &bh, &bphi_q, &bgamma));
 
     let Some(mut solver) = motion::warm_solver(&model) else {
         exit(false)

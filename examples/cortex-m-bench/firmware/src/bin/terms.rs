@@ -1,7 +1,8 @@
 //! Calls every generated function of the rigid robot and of the flexible
-//! spin-up beam on opaque inputs and exits. Nothing else is linked, so the
-//! linked program contains panic machinery only if a generated function can
-//! reach it: the test of the thumbv7em build checks that it contains none.
+//! spin-up beam, in f64 and in f32, on opaque inputs and exits. Nothing else
+//! is linked, so the linked program contains panic machinery only if a
+//! generated function can reach it: the test of the thumbv7em build checks
+//! that it contains none.
 
 #![no_std]
 #![no_main]
@@ -15,39 +16,80 @@ use flexdyn_runtime::Model;
 #[path = "../models.rs"]
 mod models;
 
-/// Every method of the model, on inputs the compiler cannot see, with
-/// outputs it must keep.
+/// Every function of `model` (NQ, NC, NU: the module's constants), in
+/// scalar type `real`, on inputs the compiler cannot see, with outputs it
+/// must keep.
+macro_rules! all_terms {
+    ($model:expr, $m:ident, $real:ty) => {{
+        use models::$m::{NC, NQ, NU};
+        let model = black_box($model);
+        let q = black_box(SVector::<$real, NQ>::zeros());
+        let qd = black_box(SVector::<$real, NQ>::zeros());
+        let t: $real = black_box(0.0);
+        let mut m = SMatrix::<$real, NQ, NQ>::zeros();
+        let mut h = SVector::<$real, NQ>::zeros();
+        let mut phi = SVector::<$real, NC>::zeros();
+        let mut phi_q = SMatrix::<$real, NC, NQ>::zeros();
+        let mut phi_t = SVector::<$real, NC>::zeros();
+        let mut gamma = SVector::<$real, NC>::zeros();
+        let mut b = SMatrix::<$real, NQ, NU>::zeros();
+        model.mass_matrix(&q, t, &mut m);
+        model.bias(&q, &qd, t, &mut h);
+        model.constraints(&q, t, &mut phi);
+        model.constraint_jacobian(&q, t, &mut phi_q);
+        model.constraint_time_derivative(&q, t, &mut phi_t);
+        model.constraint_rhs(&q, &qd, t, &mut gamma);
+        model.actuator_map(&mut b);
+        black_box((&m, &h, &phi, &phi_q, &phi_t, &gamma, &b));
+        model.constraints_and_jacobian(&q, t, &mut phi, &mut phi_q);
+        model.dynamics_terms(&q, &qd, t, &mut m, &mut h, &mut phi_q, &mut gamma);
+        black_box((&m, &h, &phi, &phi_q, &gamma));
+        black_box(model.kinetic_energy(&q, &qd, t));
+        black_box(model.potential_energy(&q, t));
+    }};
+}
+
 #[inline(never)]
-fn all_terms<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize>(model: &M) {
-    let model = black_box(model);
-    let q = black_box(SVector::<f64, NQ>::zeros());
-    let qd = black_box(SVector::<f64, NQ>::zeros());
-    let t = black_box(0.0);
-    let mut m = SMatrix::<f64, NQ, NQ>::zeros();
-    let mut h = SVector::<f64, NQ>::zeros();
-    let mut phi = SVector::<f64, NC>::zeros();
-    let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
-    let mut phi_t = SVector::<f64, NC>::zeros();
-    let mut gamma = SVector::<f64, NC>::zeros();
-    let mut b = SMatrix::<f64, NQ, NU>::zeros();
-    model.mass_matrix(&q, t, &mut m);
-    model.bias(&q, &qd, t, &mut h);
-    model.constraints(&q, t, &mut phi);
-    model.constraint_jacobian(&q, t, &mut phi_q);
-    model.constraint_time_derivative(&q, t, &mut phi_t);
-    model.constraint_rhs(&q, &qd, t, &mut gamma);
-    model.actuator_map(&mut b);
-    black_box((&m, &h, &phi, &phi_q, &phi_t, &gamma, &b));
-    model.constraints_and_jacobian(&q, t, &mut phi, &mut phi_q);
-    model.dynamics_terms(&q, &qd, t, &mut m, &mut h, &mut phi_q, &mut gamma);
-    black_box((&m, &h, &phi, &phi_q, &gamma));
-    black_box(model.kinetic_energy(&q, &qd, t));
-    black_box(model.potential_energy(&q, t));
+fn rigid_f64() {
+    all_terms!(
+        models::parallel_robot_rigid::ParallelRobotRigid,
+        parallel_robot_rigid,
+        f64
+    );
+}
+
+#[inline(never)]
+fn beam_f64() {
+    all_terms!(
+        models::spin_up_beam::SpinUpBeam::default(),
+        spin_up_beam,
+        f64
+    );
+}
+
+#[inline(never)]
+fn rigid_f32() {
+    all_terms!(
+        models::f32::parallel_robot_rigid::ParallelRobotRigid,
+        parallel_robot_rigid,
+        f32
+    );
+}
+
+#[inline(never)]
+fn beam_f32() {
+    all_terms!(
+        models::f32::spin_up_beam::SpinUpBeam::default(),
+        spin_up_beam,
+        f32
+    );
 }
 
 #[no_mangle]
 fn main() -> ! {
-    all_terms(&models::parallel_robot_rigid::ParallelRobotRigid);
-    all_terms(&models::spin_up_beam::SpinUpBeam::default());
+    rigid_f64();
+    beam_f64();
+    rigid_f32();
+    beam_f32();
     exit(true)
 }

@@ -1,0 +1,588 @@
+//! The C interface of a generated module (opt-in, `Builder::c_interface`):
+//! `extern "C"` wrappers appended to the Rust module and the matching C
+//! header `<scene>.h`.
+//!
+//! Both are written from the generator's own data, never from scene text:
+//! the list of scheduled functions (one wrapper per function, so functions
+//! added to the schedule get their wrappers without changes here), the
+//! model's dimensions and its runtime parameters. Names are prefixed by the
+//! scene name made a C identifier ([`c_identifier`]). Conventions:
+//!
+//! * arrays are owned by the caller and passed as pointers, their sizes are
+//!   `#define`d in the header; matrices are row-major (entry `(i, j)` of an
+//!   `R x C` matrix at `[i * C + j]`);
+//! * the runtime parameters are one array in the header's order
+//!   (`<PREFIX>_PARAM_<name>` indices); a null pointer means the nominal
+//!   values;
+//! * every function returns a status code instead of panicking:
+//!   `<PREFIX>_OK`, `_NULL_POINTER` (a required pointer is null; nothing is
+//!   written), `_NON_FINITE` (an output is NaN or infinite: non-finite
+//!   inputs or a singular configuration; the outputs are written),
+//!   `_INVALID_ARGUMENT` and `_SOLVER_FAILED` (inverse dynamics);
+//! * inverse dynamics goes through the runtime's `InverseDynamics` with the
+//!   `NQ - NC` coordinates the caller prescribes (`<prefix>_solve_inverse_dynamics`,
+//!   emitted when `NQ > NC` and the scene has actuators): `q` is the initial
+//!   guess on entry (the previous call's solution, for a warm start) and the
+//!   solution on return.
+
+use proc_macro2::{Literal, TokenStream};
+use quote::{format_ident, quote};
+
+use crate::emit::struct_name;
+use crate::model::Model;
+use crate::schedule::{Function, Shape};
+
+/// Status codes, their names after the prefix and their meaning.
+const STATUS: [(&str, i32, &str); 5] = [
+    ("OK", 0, "success"),
+    ("NULL_POINTER", 1, "a required pointer is null; nothing was written"),
+    (
+        "NON_FINITE",
+        2,
+        "an output is NaN or infinite (non-finite inputs or a singular configuration); outputs were written",
+    ),
+    ("INVALID_ARGUMENT", 3, "a prescribed coordinate index is out of range or repeated"),
+    (
+        "SOLVER_FAILED",
+        4,
+        "the inverse-dynamics solve failed (no convergence, singular or ill-conditioned system, non-finite values)",
+    ),
+];
+
+/// `name` as a C (and Rust) identifier: ASCII letters, digits and `_`, any
+/// other character replaced by `_`, prefixed by `scene_` when it would
+/// start with a digit or be empty.
+pub fn c_identifier(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    if s.is_empty() || s.starts_with(|c: char| c.is_ascii_digit()) {
+        format!("scene_{s}")
+    } else {
+        s
+    }
+}
+
+/// An unsuffixed integer literal (`12`, not `12usize`).
+fn n(x: usize) -> Literal {
+    Literal::usize_unsuffixed(x)
+}
+
+/// Text safe inside a C block comment.
+fn comment(text: &str) -> String {
+    text.replace("*/", "* /")
+}
+
+/// One output array of a wrapped function.
+struct Array {
+    name: &'static str,
+    rows: usize,
+    cols: usize,
+    /// A vector (`SVector`), else a matrix (`SMatrix`).
+    vector: bool,
+}
+
+impl Array {
+    fn len(&self) -> usize {
+        self.rows * self.cols
+    }
+}
+
+/// One scheduled function, as the C interface sees it.
+struct Wrapped {
+    name: &'static str,
+    doc: &'static str,
+    with_qd: bool,
+    optional: bool,
+    /// Empty for a function returning one scalar.
+    outputs: Vec<Array>,
+}
+
+/// The C interface of one scene.
+pub struct CInterface {
+    prefix: String,
+    scene: String,
+    struct_name: String,
+    nq: usize,
+    nc: usize,
+    nu: usize,
+    coordinates: Vec<String>,
+    parameters: Vec<(String, f64)>,
+    functions: Vec<Wrapped>,
+}
+
+impl CInterface {
+    /// The interface of `model` with its scheduled `functions` (before they
+    /// are emitted).
+    pub fn new(model: &Model, functions: &[Function]) -> CInterface {
+        let nq = model.nq();
+        let functions = functions
+            .iter()
+            .map(|f| Wrapped {
+                name: f.sig.name,
+                doc: f.sig.doc,
+                with_qd: f.sig.with_qd,
+                optional: f.sig.optional,
+                outputs: f
+                    .outputs
+                    .iter()
+                    .map(|o| match o.shape {
+                        Shape::Vector => Array {
+                            name: o.name,
+                            rows: o.entries.first().map_or(0, Vec::len),
+                            cols: 1,
+                            vector: true,
+                        },
+                        Shape::Matrix { .. } => Array {
+                            name: o.name,
+                            rows: o.entries.len(),
+                            cols: nq,
+                            vector: false,
+                        },
+                    })
+                    .collect(),
+            })
+            .collect();
+        CInterface {
+            prefix: c_identifier(&model.name),
+            scene: model.name.clone(),
+            struct_name: struct_name(&model.name),
+            nq,
+            nc: model.constraints.len(),
+            nu: model.actuators.len(),
+            coordinates: model.coordinates.iter().map(|c| c.name.clone()).collect(),
+            parameters: model
+                .runtime_parameters
+                .iter()
+                .map(|p| (p.name.clone(), p.value))
+                .collect(),
+            functions,
+        }
+    }
+
+    fn upper(&self) -> String {
+        self.prefix.to_ascii_uppercase()
+    }
+
+    /// Whether the runtime's inverse dynamics is wrapped.
+    fn has_inverse(&self) -> bool {
+        self.nq > self.nc && self.nu > 0
+    }
+
+    /// The Rust wrappers, to append to the module (which names the runtime
+    /// by `runtime`).
+    pub fn rust(&self, runtime: &syn::Path) -> String {
+        let s = format_ident!("{}", self.struct_name);
+        let (nq, nc, nu) = (n(self.nq), n(self.nc), n(self.nu));
+        let model_trait = quote!(#runtime::Model<#nq, #nc, #nu>);
+        let fields = self.parameters.iter().enumerate().map(|(i, (name, _))| {
+            let f = format_ident!("{}", name);
+            let i = n(i);
+            quote!(#f: unsafe { *params.add(#i) },)
+        });
+        let c_model = if self.parameters.is_empty() {
+            quote!(unsafe fn c_model(_params: *const f64) -> #s { #s })
+        } else {
+            quote! {
+                unsafe fn c_model(params: *const f64) -> #s {
+                    if params.is_null() {
+                        #s::default()
+                    } else {
+                        #s { #(#fields)* }
+                    }
+                }
+            }
+        };
+        let status = STATUS.iter().map(|(name, value, doc)| {
+            let id = format_ident!("C_{}", name);
+            let doc = format!("C status code: {doc}.");
+            let value = Literal::i32_unsuffixed(*value);
+            quote!(#[doc = #doc] pub const #id: i32 = #value;)
+        });
+        let mut wrappers: Vec<TokenStream> = self
+            .functions
+            .iter()
+            .map(|f| self.wrapper(f, &s, &model_trait))
+            .collect();
+        wrappers.push(self.actuator_map(&s, &model_trait));
+        if self.has_inverse() {
+            wrappers.push(self.inverse(runtime));
+        }
+        let tokens = quote! {
+            #(#status)*
+
+            /// The model with the parameters at `params` (the header's
+            /// order), or the nominal ones when it is null.
+            #c_model
+
+            /// The `N` doubles at `p` as a vector.
+            unsafe fn c_read<const N: usize>(p: *const f64) -> SVector<f64, N> {
+                SVector::from_fn(|i, _| unsafe { *p.add(i) })
+            }
+
+            /// Writes `m` row-major to `out`; whether every entry is finite.
+            unsafe fn c_write<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>, out: *mut f64) -> bool {
+                for (k, x) in m.transpose().iter().enumerate() {
+                    unsafe { *out.add(k) = *x };
+                }
+                m.iter().all(|x| x.is_finite())
+            }
+
+            #(#wrappers)*
+        };
+        let file: syn::File = syn::parse2(tokens).expect("C wrappers form valid Rust");
+        format!(
+            "\n// The C interface (see {}.h).\n{}",
+            self.scene,
+            prettyplease::unparse(&file)
+        )
+    }
+
+    /// The `# Safety` section of a wrapper's docs.
+    fn safety_doc(arrays: &str) -> TokenStream {
+        let text = format!(
+            " Every pointer must be null (answered by `C_NULL_POINTER`) or point to as many \
+             doubles as the header says ({arrays}); `params`, when not null, to the parameters."
+        );
+        quote! {
+            #[doc = ""]
+            #[doc = " # Safety"]
+            #[doc = ""]
+            #[doc = #text]
+        }
+    }
+
+    fn wrapper(
+        &self,
+        f: &Wrapped,
+        s: &proc_macro2::Ident,
+        model_trait: &TokenStream,
+    ) -> TokenStream {
+        let cname = format_ident!("{}_{}", self.prefix, f.name);
+        let method = format_ident!("{}", f.name);
+        let nq = n(self.nq);
+        let doc = format!(" {} C: `{}`.", f.doc, self.c_signature(f));
+        let safety = Self::safety_doc("`q`, `qd`: NQ; each output its size");
+        let qd_arg = if f.with_qd {
+            quote!(qd: *const f64,)
+        } else {
+            quote!()
+        };
+        let qd_read = if f.with_qd {
+            quote!(let qd = unsafe { c_read::<#nq>(qd) };)
+        } else {
+            quote!()
+        };
+        let qd_pass = if f.with_qd { quote!(&qd,) } else { quote!() };
+        let qd_null = if f.with_qd {
+            quote!(|| qd.is_null())
+        } else {
+            quote!()
+        };
+        if f.outputs.is_empty() {
+            return quote! {
+                #[doc = #doc]
+                #safety
+                #[no_mangle]
+                pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, out: *mut f64) -> i32 {
+                    if q.is_null() #qd_null || out.is_null() {
+                        return C_NULL_POINTER;
+                    }
+                    let model = unsafe { c_model(params) };
+                    let q = unsafe { c_read::<#nq>(q) };
+                    #qd_read
+                    let value = <#s as #model_trait>::#method(&model, &q, #qd_pass t);
+                    unsafe { *out = value };
+                    if value.is_finite() { C_OK } else { C_NON_FINITE }
+                }
+            };
+        }
+        let args = f.outputs.iter().map(|o| {
+            let id = format_ident!("{}", o.name);
+            quote!(#id: *mut f64,)
+        });
+        let nulls = f.outputs.iter().filter(|o| o.len() > 0).map(|o| {
+            let id = format_ident!("{}", o.name);
+            quote!(|| #id.is_null())
+        });
+        let locals = f.outputs.iter().map(|o| {
+            let local = format_ident!("{}_", o.name);
+            let (r, c) = (n(o.rows), n(o.cols));
+            if o.vector {
+                quote!(let mut #local = SVector::<f64, #r>::zeros();)
+            } else {
+                quote!(let mut #local = SMatrix::<f64, #r, #c>::zeros();)
+            }
+        });
+        let pass = f.outputs.iter().map(|o| {
+            let local = format_ident!("{}_", o.name);
+            quote!(&mut #local,)
+        });
+        let call = quote!(<#s as #model_trait>::#method(&model, &q, #qd_pass t, #(#pass)*));
+        // Optional outputs return `true` (generated).
+        let call = if f.optional {
+            quote!(let _ = #call;)
+        } else {
+            quote!(#call;)
+        };
+        let writes = f.outputs.iter().map(|o| {
+            let (id, local) = (format_ident!("{}", o.name), format_ident!("{}_", o.name));
+            quote!(finite &= unsafe { c_write(&#local, #id) };)
+        });
+        quote! {
+            #[doc = #doc]
+            #safety
+            #[no_mangle]
+            pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, #(#args)*) -> i32 {
+                if q.is_null() #qd_null #(#nulls)* {
+                    return C_NULL_POINTER;
+                }
+                let model = unsafe { c_model(params) };
+                let q = unsafe { c_read::<#nq>(q) };
+                #qd_read
+                #(#locals)*
+                #call
+                let mut finite = true;
+                #(#writes)*
+                if finite { C_OK } else { C_NON_FINITE }
+            }
+        }
+    }
+
+    fn actuator_map(&self, s: &proc_macro2::Ident, model_trait: &TokenStream) -> TokenStream {
+        let cname = format_ident!("{}_actuator_map", self.prefix);
+        let (nq, nu) = (n(self.nq), n(self.nu));
+        let doc = format!(
+            " Actuator map `B` (NQ x NU, row-major): actuator `j` adds `B[:, j] tau[j]` to the \
+             generalized forces. C: `int {}_actuator_map(const double *params, double *b)`.",
+            self.prefix
+        );
+        let safety = Self::safety_doc("`b`: NQ * NU");
+        let null = if self.nq * self.nu > 0 {
+            quote!(if b.is_null() {
+                return C_NULL_POINTER;
+            })
+        } else {
+            quote!()
+        };
+        quote! {
+            #[doc = #doc]
+            #safety
+            #[no_mangle]
+            pub unsafe extern "C" fn #cname(params: *const f64, b: *mut f64) -> i32 {
+                #null
+                let model = unsafe { c_model(params) };
+                let mut b_ = SMatrix::<f64, #nq, #nu>::zeros();
+                <#s as #model_trait>::actuator_map(&model, &mut b_);
+                if unsafe { c_write(&b_, b) } { C_OK } else { C_NON_FINITE }
+            }
+        }
+    }
+
+    fn inverse(&self, runtime: &syn::Path) -> TokenStream {
+        let cname = format_ident!("{}_solve_inverse_dynamics", self.prefix);
+        let (nq, nc, nu) = (n(self.nq), n(self.nc), n(self.nu));
+        let np = n(self.nq - self.nc);
+        let doc = format!(
+            " Inverse dynamics (the runtime's `InverseDynamics`, default configuration): the \
+             coordinates `prescribed` (NP = NQ - NC indices) follow `p`, `v`, `a` at time `t`; \
+             solves the others from `q` (initial guess on entry, solution on return) and writes \
+             `qd`, `qdd`, the actuator inputs `tau` (NU) and the constraint forces `lambda` (NC). \
+             C: `{}`.",
+            self.inverse_signature()
+        );
+        let safety = Self::safety_doc(
+            "`prescribed`, `p`, `v`, `a`: NP; `q`, `qd`, `qdd`: NQ; `tau`: NU; `lambda`: NC",
+        );
+        let lambda_null = if self.nc > 0 {
+            quote!(|| lambda.is_null())
+        } else {
+            quote!()
+        };
+        quote! {
+            #[doc = #doc]
+            #safety
+            #[no_mangle]
+            #[allow(clippy::too_many_arguments)]
+            pub unsafe extern "C" fn #cname(
+                params: *const f64,
+                prescribed: *const usize,
+                q: *mut f64,
+                t: f64,
+                p: *const f64,
+                v: *const f64,
+                a: *const f64,
+                qd: *mut f64,
+                qdd: *mut f64,
+                tau: *mut f64,
+                lambda: *mut f64,
+            ) -> i32 {
+                if prescribed.is_null() || q.is_null() || p.is_null() || v.is_null() || a.is_null()
+                    || qd.is_null() || qdd.is_null() || tau.is_null() #lambda_null
+                {
+                    return C_NULL_POINTER;
+                }
+                let model = unsafe { c_model(params) };
+                let indices: [usize; #np] = core::array::from_fn(|i| unsafe { *prescribed.add(i) });
+                let guess = unsafe { c_read::<#nq>(q) };
+                let Ok(mut solver) = #runtime::InverseDynamics::<#nq, #nc, #nu, #np>::new(
+                    indices,
+                    guess,
+                    #runtime::InverseConfig::default(),
+                ) else {
+                    return C_INVALID_ARGUMENT;
+                };
+                let (p, v, a) = unsafe { (c_read::<#np>(p), c_read::<#np>(v), c_read::<#np>(a)) };
+                let mut sol = #runtime::InverseSolution::<#nq, #nc, #nu>::default();
+                if solver.solve(&model, t, &p, &v, &a, &mut sol).is_err() {
+                    return C_SOLVER_FAILED;
+                }
+                unsafe {
+                    c_write(&sol.q, q);
+                    c_write(&sol.qd, qd);
+                    c_write(&sol.qdd, qdd);
+                    c_write(&sol.tau, tau);
+                    c_write(&sol.lambda, lambda);
+                }
+                C_OK
+            }
+        }
+    }
+
+    fn c_signature(&self, f: &Wrapped) -> String {
+        let qd = if f.with_qd { "const double *qd, " } else { "" };
+        let outs: Vec<String> = if f.outputs.is_empty() {
+            vec!["double *out".into()]
+        } else {
+            f.outputs
+                .iter()
+                .map(|o| format!("double *{}", o.name))
+                .collect()
+        };
+        format!(
+            "int {}_{}(const double *params, const double *q, {qd}double t, {})",
+            self.prefix,
+            f.name,
+            outs.join(", ")
+        )
+    }
+
+    fn inverse_signature(&self) -> String {
+        format!(
+            "int {}_solve_inverse_dynamics(const double *params, const size_t *prescribed, \
+             double *q, double t, const double *p, const double *v, const double *a, \
+             double *qd, double *qdd, double *tau, double *lambda)",
+            self.prefix
+        )
+    }
+
+    /// The C header.
+    pub fn header(&self) -> String {
+        let up = self.upper();
+        let guard = format!("FLEXDYN_{up}_H");
+        let mut h = format!(
+            "/* @generated by flexdyn-codegen {}: the C interface of the generated Rust module\n   \
+             {}.rs (scene `{}`). Do not edit: edit the scene and regenerate. */\n\
+             #ifndef {guard}\n#define {guard}\n\n#include <stddef.h>\n\n\
+             #ifdef __cplusplus\nextern \"C\" {{\n#endif\n\n",
+            env!("CARGO_PKG_VERSION"),
+            c_identifier(&self.scene),
+            c_identifier(&self.scene),
+        );
+        h.push_str(
+            "/* Sizes. Arrays are owned by the caller; matrices are row-major: entry (i, j)\n   \
+             of an R x C matrix at [i * C + j]. */\n",
+        );
+        let np = if self.has_inverse() {
+            self.nq - self.nc
+        } else {
+            0
+        };
+        for (name, value, doc) in [
+            ("NQ", self.nq, "generalized coordinates"),
+            ("NC", self.nc, "constraints"),
+            ("NU", self.nu, "actuator inputs"),
+            ("NPARAMS", self.parameters.len(), "runtime parameters"),
+            ("NP", np, "prescribed coordinates of the inverse dynamics"),
+        ] {
+            h.push_str(&format!("#define {up}_{name} {value} /* {doc} */\n"));
+        }
+        h.push_str("\n/* Status codes returned by every function. */\n");
+        for (name, value, doc) in STATUS {
+            h.push_str(&format!(
+                "#define {up}_{name} {value} /* {} */\n",
+                comment(doc)
+            ));
+        }
+        h.push_str("\n/* Index of each coordinate in q. */\n");
+        for (i, c) in self.coordinates.iter().enumerate() {
+            h.push_str(&format!("#define {up}_Q_{} {i}\n", c_identifier(c)));
+        }
+        if !self.parameters.is_empty() {
+            h.push_str(
+                "\n/* Index of each runtime parameter in params (a null params means the\n   \
+                 nominal values, given in the comments). */\n",
+            );
+            for (i, (p, v)) in self.parameters.iter().enumerate() {
+                h.push_str(&format!(
+                    "#define {up}_PARAM_{} {i} /* nominal {v:?} */\n",
+                    c_identifier(p)
+                ));
+            }
+        }
+        h.push('\n');
+        for f in &self.functions {
+            let sizes: Vec<String> = f
+                .outputs
+                .iter()
+                .map(|o| format!("{} {} x {}", o.name, o.rows, o.cols))
+                .collect();
+            let sizes = if sizes.is_empty() {
+                "out: one double".to_owned()
+            } else {
+                sizes.join(", ")
+            };
+            h.push_str(&format!(
+                "/* {} ({sizes}) */\n{};\n\n",
+                comment(f.doc),
+                self.c_signature(f)
+            ));
+        }
+        h.push_str(&format!(
+            "/* Actuator map B (b {} x {}). */\nint {}_actuator_map(const double *params, double *b);\n\n",
+            self.nq, self.nu, self.prefix
+        ));
+        if self.has_inverse() {
+            h.push_str(&format!(
+                "/* Inverse dynamics: the NP coordinates `prescribed` follow p, v, a at time t;\n   \
+                 q holds the initial guess on entry (the previous solution) and the solution on\n   \
+                 return; writes qd, qdd (NQ), tau (NU), lambda (NC). */\n{};\n\n",
+                self.inverse_signature()
+            ));
+        }
+        h.push_str(&format!(
+            "#ifdef __cplusplus\n}}\n#endif\n\n#endif /* {guard} */\n"
+        ));
+        h
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_become_c_identifiers() {
+        for (name, c) in [
+            ("pendulum", "pendulum"),
+            ("robot-2 arm", "robot_2_arm"),
+            ("2dof", "scene_2dof"),
+            ("", "scene_"),
+            ("pend\u{fc}l", "pend_l"),
+        ] {
+            assert_eq!(c_identifier(name), c);
+        }
+        assert_eq!(comment("a */ b"), "a * / b");
+    }
+}
