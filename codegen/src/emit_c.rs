@@ -239,17 +239,22 @@ impl CInterface {
         )
     }
 
-    /// The `# Safety` section of a wrapper's docs.
-    fn safety_doc(arrays: &str) -> TokenStream {
-        let text = format!(
+    /// The exported C function `item` (`pub unsafe extern "C" fn ...`) with
+    /// its docs: `doc`, then the `# Safety` section naming the sizes of its
+    /// `arrays`.
+    fn export(doc: &str, arrays: &str, item: TokenStream) -> TokenStream {
+        let safety = format!(
             " Every pointer must be null (answered by `C_NULL_POINTER`) or point to as many \
              doubles as the header says ({arrays}); `params`, when not null, to the parameters."
         );
         quote! {
+            #[doc = #doc]
             #[doc = ""]
             #[doc = " # Safety"]
             #[doc = ""]
-            #[doc = #text]
+            #[doc = #safety]
+            #[no_mangle]
+            #item
         }
     }
 
@@ -263,7 +268,7 @@ impl CInterface {
         let method = format_ident!("{}", f.name);
         let nq = n(self.nq);
         let doc = format!(" {} C: `{}`.", f.doc, self.c_signature(f));
-        let safety = Self::safety_doc("`q`, `qd`: NQ; each output its size");
+        let arrays = "`q`, `qd`: NQ; each output its size";
         let qd_arg = if f.with_qd {
             quote!(qd: *const f64,)
         } else {
@@ -281,22 +286,23 @@ impl CInterface {
             quote!()
         };
         if f.outputs.is_empty() {
-            return quote! {
-                #[doc = #doc]
-                #safety
-                #[no_mangle]
-                pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, out: *mut f64) -> i32 {
-                    if q.is_null() #qd_null || out.is_null() {
-                        return C_NULL_POINTER;
+            return Self::export(
+                &doc,
+                arrays,
+                quote! {
+                    pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, out: *mut f64) -> i32 {
+                        if q.is_null() #qd_null || out.is_null() {
+                            return C_NULL_POINTER;
+                        }
+                        let model = unsafe { c_model(params) };
+                        let q = unsafe { c_read::<#nq>(q) };
+                        #qd_read
+                        let value = <#s as #model_trait>::#method(&model, &q, #qd_pass t);
+                        unsafe { *out = value };
+                        if value.is_finite() { C_OK } else { C_NON_FINITE }
                     }
-                    let model = unsafe { c_model(params) };
-                    let q = unsafe { c_read::<#nq>(q) };
-                    #qd_read
-                    let value = <#s as #model_trait>::#method(&model, &q, #qd_pass t);
-                    unsafe { *out = value };
-                    if value.is_finite() { C_OK } else { C_NON_FINITE }
-                }
-            };
+                },
+            );
         }
         let args = f.outputs.iter().map(|o| {
             let id = format_ident!("{}", o.name);
@@ -330,24 +336,25 @@ impl CInterface {
             let (id, local) = (format_ident!("{}", o.name), format_ident!("{}_", o.name));
             quote!(finite &= unsafe { c_write(&#local, #id) };)
         });
-        quote! {
-            #[doc = #doc]
-            #safety
-            #[no_mangle]
-            pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, #(#args)*) -> i32 {
-                if q.is_null() #qd_null #(#nulls)* {
-                    return C_NULL_POINTER;
+        Self::export(
+            &doc,
+            arrays,
+            quote! {
+                pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, #(#args)*) -> i32 {
+                    if q.is_null() #qd_null #(#nulls)* {
+                        return C_NULL_POINTER;
+                    }
+                    let model = unsafe { c_model(params) };
+                    let q = unsafe { c_read::<#nq>(q) };
+                    #qd_read
+                    #(#locals)*
+                    #call
+                    let mut finite = true;
+                    #(#writes)*
+                    if finite { C_OK } else { C_NON_FINITE }
                 }
-                let model = unsafe { c_model(params) };
-                let q = unsafe { c_read::<#nq>(q) };
-                #qd_read
-                #(#locals)*
-                #call
-                let mut finite = true;
-                #(#writes)*
-                if finite { C_OK } else { C_NON_FINITE }
-            }
-        }
+            },
+        )
     }
 
     fn actuator_map(&self, s: &proc_macro2::Ident, model_trait: &TokenStream) -> TokenStream {
@@ -358,7 +365,6 @@ impl CInterface {
              generalized forces. C: `int {}_actuator_map(const double *params, double *b)`.",
             self.prefix
         );
-        let safety = Self::safety_doc("`b`: NQ * NU");
         let null = if self.nq * self.nu > 0 {
             quote!(if b.is_null() {
                 return C_NULL_POINTER;
@@ -366,18 +372,19 @@ impl CInterface {
         } else {
             quote!()
         };
-        quote! {
-            #[doc = #doc]
-            #safety
-            #[no_mangle]
-            pub unsafe extern "C" fn #cname(params: *const f64, b: *mut f64) -> i32 {
-                #null
-                let model = unsafe { c_model(params) };
-                let mut b_ = SMatrix::<f64, #nq, #nu>::zeros();
-                <#s as #model_trait>::actuator_map(&model, &mut b_);
-                if unsafe { c_write(&b_, b) } { C_OK } else { C_NON_FINITE }
-            }
-        }
+        Self::export(
+            &doc,
+            "`b`: NQ * NU",
+            quote! {
+                pub unsafe extern "C" fn #cname(params: *const f64, b: *mut f64) -> i32 {
+                    #null
+                    let model = unsafe { c_model(params) };
+                    let mut b_ = SMatrix::<f64, #nq, #nu>::zeros();
+                    <#s as #model_trait>::actuator_map(&model, &mut b_);
+                    if unsafe { c_write(&b_, b) } { C_OK } else { C_NON_FINITE }
+                }
+            },
+        )
     }
 
     fn inverse(&self, runtime: &syn::Path) -> TokenStream {
@@ -392,62 +399,62 @@ impl CInterface {
              C: `{}`.",
             self.inverse_signature()
         );
-        let safety = Self::safety_doc(
-            "`prescribed`, `p`, `v`, `a`: NP; `q`, `qd`, `qdd`: NQ; `tau`: NU; `lambda`: NC",
-        );
         let lambda_null = if self.nc > 0 {
             quote!(|| lambda.is_null())
         } else {
             quote!()
         };
-        quote! {
-            #[doc = #doc]
-            #safety
-            #[no_mangle]
-            #[allow(clippy::too_many_arguments)]
-            pub unsafe extern "C" fn #cname(
-                params: *const f64,
-                prescribed: *const usize,
-                q: *mut f64,
-                t: f64,
-                p: *const f64,
-                v: *const f64,
-                a: *const f64,
-                qd: *mut f64,
-                qdd: *mut f64,
-                tau: *mut f64,
-                lambda: *mut f64,
-            ) -> i32 {
-                if prescribed.is_null() || q.is_null() || p.is_null() || v.is_null() || a.is_null()
-                    || qd.is_null() || qdd.is_null() || tau.is_null() #lambda_null
-                {
-                    return C_NULL_POINTER;
+        let arrays =
+            "`prescribed`, `p`, `v`, `a`: NP; `q`, `qd`, `qdd`: NQ; `tau`: NU; `lambda`: NC";
+        Self::export(
+            &doc,
+            arrays,
+            quote! {
+                #[allow(clippy::too_many_arguments)]
+                pub unsafe extern "C" fn #cname(
+                    params: *const f64,
+                    prescribed: *const usize,
+                    q: *mut f64,
+                    t: f64,
+                    p: *const f64,
+                    v: *const f64,
+                    a: *const f64,
+                    qd: *mut f64,
+                    qdd: *mut f64,
+                    tau: *mut f64,
+                    lambda: *mut f64,
+                ) -> i32 {
+                    if prescribed.is_null() || q.is_null() || p.is_null() || v.is_null() || a.is_null()
+                        || qd.is_null() || qdd.is_null() || tau.is_null() #lambda_null
+                    {
+                        return C_NULL_POINTER;
+                    }
+                    let model = unsafe { c_model(params) };
+                    let indices: [usize; #np] = core::array::from_fn(|i| unsafe { *prescribed.add(i) });
+                    let guess = unsafe { c_read::<#nq>(q) };
+                    let Ok(mut solver) = #runtime::InverseDynamics::<#nq, #nc, #nu, #np>::new(
+                        indices,
+                        guess,
+                        #runtime::InverseConfig::default(),
+                    ) else {
+                        return C_INVALID_ARGUMENT;
+                    };
+                    let (p, v, a) = unsafe { (c_read::<#np>(p), c_read::<#np>(v), c_read::<#np>(a)) };
+                    let mut sol = #runtime::InverseSolution::<#nq, #nc, #nu>::default();
+                    if solver.solve(&model, t, &p, &v, &a, &mut sol).is_err() {
+                        return C_SOLVER_FAILED;
+                    }
+                    unsafe {
+                        c_write(&sol.q, q);
+                        c_write(&sol.qd, qd);
+                        c_write(&sol.qdd, qdd);
+                        c_write(&sol.tau, tau);
+                        c_write(&sol.lambda, lambda);
+                    }
+                    C_OK
                 }
-                let model = unsafe { c_model(params) };
-                let indices: [usize; #np] = core::array::from_fn(|i| unsafe { *prescribed.add(i) });
-                let guess = unsafe { c_read::<#nq>(q) };
-                let Ok(mut solver) = #runtime::InverseDynamics::<#nq, #nc, #nu, #np>::new(
-                    indices,
-                    guess,
-                    #runtime::InverseConfig::default(),
-                ) else {
-                    return C_INVALID_ARGUMENT;
-                };
-                let (p, v, a) = unsafe { (c_read::<#np>(p), c_read::<#np>(v), c_read::<#np>(a)) };
-                let mut sol = #runtime::InverseSolution::<#nq, #nc, #nu>::default();
-                if solver.solve(&model, t, &p, &v, &a, &mut sol).is_err() {
-                    return C_SOLVER_FAILED;
-                }
-                unsafe {
-                    c_write(&sol.q, q);
-                    c_write(&sol.qd, qd);
-                    c_write(&sol.qdd, qdd);
-                    c_write(&sol.tau, tau);
-                    c_write(&sol.lambda, lambda);
-                }
-                C_OK
-            }
-        }
+            },
+        )
     }
 
     fn c_signature(&self, f: &Wrapped) -> String {

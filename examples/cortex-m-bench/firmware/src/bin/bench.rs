@@ -21,39 +21,18 @@ use models::{parallel_robot_rigid as rigid, spin_up_beam as beam};
 
 /// The state at which the terms are measured: the robot's pose at `t = 0`
 /// on the circle (the first `NQ` values of `Q0` for another model) and
-/// some velocities.
-/// (`real` rounds to the model's scalar type).
+/// some velocities, rounded to the model's scalar type by `real`.
 fn state<T: Scalar, const NQ: usize>(real: fn(f64) -> T) -> (SVector<T, NQ>, SVector<T, NQ>) {
     let q = SVector::from_fn(|i, _| real(motion::Q0[i % 12]));
     let qd = SVector::from_fn(|i, _| real(0.1 * i as f64 - 0.5));
     (black_box(q), black_box(qd))
 }
 
-/// Measures the fused terms of model `$model` (module `$m` of `models`) in
-/// scalar type `$real`, reported as `$name.dynamics_terms`.
-macro_rules! measure_fused {
-    ($name:literal, $model:expr, $m:ident, $real:ty, $zero:expr) => {{
-        use models::$m::{NC, NQ};
-        let model = black_box($model);
-        let (q, qd) = state::<$real, NQ>(|x| x as $real);
-        let t: $real = black_box(0.0);
-        let mut m = SMatrix::<$real, NQ, NQ>::zeros();
-        let mut h = SVector::<$real, NQ>::zeros();
-        let mut phi_q = SMatrix::<$real, NC, NQ>::zeros();
-        let mut gamma = SVector::<$real, NC>::zeros();
-        report(
-            concat!($name, ".dynamics_terms"),
-            measure($zero, &mut || {
-                model.dynamics_terms(&q, &qd, t, &mut m, &mut h, &mut phi_q, &mut gamma)
-            }),
-        );
-        black_box((&m, &h, &phi_q, &gamma));
-    }};
-}
-
-/// Measures the model's separate terms, then the fused ones.
+/// Measures model `$model` (module `$m` of `models`) in scalar type
+/// `$real`: its separate terms when `$separate`, then its fused terms,
+/// reported as `$name.<function>`.
 macro_rules! measure_terms {
-    ($name:literal, $model:expr, $m:ident, $real:ty, $zero:expr) => {{
+    ($name:literal, $model:expr, $m:ident, $real:ty, $zero:expr, $separate:expr) => {{
         use models::$m::{NC, NQ};
         let model = black_box($model);
         let (q, qd) = state::<$real, NQ>(|x| x as $real);
@@ -63,26 +42,33 @@ macro_rules! measure_terms {
         let mut phi = SVector::<$real, NC>::zeros();
         let mut phi_q = SMatrix::<$real, NC, NQ>::zeros();
         let mut gamma = SVector::<$real, NC>::zeros();
+        if $separate {
+            report(
+                concat!($name, ".mass_matrix"),
+                measure($zero, &mut || model.mass_matrix(&q, t, &mut m)),
+            );
+            report(
+                concat!($name, ".bias"),
+                measure($zero, &mut || model.bias(&q, &qd, t, &mut h)),
+            );
+            report(
+                concat!($name, ".constraints_and_jacobian"),
+                measure($zero, &mut || {
+                    model.constraints_and_jacobian(&q, t, &mut phi, &mut phi_q)
+                }),
+            );
+            report(
+                concat!($name, ".constraint_rhs"),
+                measure($zero, &mut || model.constraint_rhs(&q, &qd, t, &mut gamma)),
+            );
+        }
         report(
-            concat!($name, ".mass_matrix"),
-            measure($zero, &mut || model.mass_matrix(&q, t, &mut m)),
-        );
-        report(
-            concat!($name, ".bias"),
-            measure($zero, &mut || model.bias(&q, &qd, t, &mut h)),
-        );
-        report(
-            concat!($name, ".constraints_and_jacobian"),
+            concat!($name, ".dynamics_terms"),
             measure($zero, &mut || {
-                model.constraints_and_jacobian(&q, t, &mut phi, &mut phi_q)
+                model.dynamics_terms(&q, &qd, t, &mut m, &mut h, &mut phi_q, &mut gamma)
             }),
         );
-        report(
-            concat!($name, ".constraint_rhs"),
-            measure($zero, &mut || model.constraint_rhs(&q, &qd, t, &mut gamma)),
-        );
         black_box((&m, &h, &phi, &phi_q, &gamma));
-        measure_fused!($name, $model, $m, $real, $zero);
     }};
 }
 
@@ -97,27 +83,30 @@ fn main() -> ! {
     report("nop1000", measure(zero, &mut || thousand_nops()));
 
     let model = rigid::ParallelRobotRigid;
-    measure_terms!("rigid", model, parallel_robot_rigid, f64, zero);
+    measure_terms!("rigid", model, parallel_robot_rigid, f64, zero, true);
     measure_terms!(
         "rigid_f32",
         models::f32::parallel_robot_rigid::ParallelRobotRigid,
         parallel_robot_rigid,
         f32,
-        zero
+        zero,
+        true
     );
-    measure_fused!(
+    measure_terms!(
         "spin_up_beam",
         beam::SpinUpBeam::default(),
         spin_up_beam,
         f64,
-        zero
+        zero,
+        false
     );
-    measure_fused!(
+    measure_terms!(
         "spin_up_beam_f32",
         models::f32::spin_up_beam::SpinUpBeam::default(),
         spin_up_beam,
         f32,
-        zero
+        zero,
+        false
     );
 
     let Some(mut solver) = motion::warm_solver(&model) else {
