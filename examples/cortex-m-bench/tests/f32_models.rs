@@ -16,6 +16,8 @@ use flexdyn_runtime::Model;
 
 #[path = "../firmware/src/models.rs"]
 mod models;
+// Shared with the firmware; this test does not use the call count.
+#[allow(dead_code)]
 #[path = "../firmware/src/motion.rs"]
 mod motion;
 
