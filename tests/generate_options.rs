@@ -1,0 +1,74 @@
+//! `flexdyn generate`'s options for embedded use: `--c-header` writes the
+//! module with its `extern "C"` wrappers and the header `<name>.h` that the
+//! builder produces, `--precision f32` an f32 module; asking for both is a
+//! clear error that writes nothing.
+
+use std::process::Command;
+
+use flexdyn_codegen::Builder;
+
+const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
+
+fn generate(out: &std::path::Path, extra: &[&str]) -> std::process::Output {
+    Command::new(BIN)
+        .args([
+            "generate",
+            "--quiet",
+            "--scene",
+            "scenes/pendulum.toml",
+            "--out",
+        ])
+        .arg(out)
+        .args(extra)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("flexdyn runs")
+}
+
+#[test]
+fn c_header_and_precision_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let c = dir.path().join("c");
+    let out = generate(&c, &["--c-header"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let expected = Builder::new()
+        .scene(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/pendulum.toml"))
+        .c_interface(true)
+        .out_dir(dir.path().join("builder"))
+        .generate()
+        .unwrap();
+    let header = std::fs::read_to_string(c.join("pendulum.h")).unwrap();
+    assert_eq!(Some(&header), expected.scenes[0].c_header.as_ref());
+    let module = std::fs::read_to_string(c.join("pendulum.rs")).unwrap();
+    assert_eq!(module, expected.scenes[0].source);
+    assert!(module.contains("pub unsafe extern \"C\" fn pendulum_mass_matrix("));
+
+    let f32 = dir.path().join("f32");
+    let out = generate(&f32, &["--precision", "f32"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let module = std::fs::read_to_string(f32.join("pendulum.rs")).unwrap();
+    assert!(module.contains("use flexdyn_runtime::math::f32 as math;"));
+    assert!(!f32.join("pendulum.h").exists());
+
+    let both = dir.path().join("both");
+    let out = generate(&both, &["--precision", "f32", "--c-header"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("the C interface is generated for f64 models only"),
+        "{stderr}"
+    );
+    assert!(!both.exists(), "nothing is written");
+
+    let out = generate(&both, &["--precision", "f16"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("f16"));
+}
