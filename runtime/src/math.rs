@@ -52,7 +52,7 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 ///
 /// `sin`, `cos` and `sin_cos` are computed in `f32` arithmetic only (the
 /// `libm` crate's `sincosf` evaluates in `f64`, which a Cortex-M4F emulates
-/// in software at about 1,900 instructions per call): `x = k pi/2 + r` with
+/// in software at about 1,800 instructions per call): `x = k pi/2 + r` with
 /// `k` the nearest integer to `2 x / pi` and `r` in `[-pi/4, pi/4]`, `pi/2`
 /// split into three `f32` parts (the first two with few enough bits that
 /// their products with `k` are exact for `|x| <= 6000`), then the Taylor
