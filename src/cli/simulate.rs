@@ -327,23 +327,7 @@ fn drives(
     if let Some(path) = &args.inputs_csv {
         let table = Table::read(path)?;
         let file = path.display();
-        let t = table.column("t").map_err(|_| {
-            format!(
-                "{file}: no column `t` (columns: {})",
-                table.columns.join(", ")
-            )
-        })?;
-        if t.is_empty() {
-            return Err(format!("{file}: no rows"));
-        }
-        if let Some(k) = (1..t.len()).find(|&k| t[k] <= t[k - 1]) {
-            return Err(format!(
-                "{file}: line {}: t = {} does not increase (previous row: {})",
-                k + 2,
-                t[k],
-                t[k - 1]
-            ));
-        }
+        let t = table.times(path)?;
         for name in table.columns.iter().filter(|c| *c != "t") {
             let v = table.column(name)?;
             let signal = Signal::Column { t: t.clone(), v };

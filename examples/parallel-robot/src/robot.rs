@@ -427,19 +427,19 @@ pub const SERVO_RHO_INF: f64 = 0.0;
 /// on the path at `times[0]` ([`initial_state`]). Returns the state and the
 /// torques at every time; `tick` is called after each.
 ///
-/// Each step is a predictor-corrector pair: a trial step of the servo model
+/// Each step is a predictor-corrector pair
+/// ([`flexdyn_runtime::control::servo_run`]): a trial step of the servo model
 /// gives the torques at the step's end; the step taken is the plain model's
 /// under the torques interpolated linearly over the step, from the same
 /// integrator memory. So the recorded trajectory is exactly the one that
 /// `parallel-robot simulate` reproduces (same scheme and step) from the
-/// torque table. This is [`flexdyn_runtime::control::servo_run`]'s scheme
-/// except that the trial step is taken without the coordinate projection,
-/// so that the torques are those at the state its Newton iteration
-/// converged to: projecting the trial state moves the stiff elastic
-/// coordinates off the iteration's accelerations, and the torques there
-/// differ by up to 3 N m at 10 rad/s; at the coarse steps of the hard cases
-/// (0.05 s) the run then fails (singular Newton matrix after seven steps).
-/// `servo_run` offers no way to switch the trial's projection off. For a
+/// torque table. The trial step is taken without the coordinate projection
+/// ([`flexdyn_runtime::control::ServoConfig::trial_projection`] off), so
+/// that the torques are those at the state its Newton iteration converged
+/// to: projecting the trial state moves the stiff elastic coordinates off the
+/// iteration's accelerations, and the torques there differ by up to 3 N m at
+/// 10 rad/s; at the coarse steps of the hard cases (0.05 s) the run then
+/// fails (singular Newton matrix after seven steps). For a
 /// scene with no elastic coordinates this reproduces the rigid inverse
 /// dynamics. Every point of the path is checked against the closed-form
 /// inverse kinematics first, which tells precisely why one cannot be reached.
@@ -454,10 +454,8 @@ pub fn flexible_inverse<M, const NQ: usize, const NC: usize>(
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
-    use flexdyn_runtime::control::{Coordinates, Servo, ServoConfig, ServoSample, Target};
+    use flexdyn_runtime::control::{servo_run, Coordinates, Servo, ServoConfig, Target};
     use flexdyn_runtime::integrate::{GeneralizedAlpha, StepSettings};
-    use flexdyn_runtime::nalgebra::SVector;
-    use flexdyn_runtime::{Integrator, Linear};
     let Some(&t0) = times.first() else {
         return Ok(Vec::new());
     };
@@ -490,6 +488,7 @@ where
     // The servo's closure stabilisation must be the integrator's.
     let servo_config = ServoConfig {
         dynamics: settings.dynamics,
+        trial_projection: false,
         ..Default::default()
     };
     let servo = Servo::new(model, Coordinates(layout.platform), path, servo_config)
@@ -500,31 +499,12 @@ where
         ..Default::default()
     };
     let mut integ = GeneralizedAlpha::<NQ, NC>::new(settings, config);
-    let err = |e: flexdyn_runtime::Error| e.to_string();
-    let mut tau = servo.solve(&state.q, &state.qd, t0).map_err(err)?.tau;
     let mut out = Vec::with_capacity(times.len());
-    out.push(ServoSample { state, tau });
-    tick();
-    let zero = SVector::<f64, 3>::zeros();
-    for _ in 1..times.len() {
-        // The trial step without the projection (see above).
-        let mut trial_integ = integ;
-        trial_integ.settings.projection = None;
-        let mut trial = state;
-        Integrator::<NQ, NC, 3>::step(&mut trial_integ, &servo, &mut trial, &zero, dt)
-            .map_err(|e| servo.take_failure().unwrap_or(e).to_string())?;
-        let next = servo.solve(&trial.q, &trial.qd, trial.t).map_err(err)?.tau;
-        let input = Linear {
-            t0: state.t,
-            tau0: tau,
-            t1: trial.t,
-            tau1: next,
-        };
-        Integrator::<NQ, NC, 3>::step(&mut integ, model, &mut state, &input, dt).map_err(err)?;
-        tau = next;
-        out.push(ServoSample { state, tau });
+    servo_run(&servo, &mut integ, &mut state, dt, times.len() - 1, |s| {
+        out.push(*s);
         tick();
-    }
+    })
+    .map_err(|e| e.to_string())?;
     Ok(out)
 }
 
