@@ -415,6 +415,7 @@ fn command_follows_sampled_prescriptions_from_a_csv() {
         )
     };
     let text = run(&samples, "1").unwrap();
+    std::fs::remove_file(d.join("out.csv")).unwrap();
     let out = flexdyn::table::Table::parse(&text).unwrap();
     let (t, tau) = (out.column("t").unwrap(), out.column("tau").unwrap());
     let mut worst = 0.0f64;
