@@ -573,7 +573,7 @@ fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
         qd[i] = w[c];
     }
     let residual = (phi_q * qd + phi_t).amax();
-    if !(residual <= 1e-9 * (1.0 + rhs.amax())) {
+    if residual.is_nan() || residual > 1e-9 * (1.0 + rhs.amax()) {
         return Err(format!(
             "at t = {t} s: the velocity constraints cannot be met with the prescribed rates \
              (residual {residual:.3e})"

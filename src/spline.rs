@@ -19,6 +19,8 @@
 //! second derivative) when the function's own second derivative vanishes
 //! at the ends, `O(h^2)` near the ends otherwise.
 
+use std::cmp::Ordering;
+
 /// A natural cubic spline through samples.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Spline {
@@ -40,7 +42,8 @@ impl Spline {
                 y.len()
             ));
         }
-        if let Some(k) = (1..n).find(|&k| !(t[k] > t[k - 1])) {
+        let increasing = |k: usize| t[k].partial_cmp(&t[k - 1]) == Some(Ordering::Greater);
+        if let Some(k) = (1..n).find(|&k| !increasing(k)) {
             return Err(format!(
                 "spline times must increase: t = {} after {}",
                 t[k],
