@@ -529,10 +529,12 @@ fn least_energy_velocities<const NQ: usize>(
     Ok(SVector::from_iterator(qd.iter().copied()))
 }
 
-/// The velocities with `Phi_q qd + Phi_t = 0`, `qd_S = v`, nonzero only on
-/// `S` and on the first columns of `Phi_q` outside `S` (in order) that are
-/// independent ([`FreeRates::Zero`]).
-fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
+/// The velocities with `Phi_q qd + Phi_t = 0` and `qd_S = v` (`S` the
+/// coordinates `index`), nonzero only on `S` and on the first columns of
+/// `Phi_q` outside `S` (in order) that are independent: the rates the
+/// velocity constraints need, every other one zero ([`FreeRates::Zero`]).
+/// An error names `t` when the constraints cannot be met so.
+pub fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
     phi_q: &SMatrix<f64, NC, NQ>,
     phi_t: &SVector<f64, NC>,
     index: &[usize; NU],

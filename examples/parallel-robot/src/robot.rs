@@ -929,9 +929,6 @@ pub const RIGID_COORDINATES: [&str; 12] = [
     "th11", "th12", "th13", "th21", "th22", "th23", "th31", "th32", "th33", "px", "py", "pz",
 ];
 
-/// Names of the platform's small-rotation coordinates in the flexible scenes.
-pub const PLATFORM_ROTATIONS: [&str; 3] = ["apx", "apy", "apz"];
-
 /// Where a robot scene keeps the quantities the robot commands need, found
 /// by name (coordinates) and from the actuator map (actuated joints).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1008,9 +1005,13 @@ impl Layout {
 /// platform held at `p` ([`static_equilibrium`]: the elastic coordinates at
 /// their gravity sag, the joint angles adjusted to it), so that a run does
 /// not start by releasing the undeformed structure under load. Rates: the
-/// platform's `v`, every other rate from the velocity constraints (minimum
-/// norm; for the rigid robot the nine joint rates exactly). Checked to
-/// satisfy the position and velocity constraints to `1e-9`.
+/// platform's `v`, and those the velocity constraints need on the first
+/// coordinates in the scene's order whose constraint columns are independent
+/// ([`flexdyn::inverse::needed_velocities`], as `flexdyn inverse
+/// --free-rates zero`): the joint rates and the platform's rotation rates
+/// (the robot scenes list them before the elastic coordinates); the elastic
+/// rates are zero. Checked to satisfy the position and velocity constraints
+/// to `1e-9`.
 pub fn initial_state<M, const NQ: usize, const NC: usize>(
     model: &M,
     layout: &Layout,
@@ -1022,7 +1023,7 @@ pub fn initial_state<M, const NQ: usize, const NC: usize>(
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
-    use flexdyn_runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
+    use flexdyn_runtime::nalgebra::{SMatrix, SVector};
     let rigid = inverse_kinematics(g, p).map_err(|e| format!("initial state: {e}"))?;
     let mut q = SVector::<f64, NQ>::zeros();
     for (k, &i) in layout.rigid.iter().enumerate() {
@@ -1031,34 +1032,12 @@ where
     if layout.is_flexible() {
         q = static_equilibrium(model, layout, &q, t)?.0;
     }
-    let mut qd = SVector::<f64, NQ>::zeros();
-    for k in 0..3 {
-        qd[layout.platform[k]] = v[k];
-    }
-    // The joint rates (and the platform's rotation rates, where it has
-    // rotation coordinates): Phi_q[:, free] w = -(Phi_q qd_platform + Phi_t),
-    // least squares; the elastic rates stay zero.
     let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
     let mut phi_t = SVector::<f64, NC>::zeros();
     model.constraint_jacobian(&q, t, &mut phi_q);
     model.constraint_time_derivative(&q, t, &mut phi_t);
-    let mut free: Vec<usize> = layout.rigid[..9].to_vec();
-    free.extend(
-        M::COORDINATES
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| PLATFORM_ROTATIONS.contains(c))
-            .map(|(i, _)| i),
-    );
-    let a = DMatrix::from_fn(NC, free.len(), |r, c| phi_q[(r, free[c])]);
-    let rhs = DVector::from_iterator(NC, (-(phi_q * qd + phi_t)).iter().copied());
-    let w = a
-        .svd(true, true)
-        .solve(&rhs, 1e-12)
+    let qd = flexdyn::inverse::needed_velocities(&phi_q, &phi_t, &layout.platform, &v.into(), t)
         .map_err(|e| format!("initial state: {e}"))?;
-    for (c, &i) in free.iter().enumerate() {
-        qd[i] = w[c];
-    }
     let state = flexdyn_runtime::State::new(q, qd, t);
     let drift = flexdyn_runtime::constraint_drift(model, &state);
     if !(drift.position < 1e-9 && drift.velocity < 1e-9) {
