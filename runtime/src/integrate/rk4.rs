@@ -155,6 +155,10 @@ where
 }
 
 impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for Rk4 {
+    fn settings_mut(&mut self) -> &mut StepSettings {
+        &mut self.settings
+    }
+
     fn step<M, I>(
         &mut self,
         model: &M,
