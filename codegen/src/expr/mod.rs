@@ -14,6 +14,7 @@
 //! is a topological order of the graph.
 
 mod diff;
+mod reverse;
 
 use std::collections::HashMap;
 use std::fmt;
