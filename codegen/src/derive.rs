@@ -1,13 +1,17 @@
-//! Stage 4, derive: Lagrange's equations, derived per component and
-//! assembled.
+//! Stage 4, derive: Lagrange's equations from the scene's energies.
 //!
-//! For each component with energies `T(q, qd, t)`, `V(q, t)` and dissipation
-//! `D(q, qd, t)`, over the coordinates it touches:
+//! With the kinetic energy `T(q, qd, t)`, potential energy `V(q, t)` and
+//! dissipation `D(q, qd, t)` summed over the components:
 //!
-//! * mass matrix block `M = d2T/dqd2`;
-//! * Coriolis/centrifugal forces `c = d/dt(dT/dqd)|_(qdd=0) - dT/dq`;
-//! * potential (gravity and elastic) forces `g = dV/dq`;
-//! * damping forces `d = dD/dqd`.
+//! * `dT/dq` and the momenta `p = dT/dqd` come from one reverse-mode sweep
+//!   over `T` (`Graph::gradient`), whose cost is a small multiple of the size
+//!   of `T`; on a serial chain, where rigid bodies share their frames, that
+//!   size grows linearly with the number of links;
+//! * Coriolis/centrifugal forces `c = d/dt p|_(qdd=0) - dT/dq`, the time
+//!   derivative being one forward-mode sweep over `p` (`q' = qd`, `t' = 1`);
+//! * mass matrix `M_ij = dp_i/dqd_j`: one forward sweep over `p` per column;
+//! * potential (gravity and elastic) forces `g = dV/dq`, damping forces
+//!   `d = dD/dqd`: one reverse sweep each.
 //!
 //! The system is `M qdd + c + g + d = Phi_q^T lambda + B tau`. For the
 //! constraints `Phi(q, t)`: `Phi_q`, `Phi_t` and the acceleration right-hand
@@ -78,63 +82,48 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     let n = model.nq();
     let g = &mut model.graph;
     let zero = g.constant(0.0);
-    let mut mass = vec![vec![zero; n]; n];
-    let mut coriolis = vec![zero; n];
-    let mut potential_forces = vec![zero; n];
-    let mut damping_forces = vec![zero; n];
-    let mut kinetic = Vec::new();
-    let mut potential = Vec::new();
-
     for c in &model.components {
-        kinetic.push(c.kinetic);
-        potential.push(c.potential);
-        let ctx = || format!("component `{}`", c.name);
         if c.potential != zero && uses_velocity(g, c.potential) {
             return Err(DeriveError {
-                context: ctx(),
+                context: format!("component `{}`", c.name),
                 message: "potential energy depends on velocities".into(),
             });
         }
-        // Kinetic energy: mass block and Coriolis forces over touched coordinates.
-        if c.kinetic != zero {
-            let touched = touched(g, c.kinetic);
-            let qd_vars: Vec<Symbol> = touched.iter().map(|&i| Symbol::Qd(i as u32)).collect();
-            let momenta = g.gradient(c.kinetic, &qd_vars);
-            for (a, &i) in touched.iter().enumerate() {
-                for (b, &j) in touched.iter().enumerate().skip(a) {
-                    let d = g.diff(momenta[a], qd_vars[b]);
-                    mass[i][j] = g.add(mass[i][j], d);
-                    mass[j][i] = mass[i][j];
-                }
-            }
-            let rates = g.time_derivative_at_zero_acceleration(&momenta);
-            for (a, &i) in touched.iter().enumerate() {
-                let dtdq = g.diff(c.kinetic, Symbol::Q(i as u32));
-                let ci = g.sub(rates[a], dtdq);
-                coriolis[i] = g.add(coriolis[i], ci);
-            }
-        }
-        if c.potential != zero {
-            for i in touched(g, c.potential) {
-                let d = g.diff(c.potential, Symbol::Q(i as u32));
-                potential_forces[i] = g.add(potential_forces[i], d);
-            }
-        }
-        if c.dissipation != zero {
-            for i in touched(g, c.dissipation) {
-                let d = g.diff(c.dissipation, Symbol::Qd(i as u32));
-                damping_forces[i] = g.add(damping_forces[i], d);
-            }
+    }
+    let kinetic: Vec<Id> = model.components.iter().map(|c| c.kinetic).collect();
+    let potential: Vec<Id> = model.components.iter().map(|c| c.potential).collect();
+    let dissipation: Vec<Id> = model.components.iter().map(|c| c.dissipation).collect();
+    let kinetic_energy = g.sum(&kinetic);
+    let potential_energy = g.sum(&potential);
+    let dissipation = g.sum(&dissipation);
+
+    let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
+    let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
+    // One reverse sweep over T gives dT/dq and the momenta p = dT/dqd.
+    let both: Vec<Symbol> = q_vars.iter().chain(&qd_vars).copied().collect();
+    let grad = g.gradient(kinetic_energy, &both);
+    let (dtdq, momenta) = grad.split_at(n);
+    // Coriolis forces: one forward sweep over the momenta.
+    let rates = g.time_derivative_at_zero_acceleration(momenta);
+    let coriolis: Vec<Id> = (0..n).map(|i| g.sub(rates[i], dtdq[i])).collect();
+    // Mass matrix, column by column: M_ij = dp_i/dqd_j (upper triangle).
+    let one = g.constant(1.0);
+    let mut mass = vec![vec![zero; n]; n];
+    for j in 0..n {
+        let column = g.jvp(&momenta[..=j], &[(Symbol::Qd(j as u32), one)]);
+        for (i, &m) in column.iter().enumerate() {
+            mass[i][j] = m;
+            mass[j][i] = m;
         }
     }
+    let potential_forces = g.gradient(potential_energy, &q_vars);
+    let damping_forces = g.gradient(dissipation, &qd_vars);
     // The exact bias forces; the prune stage may drop summands of their
     // parts (and recompute them), while the bias Jacobians (a Newton matrix,
     // which need not be exact) stay those of the exact forces.
     let bias: Vec<Id> = (0..n)
         .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
         .collect();
-    let kinetic_energy = g.sum(&kinetic);
-    let potential_energy = g.sum(&potential);
 
     let coriolis_matrix = if model.outputs.coriolis_matrix {
         check_quadratic_kinetic(g, kinetic_energy, &model.runtime_parameters)?;
@@ -143,11 +132,10 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         None
     };
 
-    let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
-    let bias_jacobians = model.outputs.bias_jacobians.then(|| {
-        let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
-        (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars))
-    });
+    let bias_jacobians = model
+        .outputs
+        .bias_jacobians
+        .then(|| (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars)));
 
     // Constraints.
     let phi: Vec<Id> = model.constraints.iter().map(|c| c.residual).collect();
@@ -186,21 +174,6 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         gamma,
         actuator_map,
     })
-}
-
-/// Indices of the coordinates an expression touches (through `q` or `qd`).
-fn touched(g: &Graph, e: Id) -> Vec<usize> {
-    let mut out: Vec<usize> = g
-        .symbols(&[e])
-        .into_iter()
-        .filter_map(|s| match s {
-            Symbol::Q(i) | Symbol::Qd(i) => Some(i as usize),
-            _ => None,
-        })
-        .collect();
-    out.sort_unstable();
-    out.dedup();
-    out
 }
 
 fn uses_velocity(g: &Graph, e: Id) -> bool {
