@@ -12,12 +12,13 @@ Two families of scenes, written by this script into a temporary directory:
 
 For each ``n`` it records the operation counts of ``bias``,
 ``mass_matrix``, ``dynamics_terms`` and ``inverse_dynamics`` (from the
-``@generated`` header), the generation time (wall time of ``flexdyn
-generate``, median of three runs) and, with ``--compile``, the release-mode
-compile time of the generated module (a small crate whose library calls
-every generated function; its dependencies are built once beforehand and not
-counted). It then fits the growth exponent ``k`` of ``ops ~ n^k`` by least
-squares on ``log ops`` against ``log n`` over ``n >= 8``.
+``@generated`` header), the generation time (as ``flexdyn generate``
+reports it, median of three runs) and, with ``--compile``, the release-mode
+compile time of the generated module (``benches/scaling.py``'s crate, whose
+library calls every generated function; its dependencies are built once
+beforehand and not counted). It then fits the growth exponent ``k`` of
+``ops ~ n^k`` by least squares on ``log ops`` against ``log n`` over
+``n >= 8``.
 
 Usage (from the repository root, after ``cargo build --release``):
 
@@ -32,13 +33,14 @@ import argparse
 import math
 import re
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import scaling  # noqa: E402 (generation and compile timing shared with it)
+
+REPO = scaling.REPO
 FUNCTIONS = ["bias", "mass_matrix", "dynamics_terms", "inverse_dynamics"]
 AXES = ["z", "y", "x"]
 
@@ -103,59 +105,6 @@ def op_counts(module: str) -> dict[str, int]:
     return ops
 
 
-def generate(flexdyn: str, scene: Path, out: Path) -> float:
-    times = []
-    for _ in range(3):
-        start = time.perf_counter()
-        subprocess.run([flexdyn, "generate", "--quiet", "--scene", str(scene), "--out", str(out)],
-                       check=True)
-        times.append(time.perf_counter() - start)
-        for f in out.glob("*.rs"):
-            f.touch()  # the next run rewrites nothing: time it all the same
-    return statistics.median(times)
-
-
-CRATE_TOML = """[package]
-name = "chain_compile"
-version = "0.0.0"
-edition = "2021"
-[dependencies]
-flexdyn-runtime = {{ path = "{runtime}" }}
-[profile.release]
-debug = false
-"""
-
-
-def compile_time(module: Path, work: Path) -> float:
-    """Release-mode compile time of the module in a crate that uses it."""
-    crate = work / "crate"
-    (crate / "src").mkdir(parents=True, exist_ok=True)
-    (crate / "Cargo.toml").write_text(CRATE_TOML.format(runtime=REPO / "runtime"))
-    lib = crate / "src/lib.rs"
-    if not lib.exists():
-        lib.write_text("")
-        subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=crate, check=True)
-    name = module.stem
-    lib.write_text(
-        f'#![allow(dead_code)]\npub mod scene {{ include!("{module}"); }}\n'
-        "use flexdyn_runtime::Model;\n"
-        "#[no_mangle]\npub extern \"C\" fn run(x: &mut [f64]) {\n"
-        "    let m = scene::Model::default();\n"
-        "    let n = scene::NQ;\n"
-        "    let (q, rest) = x.split_at_mut(n);\n"
-        "    let (qd, rest) = rest.split_at_mut(n);\n"
-        "    let (qdd, rest) = rest.split_at_mut(n);\n"
-        "    let (tau, rest) = rest.split_at_mut(n);\n"
-        "    let (h, mm) = rest.split_at_mut(n);\n"
-        "    let q = flexdyn_runtime::nalgebra::DVector::from_column_slice(q);\n"
-        "    let _ = (&m, &q, qd, qdd, tau, h, mm, name_len());\n"
-        "}\n"
-        f"fn name_len() -> usize {{ {len(name)} }}\n")
-    start = time.perf_counter()
-    subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=crate, check=True)
-    return time.perf_counter() - start
-
-
 def fit_exponent(ns: list[int], ys: list[float]) -> float:
     pts = [(math.log(n), math.log(y)) for n, y in zip(ns, ys) if n >= 8 and y > 0]
     if len(pts) < 2:
@@ -179,19 +128,18 @@ def main() -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        crate = scaling.make_crate(tmp) if args.compile else None
         for fam in families:
             for n in ns:
                 scene = tmp / f"{fam}{n}.toml"
                 scene.write_text(FAMILIES[fam](n))
-                out = tmp / f"out_{fam}{n}"
-                out.mkdir()
-                gen = generate(args.flexdyn, scene, out)
-                module = next(out.glob("*.rs"))
+                ms, _, _, module = scaling.generate(Path(args.flexdyn), scene, tmp)
                 ops = op_counts(module.read_text())
-                row = {"family": fam, "n": n, "generate_s": gen}
+                row = {"family": fam, "n": n, "generate_s": ms / 1e3}
                 row.update({f: ops.get(f, 0) for f in FUNCTIONS})
-                if args.compile:
-                    row["compile_s"] = compile_time(module, tmp)
+                if crate is not None:
+                    row["compile_s"] = scaling.compile_time(crate, module)
+                module.unlink()
                 rows.append(row)
                 print(row, flush=True)
     cols = ["family", "n"] + FUNCTIONS + ["generate_s"] + (["compile_s"] if args.compile else [])

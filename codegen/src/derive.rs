@@ -6,10 +6,16 @@
 //! * `dT/dq` and the momenta `p = dT/dqd` come from one reverse-mode sweep
 //!   over `T` (`Graph::gradient`), whose cost is a small multiple of the size
 //!   of `T`; on a serial chain, where rigid bodies share their frames, that
-//!   size grows linearly with the number of links;
+//!   size grows linearly with the number of links. Components that touch at
+//!   most [`FORWARD_MAX_COORDINATES`] coordinates are differentiated on
+//!   their own in forward mode instead, where the expanded derivatives
+//!   simplify further;
 //! * Coriolis/centrifugal forces `c = d/dt p|_(qdd=0) - dT/dq`, the time
 //!   derivative being one forward-mode sweep over `p` (`q' = qd`, `t' = 1`);
 //! * mass matrix `M_ij = dp_i/dqd_j`: one forward sweep over `p` per column;
+//! * inverse dynamics `M qdd + h = dp/dt - dT/dq + g + d`, the time
+//!   derivative along `q' = qd`, `qd' = qdd`, `t' = 1` (`Symbol::Qdd`): one
+//!   forward sweep, no mass matrix formed;
 //! * potential (gravity and elastic) forces `g = dV/dq`, damping forces
 //!   `d = dD/dqd`: one reverse sweep each.
 //!
@@ -39,6 +45,8 @@ pub struct Equations {
     pub damping_forces: Vec<Id>,
     /// Bias forces `h = coriolis + potential_forces + damping_forces`.
     pub bias: Vec<Id>,
+    /// Inverse dynamics `M qdd + h`, in the accelerations `Symbol::Qdd`.
+    pub inverse_dynamics: Vec<Id>,
     /// Coriolis matrix from Christoffel symbols, when asked for.
     pub coriolis_matrix: Option<Vec<Vec<Id>>>,
     /// Jacobians of the bias forces `(dh/dq, dh/dqd)`, when asked for;
@@ -99,15 +107,21 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
 
     let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
     let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
-    // One reverse sweep over T gives dT/dq and the momenta p = dT/dqd.
-    let both: Vec<Symbol> = q_vars.iter().chain(&qd_vars).copied().collect();
-    let grad = g.gradient(kinetic_energy, &both);
-    let (dtdq, momenta) = grad.split_at(n);
+    let (dtdq, momenta) = kinetic_gradient(g, &model.components, n);
+    let (dtdq, momenta) = (&dtdq[..], &momenta[..]);
     // Coriolis forces: one forward sweep over the momenta.
     let rates = g.time_derivative_at_zero_acceleration(momenta);
     let coriolis: Vec<Id> = (0..n).map(|i| g.sub(rates[i], dtdq[i])).collect();
-    // Mass matrix, column by column: M_ij = dp_i/dqd_j (upper triangle).
+    // dp/dt along the motion (q' = qd, qd' = qdd, t' = 1): one more sweep.
     let one = g.constant(1.0);
+    let mut motion: Vec<(Symbol, Id)> = vec![(Symbol::Time, one)];
+    for i in 0..n {
+        let (qd, qdd) = (g.qd(i), g.symbol(Symbol::Qdd(i as u32)));
+        motion.push((Symbol::Q(i as u32), qd));
+        motion.push((Symbol::Qd(i as u32), qdd));
+    }
+    let momentum_rates = g.jvp(momenta, &motion);
+    // Mass matrix, column by column: M_ij = dp_i/dqd_j (upper triangle).
     let mut mass = vec![vec![zero; n]; n];
     for j in 0..n {
         let column = g.jvp(&momenta[..=j], &[(Symbol::Qd(j as u32), one)]);
@@ -123,6 +137,17 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     // which need not be exact) stay those of the exact forces.
     let bias: Vec<Id> = (0..n)
         .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
+        .collect();
+    let inverse_dynamics: Vec<Id> = (0..n)
+        .map(|i| {
+            let terms = [
+                (momentum_rates[i], 1.0),
+                (dtdq[i], -1.0),
+                (potential_forces[i], 1.0),
+                (damping_forces[i], 1.0),
+            ];
+            g.linear(&terms, 0.0)
+        })
         .collect();
 
     let coriolis_matrix = if model.outputs.coriolis_matrix {
@@ -164,6 +189,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         potential_forces,
         damping_forces,
         bias,
+        inverse_dynamics,
         coriolis_matrix,
         bias_jacobians,
         kinetic_energy,
@@ -174,6 +200,65 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         gamma,
         actuator_map,
     })
+}
+
+/// Components whose kinetic energy touches at most this many coordinates are
+/// differentiated on their own, in forward mode, one partial derivative per
+/// coordinate: their expanded derivatives simplify (like terms, `sin^2 +
+/// cos^2`) to less than the factored adjoint form. The others (links of a
+/// chain, flexible bodies with their modes) go through one reverse sweep
+/// together, sharing the frames they have in common.
+const FORWARD_MAX_COORDINATES: usize = 4;
+
+/// `(dT/dq, dT/dqd)` of the total kinetic energy: forward mode per small
+/// component, one reverse sweep over the sum of the others.
+fn kinetic_gradient(
+    g: &mut Graph,
+    components: &[crate::model::Component],
+    n: usize,
+) -> (Vec<Id>, Vec<Id>) {
+    let zero = g.constant(0.0);
+    let (mut dtdq, mut momenta) = (vec![zero; n], vec![zero; n]);
+    let mut shared = Vec::new();
+    for c in components.iter().filter(|c| c.kinetic != zero) {
+        let touched = touched(g, c.kinetic);
+        if touched.len() > FORWARD_MAX_COORDINATES {
+            shared.push(c.kinetic);
+            continue;
+        }
+        for i in touched {
+            let dq = g.diff(c.kinetic, Symbol::Q(i as u32));
+            let dqd = g.diff(c.kinetic, Symbol::Qd(i as u32));
+            dtdq[i] = g.add(dtdq[i], dq);
+            momenta[i] = g.add(momenta[i], dqd);
+        }
+    }
+    let shared = g.sum(&shared);
+    let vars: Vec<Symbol> = (0..n)
+        .map(|i| Symbol::Q(i as u32))
+        .chain((0..n).map(|i| Symbol::Qd(i as u32)))
+        .collect();
+    let grad = g.gradient(shared, &vars);
+    for i in 0..n {
+        dtdq[i] = g.add(dtdq[i], grad[i]);
+        momenta[i] = g.add(momenta[i], grad[n + i]);
+    }
+    (dtdq, momenta)
+}
+
+/// Indices of the coordinates an expression touches (through `q` or `qd`).
+fn touched(g: &Graph, e: Id) -> Vec<usize> {
+    let mut out: Vec<usize> = g
+        .symbols(&[e])
+        .into_iter()
+        .filter_map(|s| match s {
+            Symbol::Q(i) | Symbol::Qd(i) => Some(i as usize),
+            _ => None,
+        })
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 fn uses_velocity(g: &Graph, e: Id) -> bool {
@@ -230,7 +315,7 @@ fn check_quadratic_kinetic(
             g.eval(&[kinetic], &|s| match s {
                 Symbol::Q(i) => 0.3 + 0.17 * f64::from(i + trial),
                 Symbol::Qd(i) => scale * (0.5 - 0.23 * f64::from((i * 7 + trial) % 5)),
-                Symbol::Time => 0.0,
+                Symbol::Time | Symbol::Qdd(_) => 0.0,
                 Symbol::Param(i) => params[i as usize].value,
             })[0]
         };

@@ -49,6 +49,7 @@ pub fn struct_name(scene: &str) -> String {
 struct Inputs {
     q: bool,
     qd: bool,
+    qdd: bool,
     t: bool,
 }
 
@@ -165,6 +166,10 @@ impl Emitter<'_> {
             Code::Sym(Symbol::Qd(i)) => {
                 let i = usize_lit(*i as usize);
                 quote!(qd[#i])
+            }
+            Code::Sym(Symbol::Qdd(i)) => {
+                let i = usize_lit(*i as usize);
+                quote!(qdd[#i])
             }
             Code::Sym(Symbol::Time) => quote!(t),
             Code::Sym(Symbol::Param(i)) => {
@@ -305,6 +310,7 @@ impl Emitter<'_> {
         Inputs {
             q: syms.iter().any(|s| matches!(s, Symbol::Q(_))),
             qd: syms.iter().any(|s| matches!(s, Symbol::Qd(_))),
+            qdd: syms.iter().any(|s| matches!(s, Symbol::Qdd(_))),
             t: syms.contains(&Symbol::Time),
         }
     }
@@ -381,10 +387,20 @@ impl Emitter<'_> {
         } else {
             quote!()
         };
+        let qdd_arg = if sig.with_qdd {
+            let qdd = if used.qdd {
+                format_ident!("qdd")
+            } else {
+                format_ident!("_qdd")
+            };
+            quote!(#qdd: &SVector<f64, #nq>,)
+        } else {
+            quote!()
+        };
         quote! {
             #[doc = #doc]
             #[inline]
-            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #t: f64, #args) #ret {
+            fn #fname(&self, #q: &SVector<f64, #nq>, #qd_arg #qdd_arg #t: f64, #args) #ret {
                 #body
                 #assigns
                 #tail

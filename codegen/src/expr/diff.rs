@@ -140,7 +140,7 @@ mod tests {
             Symbol::Q(i) => q[i as usize],
             Symbol::Qd(i) => q[2 + i as usize],
             Symbol::Time => q[4],
-            Symbol::Param(_) => 1.3,
+            Symbol::Param(_) | Symbol::Qdd(_) => 1.3,
         })[0]
     }
 
