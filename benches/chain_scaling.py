@@ -24,7 +24,7 @@ Usage (from the repository root, after ``cargo build --release``):
 
     python3 benches/chain_scaling.py [--family spatial|planar|both]
         [--n 2,4,8,16,32] [--compile] [--csv out.csv] [--plot out.png]
-        [--flexdyn target/release/flexdyn]
+        [--before earlier.csv] [--flexdyn target/release/flexdyn]
 """
 
 from __future__ import annotations
@@ -121,6 +121,7 @@ def main() -> int:
     ap.add_argument("--compile", action="store_true")
     ap.add_argument("--csv")
     ap.add_argument("--plot")
+    ap.add_argument("--before", help="a CSV of an earlier run (--csv), drawn dashed in the plot")
     ap.add_argument("--flexdyn", default=str(REPO / "target/release/flexdyn"))
     args = ap.parse_args()
     ns = [int(x) for x in args.n.split(",")]
@@ -161,14 +162,27 @@ def main() -> int:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        before = []
+        if args.before:
+            with open(args.before) as f:
+                head = f.readline().strip().split(",")
+                before = [dict(zip(head, line.strip().split(","))) for line in f if line.strip()]
         fig, axes = plt.subplots(1, len(families), figsize=(6 * len(families), 4.5), squeeze=False)
         for ax, fam in zip(axes[0], families):
             sub = [r for r in rows if r["family"] == fam]
-            for f in FUNCTIONS:
-                if any(r[f] for r in sub):
-                    ax.loglog([r["n"] for r in sub], [r[f] for r in sub], "o-", label=f)
+            old = [r for r in before if r["family"] == fam]
+            for k, f in enumerate(FUNCTIONS):
+                ns, ys = [r["n"] for r in sub], [r[f] for r in sub]
+                if any(ys):
+                    ax.loglog(ns, ys, "o-", color=f"C{k}",
+                              label=f"{f} (n^{fit_exponent(ns, ys):.2f})")
+                old_ns = [int(r["n"]) for r in old if int(r[f])]
+                old_ys = [int(r[f]) for r in old if int(r[f])]
+                if old_ys:
+                    ax.loglog(old_ns, old_ys, "x--", color=f"C{k}", alpha=0.6,
+                              label=f"{f} before (n^{fit_exponent(old_ns, old_ys):.2f})")
             ax.set_xlabel("links n")
-            ax.set_ylabel("operations")
+            ax.set_ylabel("operations (emitted program)")
             ax.set_title(fam)
             ax.grid(True, which="both", alpha=0.3)
             ax.legend()
