@@ -355,11 +355,16 @@ fn negative_mass_for_every_massive_type() {
             ));
             let e = fail(&text);
             let at = locate(&text, "mass =", mass);
+            // A rigid body may be massless (a URDF link), so only negative.
+            let need = match kind {
+                "rigid_body" => "mass must be non-negative",
+                _ => "mass must be positive",
+            };
             check(
                 &e,
                 at,
                 Some("component `part`"),
-                &["mass must be positive", &format!("found {shown}")],
+                &[need, &format!("found {shown}")],
             );
         }
     }
@@ -414,10 +419,12 @@ fn rigid_body(inertia: &str) -> String {
 }
 
 #[test]
-fn inertia_must_be_positive_definite() {
+fn inertia_must_be_positive_semi_definite() {
     assert!(load(&rigid_body("[[1, 0, 0], [0, 2, 0], [0, 0, 3]]")).is_ok());
+    // Singular tensors: a thin rod, a point.
+    assert!(load(&rigid_body("[[1, 0, 0], [0, 0, 0], [0, 0, 1]]")).is_ok());
+    assert!(load(&rigid_body("[0, 0, 0]")).is_ok());
     for inertia in [
-        "[[1, 0, 0], [0, 0, 0], [0, 0, 1]]",
         "[[1, 0, 0], [0, 1, 0], [0, 0, -0.5]]",
         "[[1, 2, 0], [2, 1, 0], [0, 0, 1]]",
     ] {
@@ -428,7 +435,7 @@ fn inertia_must_be_positive_definite() {
             &e,
             at,
             Some("component `body`"),
-            &["inertia tensor is not positive definite"],
+            &["inertia tensor is not positive semi-definite"],
         );
     }
 }
