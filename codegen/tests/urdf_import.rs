@@ -6,6 +6,10 @@
 
 use std::path::Path;
 
+#[path = "common/energies.rs"]
+mod common;
+
+use common::energies;
 use flexdyn_codegen::{import_urdf, Error, Model, Source, Symbol, UrdfOptions};
 
 fn import(urdf: &str) -> Result<String, Error> {
@@ -27,30 +31,13 @@ fn load(text: &str) -> Model {
         .unwrap_or_else(|e| panic!("{e}\n{text}"))
 }
 
-/// Total T and V at (q, qd).
-fn energies(model: &Model, q: &[f64], qd: &[f64]) -> (f64, f64) {
-    let ids: Vec<_> = model
-        .components
-        .iter()
-        .flat_map(|c| [c.kinetic, c.potential])
-        .collect();
-    let values = model.graph.eval(&ids, &|s| match s {
-        Symbol::Q(i) => q[i as usize],
-        Symbol::Qd(i) => qd[i as usize],
-        _ => 0.0,
-    });
-    values
-        .chunks(2)
-        .fold((0.0, 0.0), |(t, v), c| (t + c[0], v + c[1]))
-}
-
 fn assert_same_energies(a: &Model, b: &Model, n: usize) {
     for k in 0..25 {
         let x = k as f64;
         let q: Vec<f64> = (0..n).map(|i| (0.7 * x + i as f64).sin() * 2.0).collect();
         let qd: Vec<f64> = (0..n).map(|i| (1.3 * x - i as f64).cos() * 3.0).collect();
-        let (ta, va) = energies(a, &q, &qd);
-        let (tb, vb) = energies(b, &q, &qd);
+        let (ta, va) = energies(a, &q, &qd, &[]);
+        let (tb, vb) = energies(b, &q, &qd, &[]);
         assert!(
             (ta - tb).abs() <= 1e-12 * tb.abs().max(1.0),
             "T {ta} vs {tb}"
