@@ -5,7 +5,8 @@
 //! fingers held fixed) and Baxter (a tree with prismatic joints), to 1e-12
 //! of each term's scale. Plus a negative run: with one inertia entry of
 //! each imported scene changed by a relative 1e-6 the comparison must fail.
-//! The Python environment is the CasADi validation's (`common/python_env.rs`).
+//! The shipped `scenes/ur5.toml` must be the import of today. The Python
+//! environment is the CasADi validation's (`common/python_env.rs`).
 
 #[path = "common/python_env.rs"]
 mod python_env;
@@ -34,7 +35,8 @@ fn validate(extra: &[&str]) -> Option<(Option<i32>, String)> {
 
 #[test]
 fn imported_robots_match_pinocchio() {
-    let Some((code, text)) = validate(&[]) else {
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let Some((code, text)) = validate(&["--shipped", scenes]) else {
         return;
     };
     println!("{text}");

@@ -968,3 +968,32 @@ fn valid_scenes_are_written_once() {
     let third = run();
     assert_eq!(third.written, vec![out.path().join("two.rs")]);
 }
+
+#[test]
+fn negative_armature_is_rejected() {
+    let text = scene(
+        "[[components]]\nname = \"p\"\ntype = \"point_mass\"\nmass = 1\nposition = [\"x\", 0, 0]\n\n\
+         [[actuators]]\nname = \"u\"\ncoordinate = \"x\"\narmature = -0.5\n",
+    );
+    let e = fail(&text);
+    let at = locate(&text, "armature", "-0.5");
+    check(
+        &e,
+        at,
+        Some("actuator `u`"),
+        &["armature must be non-negative"],
+    );
+    // A valid one adds `armature qd^2 / 2` to the kinetic energy.
+    let m = load(&text.replace("-0.5", "0.5")).unwrap();
+    let rotor = m
+        .components
+        .iter()
+        .find(|c| c.name == "u_armature")
+        .unwrap();
+    let x = m.coordinates.iter().position(|c| c.name == "x").unwrap();
+    let t = m.graph.eval(&[rotor.kinetic], &|s| match s {
+        flexdyn_codegen::Symbol::Qd(i) if i as usize == x => 3.0,
+        _ => 0.7,
+    })[0];
+    assert_eq!(t, 0.5 * 0.5 * 9.0);
+}

@@ -7,7 +7,8 @@ interpreter) at seeded random states, and compare with Pinocchio's
 `crba` (symmetrized), `nonLinearEffects` and `rnea` (against M qdd + h).
 Joints are matched by name. Pinocchio leaves joint damping out of both;
 the damping forces `d qd` of the URDF's `<dynamics damping>` are added to
-its values. Errors are relative to the scale of each term: the largest
+its values. The UR5 is validated a second time with rotor inertias
+(`armature` on its actuators, Pinocchio's `model.armature`). Errors are relative to the scale of each term: the largest
 magnitude of the reference over all states.
 
 For UR5 and Panda the imported scene's generated Rust module
@@ -20,7 +21,11 @@ otherwise. `--perturb` changes one inertia entry of each imported scene
 (the first entry of the last rigid body's inertia, times 1 + 1e-6) before
 evaluating it: the comparison must then fail.
 
-Usage: validate.py --flexdyn BIN --work DIR [--states N] [--perturb]
+`--shipped DIR` checks that the scenes shipped in DIR for these robots
+(`ur5.toml` in `scenes/`) are the import of today, below their header
+comment.
+
+Usage: validate.py --flexdyn BIN --work DIR [--states N] [--perturb] [--shipped DIR]
 """
 
 import argparse
@@ -51,6 +56,22 @@ ROBOTS = [
     # A tree with prismatic joints (grippers), 19 moving joints.
     ("baxter", "baxter_description/urdf/baxter.urdf", [], False),
 ]
+
+# Robots validated again with rotor inertias: `armature = ARMATURE[k]` added
+# to the k-th actuator of the imported scene, `model.armature` set alike.
+ARMATURE = {"ur5": [0.3, 0.25, 0.2, 0.05, 0.04, 0.03]}
+
+
+def add_armature(text, values):
+    """`armature = v` after the `coordinate = ...` line of each actuator."""
+    parts = text.split("[[actuators]]\n")
+    out = [parts[0]]
+    for part, v in zip(parts[1:], values, strict=True):
+        lines = part.split("\n")
+        k = next(i for i, l in enumerate(lines) if l.startswith("coordinate = "))
+        lines.insert(k + 1, f"armature = {v!r}")
+        out.append("\n".join(lines))
+    return "[[actuators]]\n".join(out)
 
 
 def robots_dir():
@@ -105,12 +126,29 @@ def reference_model(path, fixed):
     return model
 
 
-def validate(name, path, fixed, scan, args):
+def validate(name, path, fixed, scan, args, armature=None):
     scene = os.path.join(args.work, f"{name}.toml")
     cmd = [args.flexdyn, "import", "urdf", path, "--out", scene]
     for j in fixed:
         cmd += ["--fix", j]
     run(cmd)
+    ok = True
+    shipped = args.shipped and os.path.join(args.shipped, f"{name}.toml")
+    if shipped and not armature and os.path.exists(shipped):
+        with open(shipped) as f:
+            text = f.read()
+        with open(scene) as f:
+            fresh = f.read()
+        same = text[text.index("# Imported by") :] == fresh
+        ok &= same
+        print(f"{name}: shipped {shipped} {'is the import' if same else 'FAILED: differs from a fresh import'}")
+    if armature:
+        with open(scene) as f:
+            text = add_armature(f.read(), armature)
+        scene = os.path.join(args.work, f"{name}_armature.toml")
+        with open(scene, "w") as f:
+            f.write(text)
+        name += " with armature"
     if args.perturb:
         with open(scene) as f:
             text = perturb(f.read())
@@ -121,10 +159,12 @@ def validate(name, path, fixed, scan, args):
     n = len(coordinates)
 
     model = reference_model(path, fixed)
-    data = model.createData()
     joints = {}
     for jid in range(1, model.njoints):
         joints[identifier(model.names[jid])] = model.joints[jid]
+    for c, v in zip(coordinates, armature or []):
+        model.armature[joints[c].idx_v] = v
+    data = model.createData()
     missing = [c for c in coordinates if c not in joints]
     if missing or model.nv != n:
         sys.exit(f"{name}: coordinates {coordinates} do not match Pinocchio's joints {list(joints)}")
@@ -152,11 +192,12 @@ def validate(name, path, fixed, scan, args):
         tau = pin.rnea(model, data, qp, vp, ap) + damping
         refs.append((m[np.ix_(order, order)], h[order], tau[order], qdd))
         states.append({"q": q.tolist(), "qd": qd.tolist(), "t": 0.0})
-    states_file = os.path.join(args.work, f"{name}.states.json")
+    stem = os.path.splitext(os.path.basename(scene))[0]
+    states_file = os.path.join(args.work, f"{stem}.states.json")
     with open(states_file, "w") as f:
         json.dump({"states": states}, f)
-    out_file = os.path.join(args.work, f"{name}.eval.json")
-    run([args.flexdyn, "eval", "--scene", scene, "--states", states_file, "--out", out_file])
+    out_file = os.path.join(args.work, f"{stem}.eval.json")
+    run([args.flexdyn, "eval", "--interpret", "--scene", scene, "--states", states_file, "--out", out_file])
     with open(out_file) as f:
         results = json.load(f)["results"]
 
@@ -172,7 +213,6 @@ def validate(name, path, fixed, scan, args):
         ):
             worst[term] = max(worst[term], float(np.abs(got - want).max()))
             scale[term] = max(scale[term], float(np.abs(want).max()))
-    ok = True
     if scan:
         count, small = round_off_literals(name, scene, args)
         ok &= not small
@@ -197,11 +237,14 @@ def main():
     p.add_argument("--work", required=True)
     p.add_argument("--states", type=int, default=1000)
     p.add_argument("--perturb", action="store_true")
+    p.add_argument("--shipped")
     args = p.parse_args()
     base = robots_dir()
     ok = True
     for name, rel, fixed, scan in ROBOTS:
         ok &= validate(name, os.path.join(base, rel), fixed, scan, args)
+        if name in ARMATURE:
+            ok &= validate(name, os.path.join(base, rel), fixed, False, args, ARMATURE[name])
     print("pinocchio validation:", "passed" if ok else "FAILED")
     sys.exit(0 if ok else 1)
 

@@ -453,6 +453,9 @@ pub struct ActuatorDef {
     pub coordinate: Spanned<String>,
     /// Gain (generalized force per unit input), 1 by default.
     pub gain: Option<Spanned<f64>>,
+    /// Rotor (armature) inertia reflected to the coordinate: adds the
+    /// kinetic energy `armature qd^2 / 2`.
+    pub armature: Option<SScalar>,
 }
 
 /// The whole scene file.
