@@ -325,3 +325,22 @@ fn massless_and_point_like_rigid_bodies_are_accepted() {
     .to_string();
     assert!(bad.contains("diagonal"), "{bad}");
 }
+
+#[test]
+fn names_cannot_escape_into_the_scene_text() {
+    // A newline (a character reference survives XML attribute
+    // normalisation) in every name that reaches the scene.
+    let hostile = ARM
+        .replace("name=\"Test-Arm\"", "name=\"a&#10;gravity = [0, 0, 1]\"")
+        .replace(
+            "name=\"shoulder\"",
+            "name=\"s&#10;[[constraints]]&#10;expression = &quot;x&quot;\"",
+        )
+        .replace("name=\"tool-mount\"", "name=\"m&#10;name = 1\"");
+    let text = import(&hostile).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!text.contains("\ngravity = [0, 0, 1]"), "{text}");
+    assert!(!text.contains("\n[[constraints]]"), "{text}");
+    let model = load(&text);
+    assert_eq!(model.nq(), 2);
+    assert!(model.constraints.is_empty());
+}

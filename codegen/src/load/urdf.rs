@@ -712,12 +712,16 @@ fn write_scene(
 
     let mut s = String::new();
     let w = &mut s;
+    // Names from the input appear in comments only as TOML strings (control
+    // characters escaped), so that none can end a comment line.
     let _ = writeln!(
         w,
-        "# Imported by `flexdyn import urdf {file}`: robot `{robot_name}`, {} links, {} joints \
+        "# Imported by `flexdyn import urdf` from {}: robot {}, {} links, {} joints \
          ({} moving).\n# Frames are named after the URDF links (prismatic joints also get a frame \
          for their origin),\n# coordinates and actuators after the URDF joints. Gravity is -9.81 \
          along z.",
+        quoted(&file),
+        quoted(robot_name),
         links.len(),
         joints.len(),
         moving.len()
