@@ -98,6 +98,7 @@ const ARM: &str = r#"<?xml version="1.0"?>
   </joint>
   <joint name="sensor_mount" type="fixed">
     <parent link="slider"/><child link="sensor"/>
+    <axis xyz="0 0 0"/>
   </joint>
 </robot>
 "#;

@@ -286,7 +286,8 @@ fn read_robot(
                 format!("{ctx} joins link `{}` to itself", links[parent].name),
             ));
         }
-        let axis = match child(node, "axis") {
+        // A fixed joint's axis is not used (URDF files leave it zero).
+        let axis = match child(node, "axis").filter(|_| kind != Kind::Fixed) {
             Some(a) => {
                 let v = numbers::<3>(source, a, "xyz", attribute(source, a, "xyz")?)?;
                 let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
