@@ -467,6 +467,11 @@ impl Tree {
         })
     }
 
+    /// The frame a joint below link `l` hangs from (`None`: the world).
+    fn parent_frame(&self, l: usize, names: &Names) -> Option<String> {
+        (l != self.root).then(|| names.link[l].clone())
+    }
+
     /// Whether joint `j` moves (not fixed, not held).
     fn moves(joints: &[Joint], j: usize) -> bool {
         joints[j].kind != Kind::Fixed && !joints[j].held
@@ -764,7 +769,7 @@ fn write_scene(
 
     for &j in &tree.order {
         let joint = &joints[j];
-        let parent = tree.body_parent_frame(joint.parent, &names);
+        let parent = tree.parent_frame(joint.parent, &names);
         let o = &joint.origin;
         let mut rotations = rpy_rotations(&o.rpy);
         let q = &names.joint[j];
@@ -843,13 +848,6 @@ fn write_scene(
         let _ = writeln!(w, "coordinate = {}", quoted(&names.joint[j]));
     }
     s
-}
-
-impl Tree {
-    /// The frame a joint below link `l` hangs from (`None`: the world).
-    fn body_parent_frame(&self, l: usize, names: &Names) -> Option<String> {
-        (l != self.root).then(|| names.link[l].clone())
-    }
 }
 
 /// One `rigid_body` per moving body.
