@@ -4,7 +4,8 @@
 //!
 //! * `dynamics_terms` (M and h in one program) against `crba` +
 //!   `nonLinearEffects`;
-//! * inverse dynamics `M qdd + h` against `rnea`;
+//! * the generated `inverse_dynamics` (`M qdd + h` as one program) against
+//!   `rnea`;
 //! * forward dynamics (generated terms + the runtime's Cholesky solve,
 //!   `flexdyn_runtime::accelerations`) against `aba`.
 //!
@@ -173,13 +174,11 @@ fn relative_error(a: &[f64], b: &[f64]) -> f64 {
         / scale
 }
 
-/// `M qdd + h` from the generated terms.
+/// `M qdd + h` by the generated `inverse_dynamics` program.
 fn inverse_dynamics<R: Model<N, 0, N>, const N: usize>(r: &R, s: &State<N>) -> SVector<f64, N> {
-    let mut m = SMatrix::<f64, N, N>::zeros();
-    let mut h = SVector::<f64, N>::zeros();
-    r.mass_matrix(&s.q, 0.0, &mut m);
-    r.bias(&s.q, &s.qd, 0.0, &mut h);
-    m * s.qdd + h
+    let mut tau = SVector::<f64, N>::zeros();
+    r.inverse_dynamics(&s.q, &s.qd, &s.qdd, 0.0, &mut tau);
+    tau
 }
 
 fn compare<R: Model<N, 0, N> + Default, const N: usize>(c: &mut Criterion, name: &str) {
@@ -266,7 +265,7 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(c: &mut Criterion, name:
             unsafe { pin_bench_crba_nle(pin.handle, s.pin[0].as_ptr(), s.pin[1].as_ptr()) }
         })
     });
-    g.bench_function("flexdyn M qdd + h", |b| {
+    g.bench_function("flexdyn inverse_dynamics", |b| {
         b.iter(|| black_box(inverse_dynamics(&robot, next(&states, &mut i))))
     });
     g.bench_function("pinocchio rnea", |b| {
