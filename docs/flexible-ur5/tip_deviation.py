@@ -8,9 +8,10 @@ integrated by the servo path), then places `tool0` by forward kinematics of
 the scene's own frames (read from the TOML):
 * rigid robot: the prescribed angles, no twist;
 * flexible robot: link angles = prescribed + twist. The forearm tube is
-  taken straight (its tip deflection under the wrist's weight is about
-  4 um by the closed form F L^3 / (3 E I), against a deviation of tenths of
-  a millimetre from the gears), so the plotted deviation is the gears'.
+  taken straight (its closed-form tip deflection and end slope under its
+  own weight and the wrist's move the flange by about 10 um, against a
+  deviation of tenths of a millimetre from the gears; docs/flexible-ur5.md),
+  so the plotted deviation is the gears'.
 
 Check (fails loudly): at t = 0 the inverse starts at rest in static
 equilibrium, so each gear's spring balances gravity on the link side:
