@@ -86,12 +86,7 @@ fn main() {
         build.define(key, value);
     }
     if std::env::var_os("FLEXDYN_NATIVE").is_some() {
-        // Pinocchio's URDF parser comes prebuilt (SSE2, 16-byte Eigen
-        // alignment) and fills the Model: keep Eigen's alignment at 16 bytes
-        // so that native code (AVX, 32 bytes) shares its layout.
-        build
-            .flag("-march=native")
-            .define("EIGEN_MAX_ALIGN_BYTES", Some("16"));
+        build.flag("-march=native");
     }
     build.file("src/shim.cpp").compile("pinocchio_shim");
     let lib = prefix.join("lib");
