@@ -9,8 +9,11 @@
 //! * forward dynamics (generated terms + the runtime's Cholesky solve,
 //!   `flexdyn_runtime::accelerations`) against `aba`.
 //!
-//! The URDFs' joint damping is in flexdyn's scenes (dampers) and added on
-//! Pinocchio's side by the shim (its algorithms leave `model.damping` out).
+//! Pinocchio's model is its own URDF parser's (run in Python by the build
+//! script), rebuilt joint by joint in the shim so that all of Pinocchio's
+//! code runs compiled with the shim's flags. The URDFs' joint damping is in
+//! flexdyn's scenes (dampers) and added on Pinocchio's side by the shim (its
+//! algorithms leave `model.damping` out).
 //!
 //! Before timing, every result of both sides is compared on every state
 //! (coordinates matched by joint name); the run stops if they disagree by
@@ -23,6 +26,20 @@ use flexdyn_runtime::nalgebra::{SMatrix, SVector};
 use flexdyn_runtime::{accelerations, DynamicsConfig, Model};
 
 mod robots {
+    /// One joint of Pinocchio's model as its URDF parser built it (see
+    /// `dump_model.py`): type by Pinocchio's short name, parent joint index
+    /// (0 for the universe), axis (unaligned types), placement in the
+    /// parent's frame (rotation row by row, translation), inertia (mass,
+    /// centre of mass, rotational inertia about it row by row), damping.
+    pub struct Joint {
+        pub name: &'static str,
+        pub kind: &'static str,
+        pub parent: usize,
+        pub axis: [f64; 3],
+        pub placement: [f64; 12],
+        pub inertia: [f64; 13],
+        pub damping: f64,
+    }
     include!(concat!(env!("OUT_DIR"), "/robots.rs"));
 }
 #[allow(dead_code)]
@@ -35,12 +52,21 @@ mod panda {
 }
 
 extern "C" {
-    fn pin_bench_new(
-        urdf: *const c_char,
-        locked: *const c_char,
+    fn pin_bench_new() -> *mut c_void;
+    #[allow(clippy::too_many_arguments)]
+    fn pin_bench_add_joint(
+        b: *mut c_void,
+        name: *const c_char,
+        kind: *const c_char,
+        parent: i32,
+        axis: *const f64,
+        placement: *const f64,
+        inertia: *const f64,
+        damping: f64,
         err: *mut c_char,
         errlen: usize,
-    ) -> *mut c_void;
+    ) -> i32;
+    fn pin_bench_finish(b: *mut c_void);
     fn pin_bench_free(b: *mut c_void);
     fn pin_bench_nv(b: *const c_void) -> i32;
     fn pin_bench_joint_name(b: *const c_void, i: i32) -> *const c_char;
@@ -66,21 +92,48 @@ struct Pinocchio {
 
 impl Pinocchio {
     fn load(name: &str, coordinates: &[&str]) -> Pinocchio {
-        let (_, urdf, locked) = robots::ROBOTS
+        let (_, joints) = robots::ROBOTS
             .iter()
             .find(|r| r.0 == name)
             .expect("robot listed by build.rs");
-        let urdf = CString::new(*urdf).expect("path without NUL");
-        let locked = CString::new(*locked).expect("names without NUL");
+        // SAFETY: no arguments; freed by `Drop` (or below on error).
+        let handle = unsafe { pin_bench_new() };
         let mut err = vec![0 as c_char; 512];
-        // SAFETY: the strings are NUL-terminated and `err` holds `err.len()` bytes.
-        let handle =
-            unsafe { pin_bench_new(urdf.as_ptr(), locked.as_ptr(), err.as_mut_ptr(), err.len()) };
-        if handle.is_null() {
-            // SAFETY: the shim wrote a NUL-terminated message.
-            let msg = unsafe { CStr::from_ptr(err.as_ptr()) };
-            panic!("Pinocchio could not load {name}: {}", msg.to_string_lossy());
+        for (i, joint) in joints.iter().enumerate() {
+            let joint_name = CString::new(joint.name).expect("name without NUL");
+            let kind = CString::new(joint.kind).expect("type without NUL");
+            // SAFETY: `handle` is live, the strings NUL-terminated, the
+            // arrays as long as the shim reads, `err` holds `err.len()` bytes.
+            let status = unsafe {
+                pin_bench_add_joint(
+                    handle,
+                    joint_name.as_ptr(),
+                    kind.as_ptr(),
+                    joint.parent as i32,
+                    joint.axis.as_ptr(),
+                    joint.placement.as_ptr(),
+                    joint.inertia.as_ptr(),
+                    joint.damping,
+                    err.as_mut_ptr(),
+                    err.len(),
+                )
+            };
+            if status != 0 {
+                // SAFETY: created above, not used again; the shim wrote a
+                // NUL-terminated message.
+                let msg = unsafe {
+                    pin_bench_free(handle);
+                    CStr::from_ptr(err.as_ptr())
+                };
+                panic!(
+                    "Pinocchio model of {name}, joint {}: {}",
+                    i + 1,
+                    msg.to_string_lossy()
+                );
+            }
         }
+        // SAFETY: `handle` is a live model.
+        unsafe { pin_bench_finish(handle) };
         // SAFETY: `handle` is a live model.
         let nv = unsafe { pin_bench_nv(handle) } as usize;
         assert_eq!(

@@ -1,30 +1,31 @@
-// A thin C interface to Pinocchio for the side-by-side benchmark: loads a
-// URDF (optionally locking some joints at zero, as Pinocchio's
-// buildReducedModel does), and runs crba + nonLinearEffects, rnea and aba
-// on caller-owned arrays. Pinocchio keeps the URDF's joint damping in
-// `model.damping` but its algorithms leave it out; flexdyn's imported scenes
-// have it as dampers, so the damping force `damping .* v` is added here
-// (to the bias and inverse dynamics, subtracted from the torque for aba). The timed entry points only compute (results stay
-// in Pinocchio's Data); separate readers copy them out for the comparison.
+// A thin C interface to Pinocchio for the side-by-side benchmark: builds a
+// pinocchio::Model joint by joint from plain numbers (those of Pinocchio's
+// own URDF parser, written out by dump_model.py at build time), and runs
+// crba + nonLinearEffects, rnea and aba on caller-owned arrays. The model is
+// built here, not by the prebuilt parser: that library is compiled for
+// SSE2 with Eigen's 16-byte alignment, and handing it a Model compiled with
+// -march=native (32- or 64-byte alignment) crashes; everything this file
+// touches is compiled from Pinocchio's headers with this file's flags.
+// Pinocchio keeps the joint damping in `model.damping` but its algorithms
+// leave it out; flexdyn's imported scenes have it as dampers, so the
+// damping force `damping .* v` is added here (to the bias and inverse
+// dynamics, subtracted from the torque for aba). The timed entry points only
+// compute (results stay in Pinocchio's Data); separate readers copy them out
+// for the comparison.
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
-#include <pinocchio/algorithm/model.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
-#include <pinocchio/parsers/urdf.hpp>
 
 #include <cstring>
 #include <exception>
-#include <sstream>
 #include <string>
-#include <vector>
 
 namespace {
 struct Bench {
   pinocchio::Model model;
   pinocchio::Data data;
   Eigen::VectorXd tau_damped;
-  explicit Bench(const pinocchio::Model &m) : model(m), data(m), tau_damped(m.nv) {}
 };
 
 void write_error(char *err, std::size_t len, const std::string &msg) {
@@ -34,40 +35,86 @@ void write_error(char *err, std::size_t len, const std::string &msg) {
 }
 
 using VecMap = Eigen::Map<const Eigen::VectorXd>;
+
+// Pinocchio's one-dof joint of type `kind` (its short name) about or along
+// `axis` (used by the unaligned types only); false for any other type.
+bool add_joint(pinocchio::Model &model, pinocchio::JointIndex parent, const std::string &kind,
+               const Eigen::Vector3d &axis, const pinocchio::SE3 &placement,
+               const std::string &name) {
+  using namespace pinocchio;
+  if (kind == "JointModelRX") {
+    model.addJoint(parent, JointModelRX(), placement, name);
+  } else if (kind == "JointModelRY") {
+    model.addJoint(parent, JointModelRY(), placement, name);
+  } else if (kind == "JointModelRZ") {
+    model.addJoint(parent, JointModelRZ(), placement, name);
+  } else if (kind == "JointModelRevoluteUnaligned") {
+    model.addJoint(parent, JointModelRevoluteUnaligned(axis), placement, name);
+  } else if (kind == "JointModelPX") {
+    model.addJoint(parent, JointModelPX(), placement, name);
+  } else if (kind == "JointModelPY") {
+    model.addJoint(parent, JointModelPY(), placement, name);
+  } else if (kind == "JointModelPZ") {
+    model.addJoint(parent, JointModelPZ(), placement, name);
+  } else if (kind == "JointModelPrismaticUnaligned") {
+    model.addJoint(parent, JointModelPrismaticUnaligned(axis), placement, name);
+  } else {
+    return false;
+  }
+  return true;
+}
 }  // namespace
 
 extern "C" {
 
-// Loads `urdf`; `locked` is a comma-separated list of joint names fixed at
-// zero (empty for none). Returns null and writes a message into `err` on
-// failure, or when a joint's configuration is not one number per velocity.
-void *pin_bench_new(const char *urdf, const char *locked, char *err, std::size_t errlen) {
-  try {
-    pinocchio::Model full;
-    pinocchio::urdf::buildModel(std::string(urdf), full);
-    std::vector<pinocchio::JointIndex> lock;
-    std::stringstream names{std::string(locked)};
-    std::string name;
-    while (std::getline(names, name, ',')) {
-      if (name.empty()) continue;
-      if (!full.existJointName(name)) {
-        write_error(err, errlen, "no joint named " + name + " in " + urdf);
-        return nullptr;
-      }
-      lock.push_back(full.getJointId(name));
-    }
-    pinocchio::Model model =
-        lock.empty() ? full
-                     : pinocchio::buildReducedModel(full, lock, pinocchio::neutral(full));
-    if (model.nq != model.nv) {
-      write_error(err, errlen, "configuration size differs from velocity size (continuous joints?)");
-      return nullptr;
-    }
-    return new Bench(model);
-  } catch (const std::exception &e) {
-    write_error(err, errlen, e.what());
-    return nullptr;
+// An empty model, to be filled by pin_bench_add_joint and closed by
+// pin_bench_finish.
+void *pin_bench_new() { return new Bench(); }
+
+// Appends joint `name` of Pinocchio type `kind` to joint `parent` (0 is the
+// universe), placed by `placement` (rotation row by row, then translation:
+// 12 numbers) in the parent joint's frame, `axis` (3 numbers) for the
+// unaligned types, carrying the rigid inertia `inertia` (mass, centre of
+// mass, rotational inertia about it row by row: 13 numbers), with viscous
+// damping `damping`. Returns 0, or -1 with a message in `err` when the
+// parent does not exist or the type is not a one-dof joint this shim knows.
+int pin_bench_add_joint(void *p, const char *name, const char *kind, int parent,
+                        const double *axis, const double *placement, const double *inertia,
+                        double damping, char *err, std::size_t errlen) {
+  auto &model = static_cast<Bench *>(p)->model;
+  if (parent < 0 || parent >= model.njoints) {
+    write_error(err, errlen,
+                std::string("joint ") + name + ": no parent joint " + std::to_string(parent));
+    return -1;
   }
+  try {
+    const Eigen::Matrix3d rotation = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(placement);
+    const pinocchio::SE3 frame(rotation, Eigen::Map<const Eigen::Vector3d>(placement + 9));
+    const auto before = model.njoints;
+    if (!add_joint(model, pinocchio::JointIndex(parent), kind, Eigen::Map<const Eigen::Vector3d>(axis),
+                   frame, name)) {
+      write_error(err, errlen,
+                  std::string("joint ") + name + ": type " + kind + " is not a one-dof joint the shim builds");
+      return -1;
+    }
+    const pinocchio::JointIndex id = pinocchio::JointIndex(before);
+    const Eigen::Matrix3d rotational = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(inertia + 4);
+    model.appendBodyToJoint(
+        id, pinocchio::Inertia(inertia[0], Eigen::Map<const Eigen::Vector3d>(inertia + 1), rotational),
+        pinocchio::SE3::Identity());
+    model.damping[model.joints[id].idx_v()] = damping;
+    return 0;
+  } catch (const std::exception &e) {
+    write_error(err, errlen, std::string("joint ") + name + ": " + e.what());
+    return -1;
+  }
+}
+
+// Allocates the algorithms' workspace for the finished model.
+void pin_bench_finish(void *p) {
+  auto *b = static_cast<Bench *>(p);
+  b->data = pinocchio::Data(b->model);
+  b->tau_damped = Eigen::VectorXd::Zero(b->model.nv);
 }
 
 void pin_bench_free(void *b) { delete static_cast<Bench *>(b); }
