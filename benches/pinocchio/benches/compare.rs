@@ -18,9 +18,15 @@
 //! Before timing, every result of both sides is compared on every state
 //! (coordinates matched by joint name); the run stops if they disagree by
 //! more than 1e-12 relative to the scale of the term.
+//!
+//! Times are the benchmark thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`),
+//! not wall-clock time, so that other jobs on a shared machine, which take
+//! the core away for whole time slices, do not count (what they leave
+//! behind in the caches still does).
 
 use std::ffi::{c_char, c_void, CStr, CString};
 
+use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
 use flexdyn_runtime::{accelerations, DynamicsConfig, Model};
@@ -81,6 +87,48 @@ extern "C" {
         tau: *mut f64,
         ddq: *mut f64,
     );
+}
+
+/// Criterion measurement by the CPU time of the calling thread, in
+/// nanoseconds (shown as durations, like wall-clock time).
+struct ThreadCpuTime;
+
+/// This thread's CPU time in nanoseconds.
+fn thread_ns() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `t` is a valid timespec for the call to fill.
+    let status = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
+    assert_eq!(status, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    t.tv_sec as f64 * 1e9 + t.tv_nsec as f64
+}
+
+/// Wall-clock time's formatter, for durations in nanoseconds.
+static DURATIONS: WallTime = WallTime;
+
+impl Measurement for ThreadCpuTime {
+    type Intermediate = f64;
+    type Value = f64;
+    fn start(&self) -> f64 {
+        thread_ns()
+    }
+    fn end(&self, start: f64) -> f64 {
+        thread_ns() - start
+    }
+    fn add(&self, a: &f64, b: &f64) -> f64 {
+        a + b
+    }
+    fn zero(&self) -> f64 {
+        0.0
+    }
+    fn to_f64(&self, value: &f64) -> f64 {
+        *value
+    }
+    fn formatter(&self) -> &dyn ValueFormatter {
+        DURATIONS.formatter()
+    }
 }
 
 /// A Pinocchio model and data, with its velocity order mapped to flexdyn's
@@ -234,7 +282,10 @@ fn inverse_dynamics<R: Model<N, 0, N>, const N: usize>(r: &R, s: &State<N>) -> S
     tau
 }
 
-fn compare<R: Model<N, 0, N> + Default, const N: usize>(c: &mut Criterion, name: &str) {
+fn compare<R: Model<N, 0, N> + Default, const N: usize>(
+    c: &mut Criterion<ThreadCpuTime>,
+    name: &str,
+) {
     let robot = R::default();
     let pin = Pinocchio::load(name, &R::COORDINATES);
     let states = states::<N>(&pin, 300);
@@ -364,10 +415,14 @@ fn next<'a, T>(states: &'a [T], i: &mut usize) -> &'a T {
     &states[*i]
 }
 
-fn robots(c: &mut Criterion) {
+fn robots(c: &mut Criterion<ThreadCpuTime>) {
     compare::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
     compare::<panda::Panda, { panda::NQ }>(c, "panda");
 }
 
-criterion_group!(benches, robots);
+criterion_group! {
+    name = benches;
+    config = Criterion::default().with_measurement(ThreadCpuTime);
+    targets = robots
+}
 criterion_main!(benches);
