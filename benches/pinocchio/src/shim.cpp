@@ -36,32 +36,29 @@ void write_error(char *err, std::size_t len, const std::string &msg) {
 
 using VecMap = Eigen::Map<const Eigen::VectorXd>;
 
+// Adds `joint` if `kind` is its type's Pinocchio short name.
+template <class Joint>
+bool add_if(pinocchio::Model &model, pinocchio::JointIndex parent, const std::string &kind,
+            const Joint &joint, const pinocchio::SE3 &placement, const std::string &name) {
+  if (kind != Joint::classname()) return false;
+  model.addJoint(parent, joint, placement, name);
+  return true;
+}
+
 // Pinocchio's one-dof joint of type `kind` (its short name) about or along
 // `axis` (used by the unaligned types only); false for any other type.
-bool add_joint(pinocchio::Model &model, pinocchio::JointIndex parent, const std::string &kind,
+bool add_joint(pinocchio::Model &m, pinocchio::JointIndex parent, const std::string &kind,
                const Eigen::Vector3d &axis, const pinocchio::SE3 &placement,
                const std::string &name) {
   using namespace pinocchio;
-  if (kind == "JointModelRX") {
-    model.addJoint(parent, JointModelRX(), placement, name);
-  } else if (kind == "JointModelRY") {
-    model.addJoint(parent, JointModelRY(), placement, name);
-  } else if (kind == "JointModelRZ") {
-    model.addJoint(parent, JointModelRZ(), placement, name);
-  } else if (kind == "JointModelRevoluteUnaligned") {
-    model.addJoint(parent, JointModelRevoluteUnaligned(axis), placement, name);
-  } else if (kind == "JointModelPX") {
-    model.addJoint(parent, JointModelPX(), placement, name);
-  } else if (kind == "JointModelPY") {
-    model.addJoint(parent, JointModelPY(), placement, name);
-  } else if (kind == "JointModelPZ") {
-    model.addJoint(parent, JointModelPZ(), placement, name);
-  } else if (kind == "JointModelPrismaticUnaligned") {
-    model.addJoint(parent, JointModelPrismaticUnaligned(axis), placement, name);
-  } else {
-    return false;
-  }
-  return true;
+  return add_if(m, parent, kind, JointModelRX(), placement, name) ||
+         add_if(m, parent, kind, JointModelRY(), placement, name) ||
+         add_if(m, parent, kind, JointModelRZ(), placement, name) ||
+         add_if(m, parent, kind, JointModelRevoluteUnaligned(axis), placement, name) ||
+         add_if(m, parent, kind, JointModelPX(), placement, name) ||
+         add_if(m, parent, kind, JointModelPY(), placement, name) ||
+         add_if(m, parent, kind, JointModelPZ(), placement, name) ||
+         add_if(m, parent, kind, JointModelPrismaticUnaligned(axis), placement, name);
 }
 }  // namespace
 
