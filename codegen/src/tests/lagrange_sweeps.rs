@@ -17,9 +17,15 @@ fn scene(name: &str) -> std::path::PathBuf {
         .join(format!("{name}.toml"))
 }
 
-/// A spatial chain of `n` rigid bodies: joint axes alternating z, y, x,
-/// offset joints, centres of mass off the joint axes, full inertia tensors.
-fn chain(n: usize) -> Model {
+/// A serial chain of `n` links, link `k` turning by `q{k}` about
+/// `axis(k)`, offset by `translation` from its parent, carrying the
+/// component `body(k)` (a TOML table body).
+fn serial_chain(
+    n: usize,
+    translation: &str,
+    axis: impl Fn(usize) -> &'static str,
+    body: impl Fn(usize) -> String,
+) -> Model {
     let mut s = String::from("name = \"chain\"\ngravity = [0, 0, -9.81]\n");
     for k in 0..n {
         s += &format!("[[coordinates]]\nname = \"q{k}\"\n");
@@ -30,44 +36,50 @@ fn chain(n: usize) -> Model {
         } else {
             format!("link{}", k - 1)
         };
-        let axis = ["z", "y", "x"][k % 3];
         s += &format!(
-            "[[frames]]\nname = \"link{k}\"\nparent = \"{parent}\"\ntranslation = [0.05, 0.02, 0.3]\nrotation = [{{ axis = \"{axis}\", angle = \"q{k}\" }}]\n"
+            "[[frames]]\nname = \"link{k}\"\nparent = \"{parent}\"\ntranslation = {translation}\nrotation = [{{ axis = \"{}\", angle = \"q{k}\" }}]\n",
+            axis(k)
         );
     }
     for k in 0..n {
         s += &format!(
-            "[[components]]\nname = \"body{k}\"\ntype = \"rigid_body\"\nmass = {}\nframe = \"link{k}\"\nposition = [0.01, -0.015, 0.15]\ninertia = [[0.02, 0.001, -0.0007], [0.001, 0.025, 0.0004], [-0.0007, 0.0004, 0.012]]\n",
-            1.0 + 0.1 * k as f64
+            "[[components]]\nname = \"body{k}\"\nframe = \"link{k}\"\n{}",
+            body(k)
         );
     }
     Model::from_source(&Source::new(Path::new("chain.toml"), s)).unwrap()
 }
 
+/// A spatial chain of `n` rigid bodies: joint axes alternating z, y, x,
+/// offset joints, centres of mass off the joint axes, full inertia tensors.
+fn chain(n: usize) -> Model {
+    serial_chain(
+        n,
+        "[0.05, 0.02, 0.3]",
+        |k| ["z", "y", "x"][k % 3],
+        |k| {
+            format!(
+                "type = \"rigid_body\"\nmass = {}\nposition = [0.01, -0.015, 0.15]\ninertia = [[0.02, 0.001, -0.0007], [0.001, 0.025, 0.0004], [-0.0007, 0.0004, 0.012]]\n",
+                1.0 + 0.1 * k as f64
+            )
+        },
+    )
+}
+
 /// The planar `n`-link pendulum: point masses on massless rods, relative
 /// joint angles about y.
 fn planar_pendulum(n: usize) -> Model {
-    let mut s = String::from("name = \"pendulum\"\ngravity = [0, 0, -9.81]\n");
-    for k in 0..n {
-        s += &format!("[[coordinates]]\nname = \"q{k}\"\n");
-    }
-    for k in 0..n {
-        let parent = if k == 0 {
-            "world".into()
-        } else {
-            format!("link{}", k - 1)
-        };
-        s += &format!(
-            "[[frames]]\nname = \"link{k}\"\nparent = \"{parent}\"\ntranslation = [0, 0, -0.5]\nrotation = [{{ axis = \"y\", angle = \"q{k}\" }}]\n"
-        );
-    }
-    for k in 0..n {
-        s += &format!(
-            "[[components]]\nname = \"mass{k}\"\ntype = \"point_mass\"\nmass = {}\nframe = \"link{k}\"\nposition = [0, 0, -0.5]\n",
-            1.0 + 0.05 * k as f64
-        );
-    }
-    Model::from_source(&Source::new(Path::new("pendulum.toml"), s)).unwrap()
+    serial_chain(
+        n,
+        "[0, 0, -0.5]",
+        |_| "y",
+        |k| {
+            format!(
+                "type = \"point_mass\"\nmass = {}\nposition = [0, 0, -0.5]\n",
+                1.0 + 0.05 * k as f64
+            )
+        },
+    )
 }
 
 fn state(n: usize, k: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
