@@ -26,10 +26,14 @@ use std::fmt;
 
 /// Sums of at most this many terms are merged into a sum they are added to;
 /// longer ones stay one term of it (a partial sum), unless they share a
-/// term with it or are the only term (a scaled sum). A chain of partial sums (the angular velocity of link `k`
-/// of a planar chain, `qd_0 + ... + qd_k`, built from that of link `k - 1`)
-/// then takes a bounded number of terms per link instead of growing by one
-/// each time, and so do its derivatives.
+/// term with it or are the only term (a scaled sum). A chain of partial
+/// sums (the angular velocity of link `k` of a planar chain,
+/// `qd_0 + ... + qd_k`, built from that of link `k - 1`) then takes a
+/// bounded number of terms per link instead of growing by one each time,
+/// and so do its derivatives. (Measured: with 6 the rigid parallel
+/// robot's `dynamics_terms` took 804 operations instead of 705, with 12
+/// the planar chain's bias forces grew as `n^1.21`; 8 keeps the small
+/// scenes' counts and the chain linear.)
 const FLATTEN_MAX_TERMS: usize = 8;
 
 /// Index of a node in a [`Graph`].
@@ -134,10 +138,10 @@ pub enum Node {
     /// A variable.
     Sym(Symbol),
     /// `constant + sum(coefficient * term)`: at least one term; terms sorted,
-    /// distinct, not constants; a term that is a sum has more than
-    /// `FLATTEN_MAX_TERMS` terms, none in common with the other terms;
-    /// coefficients nonzero. A single
-    /// term has a coefficient other than one or a nonzero constant.
+    /// distinct, not constants; a term that is a sum (a partial sum) has
+    /// more than 8 terms, none of them a term of the enclosing sum;
+    /// coefficients nonzero. A single term has a coefficient other than one
+    /// or a nonzero constant.
     Sum(Box<[(Id, Real)]>, Real),
     /// `prod(base ^ exponent)`: bases sorted, distinct, neither constants,
     /// products nor single-term sums without constant; exponents nonzero; not
