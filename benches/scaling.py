@@ -73,7 +73,9 @@ pub fn every_term(m: &scene::{model}, q: &SVector<f64, {{scene::NQ}}>, qd: &SVec
     m.constraint_time_derivative(q, 0.0, &mut p);
     m.constraint_rhs(q, qd, 0.0, &mut g);
     m.dynamics_terms(q, qd, 0.0, &mut mm, &mut h, &mut pq, &mut g);
-    mm[(0, 0)] + h[0] + pq[(0, 0)] + g[0] + p[0] + m.kinetic_energy(q, qd, 0.0) + m.potential_energy(q, 0.0)
+    let mut tau = SVector::<f64, {{scene::NQ}}>::zeros();
+    m.inverse_dynamics(q, qd, qd, 0.0, &mut tau);
+    mm[(0, 0)] + h[0] + tau[0] + pq[(0, 0)] + g[0] + p[0] + m.kinetic_energy(q, qd, 0.0) + m.potential_energy(q, 0.0)
 }}
 """
 
@@ -160,6 +162,21 @@ def every_scene(binary: Path, crate: Path, tmp: Path) -> None:
         module.unlink()
 
 
+def make_crate(tmp: Path) -> Path:
+    """The crate that compiles and times a generated module, its
+    dependencies built (not counted in the compile times)."""
+    crate = tmp / "crate"
+    (crate / "src").mkdir(parents=True)
+    (crate / "Cargo.toml").write_text(
+        '[package]\nname = "scaling-check"\nversion = "0.0.0"\nedition = "2021"\n'
+        f'[dependencies]\nflexdyn-runtime = {{ path = "{REPO / "runtime"}" }}\nlibc = "0.2"\n'
+        '[workspace]\n')
+    (crate / "Cargo.lock").write_text((REPO / "Cargo.lock").read_text())
+    (crate / "src/lib.rs").write_text("")
+    cargo(crate, "--lib")
+    return crate
+
+
 def cargo(crate: Path, *what: str) -> None:
     run = subprocess.run(["cargo", "build", "--release", "--quiet", "--manifest-path",
                           str(crate / "Cargo.toml"), *what], capture_output=True, text=True)
@@ -244,15 +261,7 @@ def main() -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        crate = tmp / "crate"
-        (crate / "src").mkdir(parents=True)
-        (crate / "Cargo.toml").write_text(
-            '[package]\nname = "scaling-check"\nversion = "0.0.0"\nedition = "2021"\n'
-            f'[dependencies]\nflexdyn-runtime = {{ path = "{REPO / "runtime"}" }}\nlibc = "0.2"\n'
-            '[workspace]\n')
-        (crate / "Cargo.lock").write_text((REPO / "Cargo.lock").read_text())
-        (crate / "src/lib.rs").write_text("")
-        cargo(crate, "--lib")
+        crate = make_crate(tmp)
         if args.every_scene:
             every_scene(binary, crate, tmp)
             return 0

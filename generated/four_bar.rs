@@ -8,12 +8,13 @@
 //   constraint_rhs                    4      9      0      3
 //   constraints_and_jacobian          8      0      0      3
 //   dynamics_terms                   18     28      0      3
+//   inverse_dynamics                 17     35      0      3
 //   kinetic_energy                    8     18      0      2
 //   potential_energy                  2      3      0      3
 //   coriolis_forces                   8     20      0      2
 //   potential_forces                  0      3      0      3
 //   damping_forces                    0      0      0      0
-//   total                            67    108      0     30
+//   total                            84    143      0     33
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -196,6 +197,31 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         phi_q[(1, 2)] = v5;
         gamma[0] = -v3 * v14 - v9;
         gamma[1] = -v2 * v14 - v11;
+    }
+    ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
+    #[inline]
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<f64, 3>,
+        qd: &SVector<f64, 3>,
+        qdd: &SVector<f64, 3>,
+        _t: f64,
+        tau: &mut SVector<f64, 3>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let v2 = math::cos(q[1]);
+        let (v3, v4) = math::sin_cos(q[2]);
+        let v7 = qd[0] * qd[0];
+        let v8 = qd[2] * qd[2];
+        let v5 = -v1 * v7 - v4 * v8 - v0 * qdd[0] - v3 * qdd[2];
+        let v6 = v1 * qdd[0] + v4 * qdd[2] - v0 * v7 - v3 * v8;
+        tau[0] = 14.715 * v1 + 0.8333333333333333 * qdd[0] + 0.5 * v1 * v6
+            - 0.5 * v0 * v5;
+        tau[1] = 4.905 * v2 + 0.3333333333333333 * qdd[1];
+        tau[2] = 4.905 * v4 + 0.16666666666666666 * v1 * v3 * v7
+            + 0.16666666666666666 * v0 * v3 * qdd[0]
+            + 0.16666666666666666 * v1 * v4 * qdd[0] + 0.3333333333333333 * v4 * v6
+            - 0.16666666666666666 * v0 * v4 * v7 - 0.3333333333333333 * v3 * v5;
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 3, 1>) {

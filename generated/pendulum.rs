@@ -8,12 +8,13 @@
 //   constraint_rhs                    0      0      0      0
 //   constraints_and_jacobian          0      0      0      0
 //   dynamics_terms                    1      5      0      1
+//   inverse_dynamics                  2      6      0      1
 //   kinetic_energy                    0      5      0      0
 //   potential_energy                  1      3      0      1
 //   coriolis_forces                   0      0      0      0
 //   potential_forces                  0      3      0      1
 //   damping_forces                    0      1      0      0
-//   total                             3     23      0      4
+//   total                             5     29      0      5
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -125,6 +126,20 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         let v1 = self.l * self.m;
         m[(0, 0)] = self.l * v1;
         h[0] = 9.81 * v0 * v1 + qd[0] * self.c;
+    }
+    ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
+    #[inline]
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<f64, 1>,
+        qd: &SVector<f64, 1>,
+        qdd: &SVector<f64, 1>,
+        _t: f64,
+        tau: &mut SVector<f64, 1>,
+    ) {
+        let v0 = math::sin(q[0]);
+        let v1 = self.l * self.m;
+        tau[0] = self.l * qdd[0] * v1 + 9.81 * v0 * v1 + qd[0] * self.c;
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 1, 1>) {

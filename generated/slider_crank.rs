@@ -8,13 +8,14 @@
 //   constraint_rhs                    2     10      0      2
 //   constraints_and_jacobian          6      8      0      2
 //   dynamics_terms                   15     36      0      2
+//   inverse_dynamics                 16     42      0      2
 //   kinetic_energy                    8     22      0      2
 //   potential_energy                  1      2      0      2
 //   coriolis_forces                   7     24      0      2
 //   potential_forces                  1      2      0      2
 //   damping_forces                    0      0      0      0
 //   bias_jacobians                   16     46      0      2
-//   total                            72    188      0     24
+//   total                            88    230      0     26
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -190,6 +191,30 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         phi_q[(1, 1)] = -0.3 * v3;
         gamma[0] = 0.1 * v4 + 0.3 * v6;
         gamma[1] = 0.1 * v5 - 0.3 * v7;
+    }
+    ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
+    #[inline]
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<f64, 3>,
+        qd: &SVector<f64, 3>,
+        qdd: &SVector<f64, 3>,
+        _t: f64,
+        tau: &mut SVector<f64, 3>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let (v2, v3) = math::sin_cos(q[1]);
+        let v6 = qd[0] * qd[0];
+        let v7 = qd[1] * qd[1];
+        let v4 = -0.1 * v1 * v6 - 0.3 * v3 * v7 - 0.1 * v0 * qdd[0] - 0.3 * v2 * qdd[1];
+        let v5 = 0.3 * v2 * v7 + 0.1 * v1 * qdd[0] - 0.1 * v0 * v6 - 0.3 * v3 * qdd[1];
+        tau[0] = 1.0300500000000001 * v1 + 0.005666666666666668 * qdd[0]
+            + 0.04000000000000001 * v1 * v5 - 0.04000000000000001 * v0 * v4;
+        tau[1] = 0.004000000000000001 * v1 * v2 * v6
+            + 0.004000000000000001 * v0 * v3 * v6
+            + 0.004000000000000001 * v0 * v2 * qdd[0] - 1.1772 * v3
+            - 0.004000000000000001 * v1 * v3 * qdd[0] - 0.08 * v2 * v4 - 0.08 * v3 * v5;
+        tau[2] = 1.2 * qdd[2];
     }
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 3, 1>) {

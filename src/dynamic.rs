@@ -41,6 +41,8 @@ pub trait DynModel {
     fn constraints_and_jacobian(&self, q: &[f64], t: f64) -> (DVector<f64>, DMatrix<f64>);
     /// `(M, h, Phi_q, gamma)` from the fused `dynamics_terms` program.
     fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64) -> Fused;
+    /// Inverse dynamics `M qdd + h`.
+    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64) -> DVector<f64>;
     /// Actuator map.
     fn actuator_map(&self) -> DMatrix<f64>;
     /// Kinetic energy.
@@ -108,6 +110,12 @@ where
         let mut h = SVector::<f64, NQ>::zeros();
         self.0.bias(&vector(q), &vector(qd), t, &mut h);
         DVector::from_column_slice(h.as_slice())
+    }
+    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64) -> DVector<f64> {
+        let mut tau = SVector::<f64, NQ>::zeros();
+        self.0
+            .inverse_dynamics(&vector(q), &vector(qd), &vector(qdd), t, &mut tau);
+        DVector::from_column_slice(tau.as_slice())
     }
     fn constraints(&self, q: &[f64], t: f64) -> DVector<f64> {
         let mut p = SVector::<f64, NC>::zeros();

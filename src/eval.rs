@@ -13,6 +13,9 @@ pub struct State {
     pub q: Vec<f64>,
     /// Velocities.
     pub qd: Vec<f64>,
+    /// Accelerations, for the inverse dynamics (zero when left out).
+    #[serde(default)]
+    pub qdd: Vec<f64>,
     /// Time.
     #[serde(default)]
     pub t: f64,
@@ -59,6 +62,8 @@ pub struct Terms {
     pub fused_constraint_jacobian: Vec<Vec<f64>>,
     /// `gamma` from `dynamics_terms`.
     pub fused_constraint_rhs: Vec<f64>,
+    /// Inverse dynamics `M qdd + h` at the state's accelerations.
+    pub inverse_dynamics: Vec<f64>,
     /// Kinetic energy.
     pub kinetic_energy: f64,
     /// Potential energy.
@@ -98,7 +103,14 @@ pub fn check_state(model: &dyn DynModel, s: &State, k: usize) -> Result<(), Stri
             s.qd.len()
         ));
     }
-    if !(s.q.iter().chain(&s.qd).all(|x| x.is_finite()) && s.t.is_finite()) {
+    if !(s.qdd.is_empty() || s.qdd.len() == n) {
+        return Err(format!(
+            "state {k}: scene `{}` has {n} coordinates, got {} accelerations",
+            model.name(),
+            s.qdd.len()
+        ));
+    }
+    if !(s.q.iter().chain(&s.qd).chain(&s.qdd).all(|x| x.is_finite()) && s.t.is_finite()) {
         return Err(format!("state {k}: non-finite value"));
     }
     Ok(())
@@ -123,6 +135,11 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
     let jacobians = model.bias_jacobians(&s.q, &s.qd, s.t);
     let (fused_phi, fused_position_phi_q) = model.constraints_and_jacobian(&s.q, s.t);
     let (fused_m, fused_h, fused_phi_q, fused_gamma) = model.dynamics_terms(&s.q, &s.qd, s.t);
+    let qdd = if s.qdd.is_empty() {
+        vec![0.0; s.q.len()]
+    } else {
+        s.qdd.clone()
+    };
     Ok(Terms {
         mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
         bias: model.bias(&s.q, &s.qd, s.t).as_slice().to_vec(),
@@ -140,6 +157,7 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         fused_bias: vec(fused_h),
         fused_constraint_jacobian: rows(&fused_phi_q),
         fused_constraint_rhs: vec(fused_gamma),
+        inverse_dynamics: vec(model.inverse_dynamics(&s.q, &s.qd, &qdd, s.t)),
         kinetic_energy: model.kinetic_energy(&s.q, &s.qd, s.t),
         potential_energy: model.potential_energy(&s.q, s.t),
         coriolis_forces: model.coriolis_forces(&s.q, &s.qd, s.t).map(vec),

@@ -48,11 +48,25 @@ impl InterpretedModel {
     /// The outputs of `f` (vectors as one-column matrices), `None` when the
     /// scene does not generate it.
     fn outputs(&self, f: Function, q: &[f64], qd: &[f64], t: f64) -> Option<Vec<DMatrix<f64>>> {
+        self.outputs_with_accelerations(f, q, qd, &[], t)
+    }
+
+    /// [`InterpretedModel::outputs`] of a function that reads the
+    /// accelerations `qdd` too.
+    fn outputs_with_accelerations(
+        &self,
+        f: Function,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+    ) -> Option<Vec<DMatrix<f64>>> {
         let tape = self.scene.tape(f)?;
         let mut out = vec![0.0; tape.output_len()];
-        tape.eval(
+        tape.eval_with_accelerations(
             q,
             qd,
+            qdd,
             t,
             &self.params,
             &mut self.scratch.borrow_mut(),
@@ -117,6 +131,13 @@ impl DynModel for InterpretedModel {
     }
     fn bias(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
         self.core_vector(Function::Bias, q, qd, t)
+    }
+    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64) -> DVector<f64> {
+        let f = Function::InverseDynamics;
+        let mut o = self
+            .outputs_with_accelerations(f, q, qd, qdd, t)
+            .unwrap_or_else(|| panic!("`{}` is lowered for every scene", f.name()));
+        vector(o.swap_remove(0))
     }
     fn constraints(&self, q: &[f64], t: f64) -> DVector<f64> {
         self.core_vector(Function::Constraints, q, &[], t)

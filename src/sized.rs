@@ -129,6 +129,23 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
         copy_vector(&self.model.bias(self.real(q), self.real(qd), t), h);
     }
 
+    /// The real coordinates' from the inner model; a pad's is its
+    /// acceleration (unit mass, no bias).
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        qdd: &SVector<f64, NQ>,
+        t: f64,
+        tau: &mut SVector<f64, NQ>,
+    ) {
+        tau.copy_from(qdd);
+        let real = self
+            .model
+            .inverse_dynamics(self.real(q), self.real(qd), self.real(qdd), t);
+        copy_vector(&real, tau);
+    }
+
     fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>) {
         copy_vector(&self.model.constraints(self.real(q), t), phi);
         self.pad_constraints(q, phi);

@@ -1,13 +1,23 @@
-//! Stage 4, derive: Lagrange's equations, derived per component and
-//! assembled.
+//! Stage 4, derive: Lagrange's equations from the scene's energies.
 //!
-//! For each component with energies `T(q, qd, t)`, `V(q, t)` and dissipation
-//! `D(q, qd, t)`, over the coordinates it touches:
+//! With the kinetic energy `T(q, qd, t)`, potential energy `V(q, t)` and
+//! dissipation `D(q, qd, t)` summed over the components:
 //!
-//! * mass matrix block `M = d2T/dqd2`;
-//! * Coriolis/centrifugal forces `c = d/dt(dT/dqd)|_(qdd=0) - dT/dq`;
-//! * potential (gravity and elastic) forces `g = dV/dq`;
-//! * damping forces `d = dD/dqd`.
+//! * `dT/dq` and the momenta `p = dT/dqd` come from one reverse-mode sweep
+//!   over `T` (`Graph::gradient`), whose cost is a small multiple of the size
+//!   of `T`; on a serial chain, where rigid bodies share their frames, that
+//!   size grows linearly with the number of links. Components that touch at
+//!   most [`FORWARD_MAX_COORDINATES`] coordinates are differentiated on
+//!   their own in forward mode instead, where the expanded derivatives
+//!   simplify further;
+//! * Coriolis/centrifugal forces `c = d/dt p|_(qdd=0) - dT/dq`, the time
+//!   derivative being one forward-mode sweep over `p` (`q' = qd`, `t' = 1`);
+//! * mass matrix `M_ij = dp_i/dqd_j`: one forward sweep over `p` per column;
+//! * inverse dynamics `M qdd + h = dp/dt - dT/dq + g + d`, the time
+//!   derivative along `q' = qd`, `qd' = qdd`, `t' = 1` (`Symbol::Qdd`): one
+//!   forward sweep, no mass matrix formed;
+//! * potential (gravity and elastic) forces `g = dV/dq`, damping forces
+//!   `d = dD/dqd`: one reverse sweep each.
 //!
 //! The system is `M qdd + c + g + d = Phi_q^T lambda + B tau`. For the
 //! constraints `Phi(q, t)`: `Phi_q`, `Phi_t` and the acceleration right-hand
@@ -35,6 +45,8 @@ pub struct Equations {
     pub damping_forces: Vec<Id>,
     /// Bias forces `h = coriolis + potential_forces + damping_forces`.
     pub bias: Vec<Id>,
+    /// Inverse dynamics `M qdd + h`, in the accelerations `Symbol::Qdd`.
+    pub inverse_dynamics: Vec<Id>,
     /// Coriolis matrix from Christoffel symbols, when asked for.
     pub coriolis_matrix: Option<Vec<Vec<Id>>>,
     /// Jacobians of the bias forces `(dh/dq, dh/dqd)`, when asked for;
@@ -78,63 +90,65 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     let n = model.nq();
     let g = &mut model.graph;
     let zero = g.constant(0.0);
-    let mut mass = vec![vec![zero; n]; n];
-    let mut coriolis = vec![zero; n];
-    let mut potential_forces = vec![zero; n];
-    let mut damping_forces = vec![zero; n];
-    let mut kinetic = Vec::new();
-    let mut potential = Vec::new();
-
     for c in &model.components {
-        kinetic.push(c.kinetic);
-        potential.push(c.potential);
-        let ctx = || format!("component `{}`", c.name);
         if c.potential != zero && uses_velocity(g, c.potential) {
             return Err(DeriveError {
-                context: ctx(),
+                context: format!("component `{}`", c.name),
                 message: "potential energy depends on velocities".into(),
             });
         }
-        // Kinetic energy: mass block and Coriolis forces over touched coordinates.
-        if c.kinetic != zero {
-            let touched = touched(g, c.kinetic);
-            let qd_vars: Vec<Symbol> = touched.iter().map(|&i| Symbol::Qd(i as u32)).collect();
-            let momenta = g.gradient(c.kinetic, &qd_vars);
-            for (a, &i) in touched.iter().enumerate() {
-                for (b, &j) in touched.iter().enumerate().skip(a) {
-                    let d = g.diff(momenta[a], qd_vars[b]);
-                    mass[i][j] = g.add(mass[i][j], d);
-                    mass[j][i] = mass[i][j];
-                }
-            }
-            let rates = g.time_derivative_at_zero_acceleration(&momenta);
-            for (a, &i) in touched.iter().enumerate() {
-                let dtdq = g.diff(c.kinetic, Symbol::Q(i as u32));
-                let ci = g.sub(rates[a], dtdq);
-                coriolis[i] = g.add(coriolis[i], ci);
-            }
-        }
-        if c.potential != zero {
-            for i in touched(g, c.potential) {
-                let d = g.diff(c.potential, Symbol::Q(i as u32));
-                potential_forces[i] = g.add(potential_forces[i], d);
-            }
-        }
-        if c.dissipation != zero {
-            for i in touched(g, c.dissipation) {
-                let d = g.diff(c.dissipation, Symbol::Qd(i as u32));
-                damping_forces[i] = g.add(damping_forces[i], d);
-            }
+    }
+    let kinetic: Vec<Id> = model.components.iter().map(|c| c.kinetic).collect();
+    let potential: Vec<Id> = model.components.iter().map(|c| c.potential).collect();
+    let dissipation: Vec<Id> = model.components.iter().map(|c| c.dissipation).collect();
+    let kinetic_energy = g.sum(&kinetic);
+    let potential_energy = g.sum(&potential);
+    let dissipation = g.sum(&dissipation);
+
+    let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
+    let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
+    let (dtdq, momenta) = kinetic_gradient(g, &model.components, n);
+    let (dtdq, momenta) = (&dtdq[..], &momenta[..]);
+    // Coriolis forces: one forward sweep over the momenta.
+    let rates = g.time_derivative_at_zero_acceleration(momenta);
+    let coriolis: Vec<Id> = (0..n).map(|i| g.sub(rates[i], dtdq[i])).collect();
+    // dp/dt along the motion (q' = qd, qd' = qdd, t' = 1): one more sweep.
+    let one = g.constant(1.0);
+    let mut motion: Vec<(Symbol, Id)> = vec![(Symbol::Time, one)];
+    for i in 0..n {
+        let (qd, qdd) = (g.qd(i), g.symbol(Symbol::Qdd(i as u32)));
+        motion.push((Symbol::Q(i as u32), qd));
+        motion.push((Symbol::Qd(i as u32), qdd));
+    }
+    let momentum_rates = g.jvp(momenta, &motion);
+    // Mass matrix, column by column: M_ij = dp_i/dqd_j (upper triangle).
+    let mut mass = vec![vec![zero; n]; n];
+    for j in 0..n {
+        let column = g.jvp(&momenta[..=j], &[(Symbol::Qd(j as u32), one)]);
+        for (i, &m) in column.iter().enumerate() {
+            mass[i][j] = m;
+            mass[j][i] = m;
         }
     }
+    let potential_forces = g.gradient(potential_energy, &q_vars);
+    let damping_forces = g.gradient(dissipation, &qd_vars);
     // The exact bias forces; the prune stage may drop summands of their
     // parts (and recompute them), while the bias Jacobians (a Newton matrix,
     // which need not be exact) stay those of the exact forces.
     let bias: Vec<Id> = (0..n)
         .map(|i| g.sum(&[coriolis[i], potential_forces[i], damping_forces[i]]))
         .collect();
-    let kinetic_energy = g.sum(&kinetic);
-    let potential_energy = g.sum(&potential);
+    let inverse_dynamics: Vec<Id> = (0..n)
+        .map(|i| {
+            let terms = [
+                (momentum_rates[i], 1.0),
+                (dtdq[i], -1.0),
+                (potential_forces[i], 1.0),
+                (damping_forces[i], 1.0),
+            ];
+            g.linear(&terms, 0.0)
+        })
+        .collect();
 
     let coriolis_matrix = if model.outputs.coriolis_matrix {
         check_quadratic_kinetic(g, kinetic_energy, &model.runtime_parameters)?;
@@ -143,11 +157,10 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         None
     };
 
-    let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
-    let bias_jacobians = model.outputs.bias_jacobians.then(|| {
-        let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
-        (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars))
-    });
+    let bias_jacobians = model
+        .outputs
+        .bias_jacobians
+        .then(|| (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars)));
 
     // Constraints.
     let phi: Vec<Id> = model.constraints.iter().map(|c| c.residual).collect();
@@ -176,6 +189,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         potential_forces,
         damping_forces,
         bias,
+        inverse_dynamics,
         coriolis_matrix,
         bias_jacobians,
         kinetic_energy,
@@ -186,6 +200,50 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         gamma,
         actuator_map,
     })
+}
+
+/// Components whose kinetic energy touches at most this many coordinates are
+/// differentiated on their own, in forward mode, one partial derivative per
+/// coordinate: their expanded derivatives simplify (like terms, `sin^2 +
+/// cos^2`) to less than the factored adjoint form. The others (links of a
+/// chain, flexible bodies with their modes) go through one reverse sweep
+/// together, sharing the frames they have in common.
+const FORWARD_MAX_COORDINATES: usize = 4;
+
+/// `(dT/dq, dT/dqd)` of the total kinetic energy: forward mode per small
+/// component, one reverse sweep over the sum of the others.
+fn kinetic_gradient(
+    g: &mut Graph,
+    components: &[crate::model::Component],
+    n: usize,
+) -> (Vec<Id>, Vec<Id>) {
+    let zero = g.constant(0.0);
+    let (mut dtdq, mut momenta) = (vec![zero; n], vec![zero; n]);
+    let mut shared = Vec::new();
+    for c in components.iter().filter(|c| c.kinetic != zero) {
+        let touched = touched(g, c.kinetic);
+        if touched.len() > FORWARD_MAX_COORDINATES {
+            shared.push(c.kinetic);
+            continue;
+        }
+        for i in touched {
+            let dq = g.diff(c.kinetic, Symbol::Q(i as u32));
+            let dqd = g.diff(c.kinetic, Symbol::Qd(i as u32));
+            dtdq[i] = g.add(dtdq[i], dq);
+            momenta[i] = g.add(momenta[i], dqd);
+        }
+    }
+    let shared = g.sum(&shared);
+    let vars: Vec<Symbol> = (0..n)
+        .map(|i| Symbol::Q(i as u32))
+        .chain((0..n).map(|i| Symbol::Qd(i as u32)))
+        .collect();
+    let grad = g.gradient(shared, &vars);
+    for i in 0..n {
+        dtdq[i] = g.add(dtdq[i], grad[i]);
+        momenta[i] = g.add(momenta[i], grad[n + i]);
+    }
+    (dtdq, momenta)
 }
 
 /// Indices of the coordinates an expression touches (through `q` or `qd`).
@@ -257,7 +315,7 @@ fn check_quadratic_kinetic(
             g.eval(&[kinetic], &|s| match s {
                 Symbol::Q(i) => 0.3 + 0.17 * f64::from(i + trial),
                 Symbol::Qd(i) => scale * (0.5 - 0.23 * f64::from((i * 7 + trial) % 5)),
-                Symbol::Time => 0.0,
+                Symbol::Time | Symbol::Qdd(_) => 0.0,
                 Symbol::Param(i) => params[i as usize].value,
             })[0]
         };

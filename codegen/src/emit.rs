@@ -49,6 +49,7 @@ pub fn struct_name(scene: &str) -> String {
 struct Inputs {
     q: bool,
     qd: bool,
+    qdd: bool,
     t: bool,
 }
 
@@ -188,6 +189,10 @@ impl Emitter<'_> {
             Code::Sym(Symbol::Qd(i)) => {
                 let i = usize_lit(*i as usize);
                 quote!(qd[#i])
+            }
+            Code::Sym(Symbol::Qdd(i)) => {
+                let i = usize_lit(*i as usize);
+                quote!(qdd[#i])
             }
             Code::Sym(Symbol::Time) => quote!(t),
             Code::Sym(Symbol::Param(i)) => {
@@ -329,6 +334,7 @@ impl Emitter<'_> {
         Inputs {
             q: syms.iter().any(|s| matches!(s, Symbol::Q(_))),
             qd: syms.iter().any(|s| matches!(s, Symbol::Qd(_))),
+            qdd: syms.iter().any(|s| matches!(s, Symbol::Qdd(_))),
             t: syms.contains(&Symbol::Time),
         }
     }
@@ -406,10 +412,20 @@ impl Emitter<'_> {
         } else {
             quote!()
         };
+        let qdd_arg = if sig.with_qdd {
+            let qdd = if used.qdd {
+                format_ident!("qdd")
+            } else {
+                format_ident!("_qdd")
+            };
+            quote!(#qdd: &SVector<#real, #nq>,)
+        } else {
+            quote!()
+        };
         quote! {
             #[doc = #doc]
             #[inline]
-            #vis fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #t: #real, #args) #ret {
+            #vis fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #qdd_arg #t: #real, #args) #ret {
                 #body
                 #assigns
                 #tail

@@ -131,6 +131,9 @@ pub fn export_json(model: &Model) -> String {
             Node::Sym(Symbol::Qd(i)) => NodeOut::Qd { index: *i },
             Node::Sym(Symbol::Time) => NodeOut::T,
             Node::Sym(Symbol::Param(i)) => NodeOut::Param { index: *i },
+            Node::Sym(Symbol::Qdd(_)) => {
+                unreachable!("scene inputs (energies, constraints) never read accelerations")
+            }
             Node::Sum(ts, k) => NodeOut::Sum {
                 constant: k.get(),
                 terms: ts.iter().map(|&(t, c)| (index(t), c.get())).collect(),

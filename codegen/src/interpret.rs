@@ -73,11 +73,13 @@ pub enum Function {
     CoriolisMatrix,
     /// `bias_jacobians`: `dh/dq`, then `dh/dqd` (optional output).
     BiasJacobians,
+    /// `inverse_dynamics`: `M qdd + h` (nq), reads the accelerations.
+    InverseDynamics,
 }
 
 impl Function {
     /// Every function, in the order of [`Function::name`].
-    const ALL: [Function; 16] = [
+    const ALL: [Function; 17] = [
         Function::MassMatrix,
         Function::Bias,
         Function::Constraints,
@@ -94,6 +96,7 @@ impl Function {
         Function::DampingForces,
         Function::CoriolisMatrix,
         Function::BiasJacobians,
+        Function::InverseDynamics,
     ];
 
     /// The function the emitter writes under `name`.
@@ -120,6 +123,7 @@ impl Function {
             Function::DampingForces => "damping_forces",
             Function::CoriolisMatrix => "coriolis_matrix",
             Function::BiasJacobians => "bias_jacobians",
+            Function::InverseDynamics => "inverse_dynamics",
         }
     }
 }
@@ -163,7 +167,7 @@ struct Instr {
 
 /// One emitted function as an instruction tape.
 ///
-/// Slots: `q` (nq), `qd` (nq), `t`, the runtime parameters, the literals,
+/// Slots: `q` (nq), `qd` (nq), `qdd` (nq), `t`, the runtime parameters, the literals,
 /// then intermediate values (reused once dead). The outputs are written to
 /// one buffer, one after the other, matrices column-major (nalgebra's
 /// layout), entries the function does not compute set to zero.
@@ -172,6 +176,7 @@ pub struct Tape {
     nq: usize,
     params: usize,
     uses_qd: bool,
+    uses_qdd: bool,
     literals: Vec<f64>,
     code: Vec<Instr>,
     /// `(slot, position in the output buffer)`.
@@ -223,12 +228,42 @@ impl Tape {
         scratch: &mut Vec<f64>,
         out: &mut [f64],
     ) {
+        self.eval_with_accelerations(q, qd, &[], t, params, scratch, out);
+    }
+
+    /// Whether the function reads the accelerations (`inverse_dynamics`).
+    pub fn uses_qdd(&self) -> bool {
+        self.uses_qdd
+    }
+
+    /// [`Tape::eval`] with the accelerations `qdd` too (which may be empty
+    /// when the function does not read them).
+    ///
+    /// # Panics
+    ///
+    /// As [`Tape::eval`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn eval_with_accelerations(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        params: &[f64],
+        scratch: &mut Vec<f64>,
+        out: &mut [f64],
+    ) {
         let nq = self.nq;
         assert_eq!(q.len(), nq, "expected {nq} positions, got {}", q.len());
         assert!(
             qd.len() == nq || (qd.is_empty() && !self.uses_qd),
             "expected {nq} velocities, got {}",
             qd.len()
+        );
+        assert!(
+            qdd.len() == nq || (qdd.is_empty() && !self.uses_qdd),
+            "expected {nq} accelerations, got {}",
+            qdd.len()
         );
         assert_eq!(
             params.len(),
@@ -247,9 +282,12 @@ impl Tape {
         if self.uses_qd {
             s[nq..2 * nq].copy_from_slice(qd);
         }
-        s[2 * nq] = t;
-        let lit = 2 * nq + 1 + self.params;
-        s[2 * nq + 1..lit].copy_from_slice(params);
+        if self.uses_qdd {
+            s[2 * nq..3 * nq].copy_from_slice(qdd);
+        }
+        s[3 * nq] = t;
+        let lit = 3 * nq + 1 + self.params;
+        s[3 * nq + 1..lit].copy_from_slice(params);
         s[lit..lit + self.literals.len()].copy_from_slice(&self.literals);
         for i in &self.code {
             let x = s[i.a as usize];
@@ -400,7 +438,7 @@ fn constant_matrix(b: &[Vec<f64>], nq: usize, nu: usize, params: usize) -> Tape 
             }
         }
     }
-    l.finish(false, writes, vec![(nq, nu)])
+    l.finish((false, false), writes, vec![(nq, nu)])
 }
 
 /// Lower one function's program to a tape.
@@ -421,7 +459,7 @@ fn outputs_of(f: &Scheduled) -> (Vec<Output>, Vec<(usize, usize, usize)>) {
 
 fn lower(nq: usize, params: usize, f: &Scheduled) -> Tape {
     let (outputs, slots) = outputs_of(f);
-    let (program, uses_qd) = (&f.program, f.sig.with_qd);
+    let (program, uses) = (&f.program, (f.sig.with_qd, f.sig.with_qdd));
     let shapes: Vec<(usize, usize)> = outputs.iter().map(|o| shape(o, nq)).collect();
     let offsets: Vec<usize> = shapes
         .iter()
@@ -466,7 +504,7 @@ fn lower(nq: usize, params: usize, f: &Scheduled) -> Tape {
             }
         }
     }
-    l.finish(uses_qd, writes, shapes)
+    l.finish(uses, writes, shapes)
 }
 
 /// A value while lowering: an input, a literal or an intermediate.
@@ -552,8 +590,9 @@ impl Lowering {
         Ref::Input(match s {
             Symbol::Q(i) => i,
             Symbol::Qd(i) => nq + i,
-            Symbol::Time => 2 * nq,
-            Symbol::Param(i) => 2 * nq + 1 + i,
+            Symbol::Qdd(i) => 2 * nq + i,
+            Symbol::Time => 3 * nq,
+            Symbol::Param(i) => 3 * nq + 1 + i,
         })
     }
 
@@ -676,9 +715,16 @@ impl Lowering {
 
     /// Assign slots (intermediates reuse the slots of dead ones) and build
     /// the tape writing `writes` (value, output position).
-    fn finish(self, uses_qd: bool, writes: Vec<(Ref, usize)>, shapes: Vec<(usize, usize)>) -> Tape {
+    /// The tape, `uses` saying whether it reads the velocities and the
+    /// accelerations.
+    fn finish(
+        self,
+        uses: (bool, bool),
+        writes: Vec<(Ref, usize)>,
+        shapes: Vec<(usize, usize)>,
+    ) -> Tape {
         const LIVE: usize = usize::MAX;
-        let inputs = 2 * self.nq + 1 + self.params;
+        let inputs = 3 * self.nq + 1 + self.params;
         let first_temp = inputs + self.literals.len();
         // Last instruction reading each intermediate (outputs: to the end).
         let mut last: Vec<Option<usize>> = vec![None; self.temps as usize];
@@ -741,7 +787,8 @@ impl Lowering {
         Tape {
             nq: self.nq,
             params: self.params,
-            uses_qd,
+            uses_qd: uses.0,
+            uses_qdd: uses.1,
             literals: self.literals,
             code,
             writes,
@@ -778,6 +825,7 @@ mod tests {
                 let x = |i: usize, s: f64| ((k * 7 + i * 3) as f64 * s).sin() * 1.3;
                 let q: Vec<f64> = (0..nq).map(|i| x(i, 0.37)).collect();
                 let qd: Vec<f64> = (0..nq).map(|i| x(i, 0.91)).collect();
+                let qdd: Vec<f64> = (0..nq).map(|i| x(i, 1.73)).collect();
                 let t = 0.25 * k as f64;
                 let params: Vec<f64> = it
                     .parameters()
@@ -789,6 +837,7 @@ mod tests {
                 let env = |s: Symbol| match s {
                     Symbol::Q(i) => q[i as usize],
                     Symbol::Qd(i) => qd[i as usize],
+                    Symbol::Qdd(i) => qdd[i as usize],
                     Symbol::Time => t,
                     Symbol::Param(i) => params[i as usize],
                 };
@@ -798,7 +847,7 @@ mod tests {
                     let (outputs, _) = outputs_of(&scheduled);
                     let tape = it.tape(f).unwrap();
                     let mut got = vec![f64::NAN; tape.output_len()];
-                    tape.eval(&q, &qd, t, &params, &mut scratch, &mut got);
+                    tape.eval_with_accelerations(&q, &qd, &qdd, t, &params, &mut scratch, &mut got);
                     let mut want = Vec::new();
                     for o in &outputs {
                         let (rows, cols) = shape(o, nq);

@@ -61,6 +61,8 @@ impl Samples {
                 Symbol::Qd(i) => v[2 * i as usize + 1],
                 Symbol::Time => t,
                 Symbol::Param(i) => params[i as usize].value,
+                // The pruned terms never read accelerations.
+                Symbol::Qdd(_) => 0.0,
             }));
         }
     }

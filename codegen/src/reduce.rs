@@ -166,7 +166,7 @@ pub fn apply(mut model: Model, def: &DerivedSceneDef, source: &Source) -> Result
     let map = |s: Symbol| match s {
         Symbol::Q(i) => Some(q[i as usize]),
         Symbol::Qd(i) => Some(qd[i as usize]),
-        Symbol::Time | Symbol::Param(_) => None,
+        Symbol::Time | Symbol::Param(_) | Symbol::Qdd(_) => None,
     };
     let new = g.substitute(&roots, &map);
     let mut it = new.into_iter();

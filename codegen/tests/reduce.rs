@@ -79,6 +79,7 @@ fn terms(m: &Model, eq: &Equations, q: &[f64], qd: &[f64]) -> Vec<Vec<f64>> {
             Symbol::Qd(i) => qd[i as usize],
             Symbol::Time => 0.3,
             Symbol::Param(i) => m.runtime_parameters[i as usize].value,
+            Symbol::Qdd(_) => f64::NAN, // not read by these terms
         })
     };
     let mass: Vec<Id> = eq.mass.iter().flatten().copied().collect();

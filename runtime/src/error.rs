@@ -29,6 +29,8 @@ pub enum Quantity {
     MassMatrix,
     /// Bias forces `h` returned by the model.
     Bias,
+    /// Inverse dynamics `M qdd + h` returned by the model.
+    InverseDynamics,
     /// Analytic bias Jacobians returned by the model.
     BiasJacobian,
     /// Constraint residuals `Phi` returned by the model.
@@ -61,6 +63,7 @@ impl Quantity {
             Quantity::PrescribedAcceleration => "prescribed acceleration",
             Quantity::MassMatrix => "mass matrix M",
             Quantity::Bias => "bias forces h",
+            Quantity::InverseDynamics => "inverse dynamics M qdd + h",
             Quantity::BiasJacobian => "bias Jacobians",
             Quantity::Constraints => "constraints Phi",
             Quantity::ConstraintJacobian => "constraint Jacobian Phi_q",

@@ -32,17 +32,41 @@ pub(crate) fn mass<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const
     Ok(m)
 }
 
-/// `h(q, qd, t)`.
-pub(crate) fn bias<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize>(
+/// `M qdd + h` at `(q, qd, qdd, t)`, from the model's
+/// [`Model::inverse_dynamics`], written into `r`.
+pub(crate) fn inverse_dynamics_into<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
+    model: &M,
+    q: &SVector<f64, NQ>,
+    qd: &SVector<f64, NQ>,
+    qdd: &SVector<f64, NQ>,
+    t: f64,
+    r: &mut SVector<f64, NQ>,
+) -> Result<(), Error> {
+    model.inverse_dynamics(q, qd, qdd, t, r);
+    check(r, Quantity::InverseDynamics, t)
+}
+
+/// `gamma(q, qd, t)`.
+pub(crate) fn constraint_rhs<
+    M: Model<NQ, NC, NU>,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     model: &M,
     q: &SVector<f64, NQ>,
     qd: &SVector<f64, NQ>,
     t: f64,
-) -> Result<SVector<f64, NQ>, Error> {
-    let mut h = SVector::<f64, NQ>::zeros();
-    model.bias(q, qd, t, &mut h);
-    check(&h, Quantity::Bias, t)?;
-    Ok(h)
+) -> Result<SVector<f64, NC>, Error> {
+    let mut gamma = SVector::<f64, NC>::zeros();
+    model.constraint_rhs(q, qd, t, &mut gamma);
+    check(&gamma, Quantity::ConstraintRhs, t)?;
+    Ok(gamma)
 }
 
 /// `M`, `h`, `Phi_q` and `gamma` at one state, from the model's fused

@@ -9,7 +9,9 @@
 //! 2. solves `[Phi_q; S] qd = [-Phi_t; v]` and `[Phi_q; S] qdd = [gamma; a]`
 //!    (`S` selects the prescribed coordinates),
 //! 3. solves `Phi_q^T lambda + B tau = M qdd + h` for the actuator inputs and
-//!    constraint forces ([`forces`]).
+//!    constraint forces ([`forces`]), `M qdd + h` from one call of
+//!    [`Model::inverse_dynamics`] (generated models compute it without
+//!    forming `M`) and `gamma` from [`Model::constraint_rhs`].
 //!
 //! **Fast path** (the common, well-posed case, e.g. a non-redundant parallel
 //! robot): when the Jacobian of the free coordinates `J_f` (the columns of
@@ -208,11 +210,10 @@ pub fn forces<M, const NQ: usize, const NC: usize, const NU: usize>(
 where
     M: Model<NQ, NC, NU>,
 {
-    let m = eval::mass(model, q, t)?;
-    let h = eval::bias(model, q, qd, t)?;
+    let mut r = SVector::<f64, NQ>::zeros();
+    eval::inverse_dynamics_into(model, q, qd, qdd, t, &mut r)?;
     let b = eval::actuator_map(model, t)?;
     let phi_q = eval::constraint_jacobian(model, q, t)?;
-    let r = m * qdd + h;
     forces_from(config, &phi_q, &b, &r, t)
 }
 
@@ -750,7 +751,6 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         let mut qd = self.scatter(v);
         let mut qdd = self.scatter(a);
         let gamma;
-        let mut terms = eval::Terms::zeros();
         let jacobian_condition;
         // X = J_f^-1 J_p on the fast path.
         let mut x = SMatrix::<f64, NC, NP>::zeros();
@@ -773,8 +773,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             let mut qd_f = SVector::<f64, NC>::zeros();
             mul_vec_acc(&inv, w.as_slice(), qd_f.as_mut_slice());
             self.scatter_free(&-qd_f, &mut qd);
-            eval::dynamics_terms_into(model, &q, &qd, t, &mut terms)?;
-            gamma = terms.gamma;
+            gamma = eval::constraint_rhs(model, &q, &qd, t)?;
             let mut qdd_f = SVector::<f64, NC>::zeros();
             mul_vec_acc(&inv, (u + gamma).as_slice(), qdd_f.as_mut_slice());
             self.scatter_free(&qdd_f, &mut qdd);
@@ -784,8 +783,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
             let mut qd_f = SVector::<f64, NQ>::zeros();
             jsvd.solve_transpose(&(-phi_t - phi_q * qd), nf, &mut qd_f);
             qd += qd_f;
-            eval::dynamics_terms_into(model, &q, &qd, t, &mut terms)?;
-            gamma = terms.gamma;
+            gamma = eval::constraint_rhs(model, &q, &qd, t)?;
             let mut qdd_f = SVector::<f64, NQ>::zeros();
             jsvd.solve_transpose(&(gamma - phi_q * qdd), nf, &mut qdd_f);
             qdd += qdd_f;
@@ -798,8 +796,8 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         eval::check_result(&qdd, Quantity::Acceleration, t)?;
         // 3. Forces.
         let b = eval::actuator_map(model, t)?;
-        let mut r = terms.h;
-        mul_vec_acc(&terms.m, qdd.as_slice(), r.as_mut_slice());
+        let mut r = SVector::<f64, NQ>::zeros();
+        eval::inverse_dynamics_into(model, &q, &qd, &qdd, t, &mut r)?;
         let fast_forces = match fast {
             Some(f) => self.forces_eliminated(
                 &cfg,

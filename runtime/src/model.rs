@@ -177,6 +177,25 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
         self.constraint_jacobian(q, t, phi_q);
         self.constraint_rhs(q, qd, t, gamma);
     }
+
+    /// Inverse dynamics: the generalized forces `tau = M qdd + h` that give
+    /// the accelerations `qdd` at `(q, qd, t)`, constraint forces left out.
+    /// Generated models override it with one program (the time derivative of
+    /// the momenta along the motion, cheaper than forming `M`); the default
+    /// forms `M` and `h` and multiplies.
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        qdd: &SVector<f64, NQ>,
+        t: f64,
+        tau: &mut SVector<f64, NQ>,
+    ) {
+        let mut m = SMatrix::<f64, NQ, NQ>::zeros();
+        self.mass_matrix(q, t, &mut m);
+        self.bias(q, qd, t, tau);
+        tau.gemv(1.0, &m, qdd, 1.0);
+    }
 }
 
 /// Inside an `impl Model<NQ, NC, NU> for Wrapper` block, forwards the items a
@@ -291,5 +310,15 @@ where
         gamma: &mut SVector<f64, NC>,
     ) {
         self.0.dynamics_terms(q, qd, t, m, h, phi_q, gamma)
+    }
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<f64, NQ>,
+        qd: &SVector<f64, NQ>,
+        qdd: &SVector<f64, NQ>,
+        t: f64,
+        tau: &mut SVector<f64, NQ>,
+    ) {
+        self.0.inverse_dynamics(q, qd, qdd, t, tau)
     }
 }

@@ -82,9 +82,11 @@ fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
     }
     let q: Vec<f64> = (0..a.nq()).map(|i| 0.3 + 0.17 * i as f64).collect();
     let qd: Vec<f64> = (0..a.nq()).map(|i| -0.4 + 0.23 * i as f64).collect();
+    let qdd: Vec<f64> = (0..a.nq()).map(|i| 0.8 - 0.31 * i as f64).collect();
     let t = 0.37;
     a.mass_matrix(&q, t) == b.mass_matrix(&q, t)
         && a.bias(&q, &qd, t) == b.bias(&q, &qd, t)
+        && a.inverse_dynamics(&q, &qd, &qdd, t) == b.inverse_dynamics(&q, &qd, &qdd, t)
         && a.constraints(&q, t) == b.constraints(&q, t)
         && a.actuator_map() == b.actuator_map()
         && a.potential_energy(&q, t) == b.potential_energy(&q, t)

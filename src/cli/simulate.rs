@@ -247,6 +247,7 @@ fn initial_state(
                 .iter()
                 .map(|c| c.initial_velocity)
                 .collect(),
+            qdd: Vec::new(),
             t: 0.0,
             params: Default::default(),
         });

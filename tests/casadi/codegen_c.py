@@ -52,9 +52,9 @@ def main(argv: list[str]) -> int:
     nq = len(export["coordinates"])
     npar = len(export["runtime_parameters"])
     func, shapes = validate.derive(export, False, False)
-    q, qd = ca.SX.sym("q", nq), ca.SX.sym("qd", nq)
+    q, qd, qdd = ca.SX.sym("q", nq), ca.SX.sym("qd", nq), ca.SX.sym("qdd", nq)
     t, p = ca.SX.sym("t"), ca.SX.sym("p", npar)
-    terms = dict(zip([n for n, _ in shapes], func(q, qd, t, p)))
+    terms = dict(zip([n for n, _ in shapes], func(q, qd, qdd, t, p)))
     wanted = ["mass_matrix", "bias", "constraint_jacobian", "constraint_rhs"]
     f = ca.Function(f"{name}_terms", [q, qd, t, p], [ca.densify(terms[w]) for w in wanted],
                     ["q", "qd", "t", "p"], ["M", "h", "phi_q", "gamma"], {"cse": True})

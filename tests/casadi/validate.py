@@ -15,6 +15,7 @@ For each scene (the files given, or every ``scenes/*.toml``):
      with ``jtimes`` along ``(q, t) -> (qd, 1)``;
    * ``potential_forces = dV/dq``, ``damping_forces = dD/dqd``,
      ``bias = coriolis + potential_forces + damping_forces``;
+   * ``inverse_dynamics = M qdd + bias`` at seeded random accelerations;
    * ``Phi_q = jacobian(Phi, q)``, ``Phi_t = jacobian(Phi, t)``,
      ``gamma = -d/dt(Phi_q qd + Phi_t)|_(qdd=0)`` (``jtimes`` again);
    * the Christoffel Coriolis matrix
@@ -324,6 +325,7 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
     npar = len(export["runtime_parameters"])
     q = ca.SX.sym("q", nq)
     qd = ca.SX.sym("qd", nq)
+    qdd = ca.SX.sym("qdd", nq)
     t = ca.SX.sym("t")
     p = ca.SX.sym("p", npar)
     vals = build_nodes(export["nodes"], q, qd, t, p)
@@ -351,6 +353,7 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
     potential_forces = ca.gradient(potential, q)
     damping_forces = ca.gradient(dissipation, qd)
     bias = coriolis + potential_forces + damping_forces
+    inverse_dynamics = ca.mtimes(mass, qdd) + bias
 
     phi_q = ca.jacobian(phi, q)
     phi_t = ca.jacobian(phi, t)
@@ -371,6 +374,7 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
     terms = [
         ("mass_matrix", mass, (nq, nq)),
         ("bias", bias, (nq,)),
+        ("inverse_dynamics", inverse_dynamics, (nq,)),
         ("constraints", phi, (len(residuals),)),
         ("constraint_jacobian", phi_q, (len(residuals), nq)),
         ("constraint_time_derivative", phi_t, (len(residuals),)),
@@ -387,7 +391,7 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
         terms.append(("bias_jacobian_q", ca.jacobian(bias, q), (nq, nq)))
         terms.append(("bias_jacobian_qd", ca.jacobian(bias, qd), (nq, nq)))
     outs = [ca.densify(e) for _, e, _ in terms]
-    func = ca.Function(f"{export['name']}_terms", [q, qd, t, p], outs)
+    func = ca.Function(f"{export['name']}_terms", [q, qd, qdd, t, p], outs)
     return func, [(name, shape) for name, _, shape in terms]
 
 
@@ -403,11 +407,11 @@ def actuator_map(export: dict) -> "np.ndarray":
     return b
 
 
-def evaluate_casadi(func, shapes, q, qd, t, p) -> dict:
+def evaluate_casadi(func, shapes, q, qd, qdd, t, p) -> dict:
     """Evaluate the mapped function; every term as an array of shape (N, *shape)."""
     n = q.shape[0]
     mapped = func.map(n)
-    outs = mapped(q.T, qd.T, t.reshape(1, n), p.T)
+    outs = mapped(q.T, qd.T, qdd.T, t.reshape(1, n), p.T)
     if not isinstance(outs, (list, tuple)):
         outs = [outs]
     result = {}
@@ -567,7 +571,7 @@ def compare(rust: "np.ndarray", ref: "np.ndarray", rtol: float = RTOL) -> dict:
 # ---------------------------------------------------------------------------
 
 BASE_TERMS = [
-    "mass_matrix", "bias", "constraints", "constraint_jacobian",
+    "mass_matrix", "bias", "inverse_dynamics", "constraints", "constraint_jacobian",
     "constraint_time_derivative", "constraint_rhs", "actuator_map",
     "kinetic_energy", "potential_energy",
 ]
@@ -623,6 +627,11 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
     if not states:
         raise ValidationError(f"scene `{name}`: no states to evaluate (--states 0 and no working states)")
     n = len(states)
+    # Accelerations for the inverse dynamics, from their own seeded stream
+    # (the states above do not depend on them).
+    qdd_all = rng_for(args.seed, f"{name}/qdd").uniform(-2.0, 2.0, size=(n, nq))
+    for s, a in zip(states, qdd_all):
+        s["qdd"] = a.tolist()
     q_all = np.array([s["q"] for s in states], dtype=float).reshape(n, nq)
     qd_all = np.array([s["qd"] for s in states], dtype=float).reshape(n, nq)
     t_all = np.array([s["t"] for s in states], dtype=float)
@@ -673,7 +682,7 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
     t_build = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    ref = evaluate_casadi(func, shapes, q_all, qd_all, t_all, p_all)
+    ref = evaluate_casadi(func, shapes, q_all, qd_all, qdd_all, t_all, p_all)
     ref["actuator_map"] = np.broadcast_to(actuator_map(export), (n, nq, len(export["actuators"])))
     for fused, separate in FUSED_TERMS.items():
         ref[fused] = ref[separate]

@@ -28,9 +28,12 @@ fn states(path: &std::path::Path, model: &flexdyn::codegen::Model) -> Vec<State>
     (0..STATES)
         .map(|_| {
             let (q, qd, t) = common::random_state(model, &mut rng);
+            // Accelerations of the size of the velocities, another order.
+            let qdd = qd.iter().rev().map(|v| 1.5 * v - 0.2).collect();
             State {
                 q,
                 qd,
+                qdd,
                 t,
                 params: BTreeMap::new(),
             }

@@ -1,9 +1,10 @@
-//! Exact symbolic differentiation on the expression graph: partial and
-//! directional derivatives, gradients, Jacobians and Hessians.
+//! Exact symbolic differentiation on the expression graph, forward mode:
+//! partial and directional derivatives, Jacobians and Hessians (gradients by
+//! reverse mode are in `reverse`).
 
 use std::collections::HashMap;
 
-use super::{Func, Graph, Id, Node, Symbol};
+use super::{Graph, Id, Node, Symbol};
 
 impl Graph {
     /// Directional derivative of `e`: the derivative of every symbol `s` is
@@ -60,24 +61,7 @@ impl Graph {
                 if self.is_const(da, 0.0) {
                     return zero;
                 }
-                let outer = match f {
-                    Func::Sin => self.cos(a),
-                    Func::Cos => {
-                        let s = self.sin(a);
-                        self.neg(s)
-                    }
-                    Func::Tan => {
-                        let t = self.call(Func::Tan, a);
-                        let t2 = self.powi(t, 2);
-                        self.linear(&[(t2, 1.0)], 1.0)
-                    }
-                    Func::Exp => id,
-                    Func::Ln => self.powi(a, -1),
-                    Func::Sqrt => {
-                        let inv = self.powi(id, -1);
-                        self.scale(inv, 0.5)
-                    }
-                };
+                let outer = self.call_derivative(f, a, id);
                 self.mul(outer, da)
             }
             Node::Atan2(y, x) => {
@@ -104,11 +88,6 @@ impl Graph {
     pub fn diff_many(&mut self, es: &[Id], s: Symbol) -> Vec<Id> {
         let one = self.constant(1.0);
         self.directional_many(es, &|x| (x == s).then_some(one))
-    }
-
-    /// Gradient of `e` with respect to `vars`.
-    pub fn gradient(&mut self, e: Id, vars: &[Symbol]) -> Vec<Id> {
-        vars.iter().map(|&v| self.diff(e, v)).collect()
     }
 
     /// Jacobian `J[i][j] = d es[i] / d vars[j]`.
@@ -161,7 +140,7 @@ mod tests {
             Symbol::Q(i) => q[i as usize],
             Symbol::Qd(i) => q[2 + i as usize],
             Symbol::Time => q[4],
-            Symbol::Param(_) => 1.3,
+            Symbol::Param(_) | Symbol::Qdd(_) => 1.3,
         })[0]
     }
 

@@ -14,6 +14,7 @@
 //! is a topological order of the graph.
 
 mod diff;
+mod reverse;
 
 use std::collections::HashMap;
 use std::fmt;
@@ -36,6 +37,8 @@ pub enum Symbol {
     Q(u32),
     /// Generalized velocity `qd[i]`.
     Qd(u32),
+    /// Generalized acceleration `qdd[i]` (only in the inverse dynamics).
+    Qdd(u32),
     /// Time `t`.
     Time,
     /// Parameter left as a runtime input (index into the scene's runtime parameters).
@@ -576,6 +579,7 @@ impl Graph {
             Node::Const(c) => format!("{}", c.get()),
             Node::Sym(Symbol::Q(i)) => format!("q[{i}]"),
             Node::Sym(Symbol::Qd(i)) => format!("qd[{i}]"),
+            Node::Sym(Symbol::Qdd(i)) => format!("qdd[{i}]"),
             Node::Sym(Symbol::Time) => "t".into(),
             Node::Sym(Symbol::Param(i)) => format!("p{i}"),
             Node::Sum(ts, k) => {

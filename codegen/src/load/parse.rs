@@ -442,6 +442,7 @@ mod tests {
             Symbol::Qd(i) => qd[i as usize],
             Symbol::Time => 0.5,
             Symbol::Param(_) => 3.0,
+            Symbol::Qdd(_) => f64::NAN,
         })[0]
     }
 

@@ -18,6 +18,8 @@ pub struct Signature {
     pub doc: &'static str,
     /// Whether it takes the velocities.
     pub with_qd: bool,
+    /// Whether it takes the accelerations (after the velocities).
+    pub with_qdd: bool,
     /// Whether it overrides an optional trait method (returns `true`).
     pub optional: bool,
 }
@@ -28,8 +30,14 @@ impl Signature {
             name,
             doc,
             with_qd,
+            with_qdd: false,
             optional: false,
         }
+    }
+
+    fn with_accelerations(mut self) -> Signature {
+        self.with_qdd = true;
+        self
     }
 
     fn optional(mut self) -> Signature {
@@ -230,6 +238,16 @@ pub fn functions(model: &Model, eq: &Equations) -> Vec<Function> {
                 Output::matrix("phi_q", &eq.phi_q, false),
                 Output::vector("gamma", &eq.gamma),
             ],
+        ),
+        Function::new(
+            graph,
+            Signature::new(
+                "inverse_dynamics",
+                "Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.",
+                true,
+            )
+            .with_accelerations(),
+            vec![Output::vector("tau", &eq.inverse_dynamics)],
         ),
         Function::scalar(
             graph,

@@ -71,7 +71,9 @@ fn eval(g: &Graph, ids: &[Id], q: &[f64], qd: &[f64], t: f64) -> Vec<f64> {
         Symbol::Q(i) => q[i as usize],
         Symbol::Qd(i) => qd[i as usize],
         Symbol::Time => t,
-        Symbol::Param(_) => panic!("no runtime parameters in these scenes"),
+        Symbol::Param(_) | Symbol::Qdd(_) => {
+            panic!("no runtime parameters in these scenes, no accelerations in these terms")
+        }
     })
 }
 

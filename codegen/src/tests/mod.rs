@@ -3,4 +3,5 @@
 //! file text to emitted code.
 
 mod flexible_link;
+mod lagrange_sweeps;
 mod parser_fuzz;

@@ -87,7 +87,7 @@ fn check_expr(text: &str, allow_velocity: bool) -> Result<(), TestCaseError> {
                 Symbol::Q(i) => 0.3 + f64::from(i),
                 Symbol::Qd(i) => -0.7 + f64::from(i),
                 Symbol::Time => 0.25,
-                Symbol::Param(_) => 1.5,
+                Symbol::Param(_) | Symbol::Qdd(_) => 1.5,
             });
         }
         Err(ParseError { offset, message }) => {

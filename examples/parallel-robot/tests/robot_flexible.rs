@@ -106,7 +106,9 @@ impl Tape {
                 Node::Sym(Symbol::Q(i)) => Op::Q(*i as usize),
                 Node::Sym(Symbol::Qd(i)) => Op::Qd(*i as usize),
                 Node::Sym(Symbol::Time) => Op::Time,
-                Node::Sym(Symbol::Param(_)) => panic!("runtime parameters are not supported here"),
+                Node::Sym(Symbol::Param(_) | Symbol::Qdd(_)) => {
+                    panic!("runtime parameters and accelerations are not supported here")
+                }
                 Node::Sum(ts, k) => Op::Sum(
                     ts.iter().map(|(t, c)| (slot[t], c.get())).collect(),
                     k.get(),

@@ -1,0 +1,156 @@
+//! The derivation by reverse and forward sweeps: the inverse dynamics
+//! against the mass matrix and bias forces derived by separate sweeps, the
+//! mass matrix against central differences of the momenta, and the growth
+//! of the emitted programs along a spatial serial chain.
+
+use std::path::Path;
+
+use crate::expr::{Id, Symbol};
+use crate::model::Model;
+use crate::schedule::functions;
+use crate::Source;
+
+fn scene(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes")
+        .join(format!("{name}.toml"))
+}
+
+/// A spatial chain of `n` rigid bodies: joint axes alternating z, y, x,
+/// offset joints, centres of mass off the joint axes, full inertia tensors.
+fn chain(n: usize) -> Model {
+    let mut s = String::from("name = \"chain\"\ngravity = [0, 0, -9.81]\n");
+    for k in 0..n {
+        s += &format!("[[coordinates]]\nname = \"q{k}\"\n");
+    }
+    for k in 0..n {
+        let parent = if k == 0 {
+            "world".into()
+        } else {
+            format!("link{}", k - 1)
+        };
+        let axis = ["z", "y", "x"][k % 3];
+        s += &format!(
+            "[[frames]]\nname = \"link{k}\"\nparent = \"{parent}\"\ntranslation = [0.05, 0.02, 0.3]\nrotation = [{{ axis = \"{axis}\", angle = \"q{k}\" }}]\n"
+        );
+    }
+    for k in 0..n {
+        s += &format!(
+            "[[components]]\nname = \"body{k}\"\ntype = \"rigid_body\"\nmass = {}\nframe = \"link{k}\"\nposition = [0.01, -0.015, 0.15]\ninertia = [[0.02, 0.001, -0.0007], [0.001, 0.025, 0.0004], [-0.0007, 0.0004, 0.012]]\n",
+            1.0 + 0.1 * k as f64
+        );
+    }
+    Model::from_source(&Source::new(Path::new("chain.toml"), s)).unwrap()
+}
+
+fn state(n: usize, k: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let x = |i: usize, s: f64| ((k * 5 + i * 3 + 1) as f64 * s).sin();
+    (
+        (0..n).map(|i| 1.2 * x(i, 0.37)).collect(),
+        (0..n).map(|i| 2.0 * x(i, 0.91)).collect(),
+        (0..n).map(|i| 3.0 * x(i, 1.73)).collect(),
+    )
+}
+
+fn eval(m: &Model, ids: &[Id], q: &[f64], qd: &[f64], qdd: &[f64], t: f64) -> Vec<f64> {
+    m.graph.eval(ids, &|s| match s {
+        Symbol::Q(i) => q[i as usize],
+        Symbol::Qd(i) => qd[i as usize],
+        Symbol::Qdd(i) => qdd[i as usize],
+        Symbol::Time => t,
+        Symbol::Param(i) => m.runtime_parameters[i as usize].value,
+    })
+}
+
+#[test]
+fn inverse_dynamics_is_mass_times_acceleration_plus_bias() {
+    let mut models: Vec<Model> = [
+        "double_pendulum",
+        "five_bar",
+        "spin_up_beam",
+        "flyball_governor",
+    ]
+    .iter()
+    .map(|name| Model::load(&scene(name)).unwrap())
+    .collect();
+    models.push(chain(7));
+    for mut m in models {
+        let eq = m.equations().unwrap();
+        let n = m.nq();
+        for k in 0..4 {
+            let (q, qd, qdd) = state(n, k);
+            let t = 0.3 * k as f64;
+            let tau = eval(&m, &eq.inverse_dynamics, &q, &qd, &qdd, t);
+            let h = eval(&m, &eq.bias, &q, &qd, &qdd, t);
+            let mass = eval(&m, &eq.mass.concat(), &q, &qd, &qdd, t);
+            for i in 0..n {
+                let want = h[i] + (0..n).map(|j| mass[i * n + j] * qdd[j]).sum::<f64>();
+                let scale = want.abs().max(1.0);
+                assert!(
+                    (tau[i] - want).abs() <= 1e-12 * scale,
+                    "{}: tau[{i}] = {} vs M qdd + h = {want}",
+                    m.name,
+                    tau[i]
+                );
+            }
+        }
+    }
+}
+
+/// `M_ij = d p_i / d qd_j` with `p = dT/dqd`: central differences of the
+/// kinetic energy's velocity gradient, taken from the energy itself by
+/// second differences (`T` is quadratic in `qd`, so they are exact to
+/// rounding).
+#[test]
+fn mass_matrix_is_the_velocity_hessian_of_the_kinetic_energy() {
+    let mut m = chain(6);
+    let eq = m.equations().unwrap();
+    let n = m.nq();
+    let (q, qd, qdd) = state(n, 2);
+    let energy = |v: &[f64]| eval(&m, &[eq.kinetic_energy], &q, v, &qdd, 0.0)[0];
+    let mass = eval(&m, &eq.mass.concat(), &q, &qd, &qdd, 0.0);
+    let h = 0.5;
+    for i in 0..n {
+        for j in 0..n {
+            let at = |a: f64, b: f64| {
+                let mut v = qd.clone();
+                v[i] += a;
+                v[j] += b;
+                energy(&v)
+            };
+            let fd = (at(h, h) - at(h, -h) - at(-h, h) + at(-h, -h)) / (4.0 * h * h);
+            assert!(
+                (fd - mass[i * n + j]).abs() <= 1e-9 * mass[i * n + j].abs().max(1.0),
+                "M[{i}][{j}] = {} vs {fd}",
+                mass[i * n + j]
+            );
+        }
+    }
+}
+
+/// Total operations of the emitted function `name`.
+fn ops(m: &Model, eq: &crate::Equations, name: &str) -> usize {
+    let f = functions(m, eq)
+        .into_iter()
+        .find(|f| f.sig.name == name)
+        .unwrap();
+    f.program.ops.total()
+}
+
+/// Bias forces and inverse dynamics grow linearly along a spatial chain,
+/// the mass matrix quadratically: doubling the chain from 8 to 16 links at
+/// most multiplies them by 2.5 and 5.
+#[test]
+fn chain_programs_grow_like_the_recursive_algorithms() {
+    let count = |n: usize| {
+        let mut m = chain(n);
+        let eq = m.equations().unwrap();
+        ["bias", "inverse_dynamics", "mass_matrix"].map(|f| ops(&m, &eq, f) as f64)
+    };
+    let (small, large) = (count(8), count(16));
+    let ratio: Vec<f64> = small.iter().zip(&large).map(|(a, b)| b / a).collect();
+    assert!(
+        ratio[0] < 2.5 && ratio[1] < 2.5 && ratio[2] < 5.0,
+        "{small:?} -> {large:?}"
+    );
+}
