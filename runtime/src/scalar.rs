@@ -34,6 +34,11 @@ pub trait Scalar: RealField + Copy + Default + Into<f64> + core::iter::Sum {
     /// Default largest accepted condition of the systems the solvers
     /// invert: `1e8` (`f64`), `1e4` (`f32`); see the module docs.
     const MAX_CONDITION: Self;
+    /// Default largest accepted condition estimate of the constrained
+    /// forward dynamics (the equilibrated Schur complement of the KKT
+    /// system): `1e12` (`f64`), `1e6` (`f32`, about `1 / (8 eps)`: beyond it
+    /// not one significant digit of the accelerations is certain).
+    const KKT_MAX_CONDITION: Self;
 
     /// `x` rounded to this type (exact for `f64`).
     fn of(x: f64) -> Self;
@@ -52,6 +57,7 @@ impl Scalar for f64 {
     const POSITION_TOLERANCE: Self = 1e-12;
     const RANK_TOLERANCE: Self = 1e-10;
     const MAX_CONDITION: Self = 1e8;
+    const KKT_MAX_CONDITION: Self = 1e12;
 
     #[inline]
     fn of(x: f64) -> Self {
@@ -76,6 +82,7 @@ impl Scalar for f32 {
     const POSITION_TOLERANCE: Self = 1e-5;
     const RANK_TOLERANCE: Self = 1e-4;
     const MAX_CONDITION: Self = 1e4;
+    const KKT_MAX_CONDITION: Self = 1e6;
 
     #[inline]
     fn of(x: f64) -> Self {
