@@ -22,8 +22,13 @@ pub(crate) fn check<T: Scalar, const R: usize, const C: usize>(
 }
 
 /// `M(q, t)`.
-pub(crate) fn mass<M: Model<NQ, NC, NU, T>,
-    T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn mass<
+    M: Model<NQ, NC, NU, T>,
+    T: Scalar,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     model: &M,
     q: &SVector<T, NQ>,
     t: T,
@@ -263,7 +268,10 @@ pub(crate) fn constraint_time_derivative<
 }
 
 /// Checks an actuator input vector.
-pub(crate) fn check_input<T: Scalar, const NU: usize>(tau: &SVector<T, NU>, t: T) -> Result<(), Error> {
+pub(crate) fn check_input<T: Scalar, const NU: usize>(
+    tau: &SVector<T, NU>,
+    t: T,
+) -> Result<(), Error> {
     match crate::linalg::first_non_finite(tau) {
         None => Ok(()),
         Some(index) => Err(Error::new(

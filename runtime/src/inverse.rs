@@ -114,7 +114,9 @@ pub struct InverseSolution<const NQ: usize, const NC: usize, const NU: usize, T:
     pub lambda: SVector<T, NC>,
 }
 
-impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Default for InverseSolution<NQ, NC, NU, T> {
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Default
+    for InverseSolution<NQ, NC, NU, T>
+{
     fn default() -> Self {
         InverseSolution {
             t: T::zero(),
@@ -271,7 +273,8 @@ fn forces_square<T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
             }
         }
     }
-    let full_rank = Scalar::square_root(norm_squared(phi_q) * s2) * config.rank_tolerance < T::one();
+    let full_rank =
+        Scalar::square_root(norm_squared(phi_q) * s2) * config.rank_tolerance < T::one();
     let actuation_condition = if NU == 0 {
         T::one()
     } else {

@@ -54,6 +54,6 @@ pub use inverse::{
 };
 pub use model::{FiniteDifferenceJacobians, Model};
 pub use nalgebra;
-pub use scalar::Scalar;
 pub use projection::{project, ProjectionConfig, ProjectionReport};
+pub use scalar::Scalar;
 pub use state::{constraint_drift, total_energy, Drift, State};

@@ -93,7 +93,9 @@ pub(crate) fn first_non_finite<T: Scalar, const R: usize>(a: &SVector<T, R>) -> 
 ///
 /// Fails with `(pivot index, pivot value)` when a pivot is not positive, or
 /// is below `eps * A_jj` (numerically singular), or is not finite.
-pub(crate) fn cholesky<T: Scalar, const N: usize>(a: &mut SMatrix<T, N, N>) -> Result<(), (usize, T)> {
+pub(crate) fn cholesky<T: Scalar, const N: usize>(
+    a: &mut SMatrix<T, N, N>,
+) -> Result<(), (usize, T)> {
     for j in 0..N {
         let ajj = a[(j, j)];
         let mut d = ajj;
@@ -590,7 +592,8 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
                         gamma += w[(i, p)] * w[(i, q)];
                     }
                     if gamma == T::zero()
-                        || gamma.abs() <= T::EPSILON * Scalar::square_root(alpha) * Scalar::square_root(beta)
+                        || gamma.abs()
+                            <= T::EPSILON * Scalar::square_root(alpha) * Scalar::square_root(beta)
                         || alpha <= negligible
                         || beta <= negligible
                     {
@@ -601,7 +604,11 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
                     let t = if zeta.abs() > T::of(1e100) {
                         T::of(0.5) / zeta
                     } else {
-                        let sgn = if zeta >= T::zero() { T::one() } else { -T::one() };
+                        let sgn = if zeta >= T::zero() {
+                            T::one()
+                        } else {
+                            -T::one()
+                        };
                         sgn / (zeta.abs() + Scalar::square_root(T::one() + zeta * zeta))
                     };
                     let c = T::one() / Scalar::square_root(T::one() + t * t);
@@ -711,12 +718,7 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
 
     /// Least-squares minimum-norm solution of `A^T y = c` using the leading
     /// `rank` singular triplets.
-    pub(crate) fn solve_transpose(
-        &self,
-        c: &SVector<T, C>,
-        rank: usize,
-        y: &mut SVector<T, R>,
-    ) {
+    pub(crate) fn solve_transpose(&self, c: &SVector<T, C>, rank: usize, y: &mut SVector<T, R>) {
         y.fill(T::zero());
         for k in 0..rank.min(C) {
             let j = self.order[k];
@@ -749,22 +751,22 @@ mod tests {
 
     #[test]
     fn cholesky_solves() {
-        let a = SMatrix::<T, 3, 3>::new(T::of(4.0), T::of(2.0), T::of(0.4), T::of(2.0), T::of(3.0), T::of(0.5), T::of(0.4), T::of(0.5), T::of(2.0));
+        let a = SMatrix::<f64, 3, 3>::new(4.0, 2.0, 0.4, 2.0, 3.0, 0.5, 0.4, 0.5, 2.0);
         let mut l = a;
         assert!(cholesky(&mut l).is_ok());
-        let b = SVector::<T, 3>::new(T::one(), -T::of(2.0), T::of(0.5));
-        let mut x = SMatrix::<T, 3, 1>::from_column_slice(b.as_slice());
+        let b = SVector::<f64, 3>::new(1.0, -2.0, 0.5);
+        let mut x = SMatrix::<f64, 3, 1>::from_column_slice(b.as_slice());
         solve_lower(&l, &mut x);
         solve_lower_transpose(&l, &mut x);
         assert!((a * x - b).norm() < 1e-14);
-        let mut bad = SMatrix::<T, 2, 2>::new(T::one(), T::of(2.0), T::of(2.0), T::one());
+        let mut bad = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 1.0);
         assert!(matches!(cholesky(&mut bad), Err((1, _))));
     }
 
     #[test]
     fn spd_and_lu_solve_and_detect_singular() {
-        let a = SMatrix::<T, 3, 3>::new(T::of(4.0), T::of(2.0), T::of(0.4), T::of(2.0), T::of(3.0), T::of(0.5), T::of(0.4), T::of(0.5), T::of(2.0));
-        let b = SVector::<T, 3>::new(T::one(), -T::of(2.0), T::of(0.5));
+        let a = SMatrix::<f64, 3, 3>::new(4.0, 2.0, 0.4, 2.0, 3.0, 0.5, 0.4, 0.5, 2.0);
+        let b = SVector::<f64, 3>::new(1.0, -2.0, 0.5);
         let (s, _) = SpdSolver::factor(&a, 1e12)
             .ok()
             .unwrap_or_else(|| unreachable!());
@@ -775,59 +777,59 @@ mod tests {
         let mut y = b;
         lu.solve(&mut y);
         assert!((a * y - b).norm() < 1e-14);
-        let sing = SMatrix::<T, 2, 2>::new(T::one(), T::of(2.0), T::of(2.0), T::of(4.0));
+        let sing = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 4.0);
         assert!(SpdSolver::factor(&sing, 1e12).is_err());
         assert!(Lu::factor(&sing, 1e12).is_err());
     }
 
     #[test]
     fn gauss_jordan_inverse() {
-        let a = SMatrix::<T, 4, 4>::new(
-            T::zero(), T::of(2.0), T::of(0.4), T::one(), T::of(2.0), T::of(3.0), T::of(0.5), -T::one(), T::of(0.4), T::of(0.5), T::of(2.0), T::zero(), T::one(), T::zero(), -T::of(3.0), T::of(0.2),
+        let a = SMatrix::<f64, 4, 4>::new(
+            0.0, 2.0, 0.4, 1.0, 2.0, 3.0, 0.5, -1.0, 0.4, 0.5, 2.0, 0.0, 1.0, 0.0, -3.0, 0.2,
         );
         let mut inv = a;
         assert!(invert_in_place(&mut inv));
-        assert!((a * inv - SMatrix::<T, 4, 4>::identity()).amax() < 1e-14);
-        assert!((inv * a - SMatrix::<T, 4, 4>::identity()).amax() < 1e-14);
+        assert!((a * inv - SMatrix::<f64, 4, 4>::identity()).amax() < 1e-14);
+        assert!((inv * a - SMatrix::<f64, 4, 4>::identity()).amax() < 1e-14);
         // Block diagonal (after a permutation): zero columns are skipped.
-        let b = SMatrix::<T, 4, 4>::new(
-            T::zero(), T::of(2.0), T::zero(), T::zero(), T::of(3.0), T::one(), T::zero(), T::zero(), T::zero(), T::zero(), T::of(1.5), -T::one(), T::zero(), T::zero(), T::of(0.5), T::of(2.0),
+        let b = SMatrix::<f64, 4, 4>::new(
+            0.0, 2.0, 0.0, 0.0, 3.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.5, -1.0, 0.0, 0.0, 0.5, 2.0,
         );
         let mut binv = b;
         assert!(invert_in_place(&mut binv));
-        assert!((b * binv - SMatrix::<T, 4, 4>::identity()).amax() < 1e-15);
-        assert_eq!(binv[(0, 2)], T::zero());
-        let mut sing = SMatrix::<T, 2, 2>::new(T::one(), T::of(2.0), T::of(2.0), T::of(4.0));
+        assert!((b * binv - SMatrix::<f64, 4, 4>::identity()).amax() < 1e-15);
+        assert_eq!(binv[(0, 2)], 0.0);
+        let mut sing = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 4.0);
         assert!(!invert_in_place(&mut sing));
-        assert!(!invert_in_place(&mut SMatrix::<T, 2, 2>::new(
-            T::NAN,
-            T::zero(),
-            T::zero(),
-            T::one()
+        assert!(!invert_in_place(&mut SMatrix::<f64, 2, 2>::new(
+            f64::NAN,
+            0.0,
+            0.0,
+            1.0
         )));
-        assert!(!invert_in_place(&mut SMatrix::<T, 2, 2>::new(
-            T::one(),
-            T::zero(),
-            T::zero(),
-            T::INFINITY
+        assert!(!invert_in_place(&mut SMatrix::<f64, 2, 2>::new(
+            1.0,
+            0.0,
+            0.0,
+            f64::INFINITY
         )));
-        assert!(invert_in_place(&mut SMatrix::<T, 0, 0>::zeros()));
-        assert!(all_finite(&SMatrix::<T, 3, 5>::from_element(1e308)));
-        let mut x = SMatrix::<T, 3, 5>::from_element(T::one());
-        for v in [T::NAN, T::INFINITY, T::NEG_INFINITY] {
+        assert!(invert_in_place(&mut SMatrix::<f64, 0, 0>::zeros()));
+        assert!(all_finite(&SMatrix::<f64, 3, 5>::from_element(1e308)));
+        let mut x = SMatrix::<f64, 3, 5>::from_element(1.0);
+        for v in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
             x[(2, 4)] = v;
             assert!(!all_finite(&x));
         }
-        assert_eq!(norm_squared(&SMatrix::<T, 3, 5>::identity()), T::of(3.0));
-        assert_eq!(norm_squared(&b), T::of(4.0) + T::of(9.0) + T::one() + T::of(2.25) + T::one() + T::of(0.25) + T::of(4.0));
+        assert_eq!(norm_squared(&SMatrix::<f64, 3, 5>::identity()), 3.0);
+        assert_eq!(norm_squared(&b), 4.0 + 9.0 + 1.0 + 2.25 + 1.0 + 0.25 + 4.0);
     }
 
     /// Deterministic pseudo-random numbers in [-1, 1) (a fixed-seed LCG).
-    fn uniform(state: &mut u64) -> T {
+    fn uniform(state: &mut u64) -> f64 {
         *state = state
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
-        (*state >> 11) as T / (1u64 << 52) as T - T::one()
+        (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 
     /// The closed-form block inverse against nalgebra's LU inverse (an
@@ -840,11 +842,11 @@ mod tests {
         let mut state = 7u64;
         for trial in 0..200 {
             // Blocks {0,1,2}, {3,4}, {5}, {6,7,8} before permuting.
-            let mut a = SMatrix::<T, 9, 9>::zeros();
+            let mut a = SMatrix::<f64, 9, 9>::zeros();
             for (start, size) in [(0, 3), (3, 2), (5, 1), (6, 3)] {
                 for i in start..start + size {
                     for j in start..start + size {
-                        a[(i, j)] = uniform(&mut state) + if i == j { T::of(2.0) } else { T::zero() };
+                        a[(i, j)] = uniform(&mut state) + if i == j { 2.0 } else { 0.0 };
                     }
                 }
             }
@@ -853,12 +855,12 @@ mod tests {
                 (*r, *c) = (k, k);
             }
             for k in (1..9).rev() {
-                let i = ((uniform(&mut state) + T::one()) * T::of(0.5) * (k + 1) as T) as usize;
+                let i = ((uniform(&mut state) + 1.0) * 0.5 * (k + 1) as f64) as usize;
                 rows.swap(k, i.min(k));
-                let j = ((uniform(&mut state) + T::one()) * T::of(0.5) * (k + 1) as T) as usize;
+                let j = ((uniform(&mut state) + 1.0) * 0.5 * (k + 1) as f64) as usize;
                 cols.swap(k, j.min(k));
             }
-            let p = SMatrix::<T, 9, 9>::from_fn(|i, j| a[(rows[i], cols[j])]);
+            let p = SMatrix::<f64, 9, 9>::from_fn(|i, j| a[(rows[i], cols[j])]);
             assert!(SmallBlocks::of(&p).is_some(), "trial {trial}: blocks found");
             let mut inv = p;
             assert!(invert_in_place(&mut inv));
@@ -871,12 +873,12 @@ mod tests {
             // Zero outside the (transposed) blocks, exactly.
             for i in 0..9 {
                 for j in 0..9 {
-                    if p[(j, i)] == T::zero() && lu[(i, j)].abs() < 1e-300 {
-                        assert_eq!(inv[(i, j)], T::zero());
+                    if p[(j, i)] == 0.0 && lu[(i, j)].abs() < 1e-300 {
+                        assert_eq!(inv[(i, j)], 0.0);
                     }
                 }
             }
-            let d3 = SMatrix::<T, 3, 3>::from_fn(|_, _| uniform(&mut state));
+            let d3 = SMatrix::<f64, 3, 3>::from_fn(|_, _| uniform(&mut state));
             let mut inv3 = d3;
             if let Some(lu3) = d3.try_inverse() {
                 assert!(invert_in_place(&mut inv3));
@@ -886,20 +888,20 @@ mod tests {
                     "trial {trial}"
                 );
             }
-            let d2 = SMatrix::<T, 2, 2>::from_fn(|_, _| uniform(&mut state));
+            let d2 = SMatrix::<f64, 2, 2>::from_fn(|_, _| uniform(&mut state));
             let mut inv2 = d2;
             let lu2 = d2.try_inverse().unwrap_or_else(|| unreachable!());
             assert!(invert_in_place(&mut inv2));
             assert!((inv2 - lu2).amax() <= 1e-15 * d2.norm() * lu2.norm() * lu2.amax());
         }
         // Dense 6 x 6: no small blocks, elimination.
-        let d6 = SMatrix::<T, 6, 6>::from_fn(|i, j| {
-            uniform(&mut state) + if i == j { T::of(3.0) } else { T::zero() }
+        let d6 = SMatrix::<f64, 6, 6>::from_fn(|i, j| {
+            uniform(&mut state) + if i == j { 3.0 } else { 0.0 }
         });
         assert!(SmallBlocks::of(&d6).is_none());
         let mut inv6 = d6;
         assert!(invert_in_place(&mut inv6));
-        assert!((d6 * inv6 - SMatrix::<T, 6, 6>::identity()).amax() < 1e-14);
+        assert!((d6 * inv6 - SMatrix::<f64, 6, 6>::identity()).amax() < 1e-14);
     }
 
     /// A block whose determinant underflows (entries 1e-110, determinant
@@ -907,29 +909,29 @@ mod tests {
     /// non-finite blocks are refused.
     #[test]
     fn block_inverse_fallbacks() {
-        let a = SMatrix::<T, 3, 3>::new(T::of(2.0), T::one(), T::zero(), T::one(), T::of(3.0), T::one(), T::zero(), T::one(), T::of(4.0)) * 1e-110;
+        let a = SMatrix::<f64, 3, 3>::new(2.0, 1.0, 0.0, 1.0, 3.0, 1.0, 0.0, 1.0, 4.0) * 1e-110;
         let mut inv = a;
         assert!(invert_in_place(&mut inv));
-        assert!((a * inv - SMatrix::<T, 3, 3>::identity()).amax() < 1e-15);
-        let mut b = SMatrix::<T, 4, 4>::identity();
-        b[(1, 1)] = T::zero();
+        assert!((a * inv - SMatrix::<f64, 3, 3>::identity()).amax() < 1e-15);
+        let mut b = SMatrix::<f64, 4, 4>::identity();
+        b[(1, 1)] = 0.0;
         assert!(!invert_in_place(&mut b));
-        let mut c = SMatrix::<T, 3, 3>::new(T::one(), T::of(2.0), T::of(3.0), T::of(2.0), T::of(4.0), T::of(6.0), T::zero(), T::one(), T::one());
+        let mut c = SMatrix::<f64, 3, 3>::new(1.0, 2.0, 3.0, 2.0, 4.0, 6.0, 0.0, 1.0, 1.0);
         assert!(!invert_in_place(&mut c));
-        let mut d = SMatrix::<T, 4, 4>::identity();
-        d[(2, 3)] = T::NAN;
+        let mut d = SMatrix::<f64, 4, 4>::identity();
+        d[(2, 3)] = f64::NAN;
         assert!(!invert_in_place(&mut d));
     }
 
     #[test]
     fn svd_min_norm() {
         // Underdetermined 2x3 system via A^T (3x2).
-        let a = SMatrix::<T, 2, 3>::new(T::one(), T::of(2.0), T::of(3.0), T::zero(), T::one(), -T::one());
+        let a = SMatrix::<f64, 2, 3>::new(1.0, 2.0, 3.0, 0.0, 1.0, -1.0);
         let at = a.transpose();
         let svd = Svd::new(&at, 30).ok().unwrap_or_else(|| unreachable!());
         assert_eq!(svd.rank(1e-12), 2);
-        let c = SVector::<T, 2>::new(T::one(), T::of(2.0));
-        let mut x = SVector::<T, 3>::zeros();
+        let c = SVector::<f64, 2>::new(1.0, 2.0);
+        let mut x = SVector::<f64, 3>::zeros();
         svd.solve_transpose(&c, 2, &mut x);
         assert!((a * x - c).norm() < 1e-14);
         // Minimum norm: x lies in the row space of A.

@@ -42,12 +42,7 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
 
     /// Explicit time derivative of the constraints, `Phi_t(q, t)`; the velocity
     /// constraint is `Phi_q qd + Phi_t = 0`.
-    fn constraint_time_derivative(
-        &self,
-        q: &SVector<T, NQ>,
-        t: T,
-        phi_t: &mut SVector<T, NC>,
-    );
+    fn constraint_time_derivative(&self, q: &SVector<T, NQ>, t: T, phi_t: &mut SVector<T, NC>);
 
     /// Acceleration right-hand side `gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt`,
     /// so that `Phi_q qdd = gamma` on the constraint manifold.
