@@ -89,11 +89,26 @@ impl Array {
     }
 }
 
+impl Wrapped {
+    /// The arrays besides `q` the function reads: `qd`, `qdd`, or neither.
+    fn inputs(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        if self.with_qd {
+            v.push("qd");
+        }
+        if self.with_qdd {
+            v.push("qdd");
+        }
+        v
+    }
+}
+
 /// One scheduled function, as the C interface sees it.
 struct Wrapped {
     name: &'static str,
     doc: &'static str,
     with_qd: bool,
+    with_qdd: bool,
     optional: bool,
     /// Empty for a function returning one scalar.
     outputs: Vec<Array>,
@@ -123,6 +138,7 @@ impl CInterface {
                 name: f.sig.name,
                 doc: f.sig.doc,
                 with_qd: f.sig.with_qd,
+                with_qdd: f.sig.with_qdd,
                 optional: f.sig.optional,
                 outputs: f
                     .outputs
@@ -268,23 +284,17 @@ impl CInterface {
         let method = format_ident!("{}", f.name);
         let nq = n(self.nq);
         let doc = format!(" {} C: `{}`.", f.doc, self.c_signature(f));
-        let arrays = "`q`, `qd`: NQ; each output its size";
-        let qd_arg = if f.with_qd {
-            quote!(qd: *const f64,)
-        } else {
-            quote!()
-        };
-        let qd_read = if f.with_qd {
-            quote!(let qd = unsafe { c_read::<#nq>(qd) };)
-        } else {
-            quote!()
-        };
-        let qd_pass = if f.with_qd { quote!(&qd,) } else { quote!() };
-        let qd_null = if f.with_qd {
-            quote!(|| qd.is_null())
-        } else {
-            quote!()
-        };
+        let arrays = "`q`, `qd`, `qdd`: NQ; each output its size";
+        // The velocity and acceleration inputs the function takes, in order.
+        let inputs: Vec<proc_macro2::Ident> = f
+            .inputs()
+            .iter()
+            .map(|name| format_ident!("{}", name))
+            .collect();
+        let qd_arg = quote!(#(#inputs: *const f64,)*);
+        let qd_read = quote!(#(let #inputs = unsafe { c_read::<#nq>(#inputs) };)*);
+        let qd_pass = quote!(#(&#inputs,)*);
+        let qd_null = quote!(#(|| #inputs.is_null())*);
         if f.outputs.is_empty() {
             return Self::export(
                 &doc,
@@ -458,7 +468,11 @@ impl CInterface {
     }
 
     fn c_signature(&self, f: &Wrapped) -> String {
-        let qd = if f.with_qd { "const double *qd, " } else { "" };
+        let qd: String = f
+            .inputs()
+            .iter()
+            .map(|name| format!("const double *{name}, "))
+            .collect();
         let outs: Vec<String> = if f.outputs.is_empty() {
             vec!["double *out".into()]
         } else {
