@@ -8,13 +8,14 @@
 //   constraint_rhs                   24     87      0      9
 //   constraints_and_jacobian         46     68      0      9
 //   dynamics_terms                  210    486      0      9
+//   inverse_dynamics                199    456      0      9
 //   kinetic_energy                   53    123      0      9
 //   potential_energy                  9     13      0      9
-//   total                           592   1328      0     81
+//   total                           791   1784      0     90
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
-// Precision f32: inherent methods of the model struct (the runtime's `Model` trait is f64).
+// Precision f32: implements the runtime's `Model<.., f32>`.
 
 use flexdyn_runtime::math::f32 as math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -38,9 +39,9 @@ pub struct ParallelRobotRigid;
     clippy::too_many_arguments,
     unused_parens
 )]
-impl ParallelRobotRigid {
-    pub const NAME: &'static str = "parallel_robot_rigid";
-    pub const COORDINATES: [&'static str; 12] = [
+impl flexdyn_runtime::Model<12, 9, 3, f32> for ParallelRobotRigid {
+    const NAME: &'static str = "parallel_robot_rigid";
+    const COORDINATES: [&'static str; 12] = [
         "th11",
         "th12",
         "th13",
@@ -54,15 +55,10 @@ impl ParallelRobotRigid {
         "py",
         "pz",
     ];
-    pub const ACTUATORS: [&'static str; 3] = ["tau_1", "tau_2", "tau_3"];
+    const ACTUATORS: [&'static str; 3] = ["tau_1", "tau_2", "tau_3"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    pub fn mass_matrix(
-        &self,
-        q: &SVector<f32, 12>,
-        _t: f32,
-        m: &mut SMatrix<f32, 12, 12>,
-    ) {
+    fn mass_matrix(&self, q: &SVector<f32, 12>, _t: f32, m: &mut SMatrix<f32, 12, 12>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
         let (v4, v5) = math::sin_cos(q[3]);
@@ -122,7 +118,7 @@ impl ParallelRobotRigid {
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
-    pub fn bias(
+    fn bias(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -154,120 +150,120 @@ impl ParallelRobotRigid {
         let v28 = -0.4 * v22 - 0.1 * v26;
         let v29 = 0.4 * v23 + 0.1 * v27;
         let (v30, v31) = math::sin_cos(q[2]);
-        let v32 = v5 * v31;
-        let v81 = v5 * v30;
-        let v33 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v81;
-        let v82 = v4 * v30;
-        let v34 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v82;
-        let (v35, v36) = math::sin_cos(q[5]);
-        let v37 = v15 * v36;
-        let v83 = v15 * v35;
-        let v38 = v18 - 0.8 * v36 * v16 - 0.8 * qd[5] * v83;
-        let v84 = v14 * v35;
-        let v39 = 0.8 * v36 * v17 + v19 - 0.8 * qd[5] * v84;
-        let (v40, v41) = math::sin_cos(q[8]);
-        let v42 = v25 * v41;
-        let v85 = v25 * v40;
-        let v43 = v28 - 0.8 * v41 * v26 - 0.8 * qd[8] * v85;
-        let v86 = v24 * v40;
-        let v44 = 0.8 * v41 * v27 + v29 - 0.8 * qd[8] * v86;
+        let v78 = v5 * v30;
+        let v32 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v78;
+        let v79 = v4 * v30;
+        let v33 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v79;
+        let (v34, v35) = math::sin_cos(q[5]);
+        let v80 = v15 * v34;
+        let v36 = v18 - 0.8 * v35 * v16 - 0.8 * qd[5] * v80;
+        let v81 = v14 * v34;
+        let v37 = 0.8 * v35 * v17 + v19 - 0.8 * qd[5] * v81;
+        let (v38, v39) = math::sin_cos(q[8]);
+        let v82 = v25 * v38;
+        let v40 = v28 - 0.8 * v39 * v26 - 0.8 * qd[8] * v82;
+        let v83 = v24 * v38;
+        let v41 = 0.8 * v39 * v27 + v29 - 0.8 * qd[8] * v83;
+        let v42 = -0.1 * v4 - 0.8 * v4 * v31;
+        let v43 = 0.1 * v5 + 0.8 * v5 * v31;
+        let v84 = qd[2] * v31;
+        let v44 = 0.8 * v30 * v6 - 0.8 * v5 * v84;
+        let v45 = -0.8 * v30 * v7 - 0.8 * v4 * v84;
+        let v46 = -0.1 * v14 - 0.8 * v14 * v35;
+        let v47 = 0.1 * v15 + 0.8 * v15 * v35;
+        let v85 = qd[5] * v35;
+        let v48 = 0.8 * v34 * v16 - 0.8 * v15 * v85;
+        let v49 = -0.8 * v34 * v17 - 0.8 * v14 * v85;
+        let v50 = -0.1 * v24 - 0.8 * v24 * v39;
+        let v51 = 0.1 * v25 + 0.8 * v25 * v39;
+        let v86 = qd[8] * v39;
+        let v52 = 0.8 * v38 * v26 - 0.8 * v25 * v86;
+        let v53 = -0.8 * v38 * v27 - 0.8 * v24 * v86;
         let v87 = qd[0] * qd[0];
-        let v45 = v1 * v87;
-        let v46 = v0 * v87;
-        let v47 = qd[1] * v7;
-        let v48 = qd[1] * v6;
-        let v49 = -0.4 * v45 - 0.1 * v47;
-        let v50 = -0.4 * v46 - 0.1 * v48;
-        let v51 = -0.1 * v4 - 0.8 * v4 * v31;
-        let v52 = 0.1 * v5 + 0.8 * v32;
-        let v88 = qd[1] * v31;
-        let v89 = qd[2] * v30;
-        let v90 = qd[2] * v31;
-        let v99 = v5 * v90;
-        let v53 = 1.6 * v6 * v89 + v49 - 0.8 * v7 * v88 - 0.8 * qd[2] * v99;
-        let v100 = v4 * v90;
-        let v54 = v50 - 0.8 * v6 * v88 - 1.6 * v7 * v89 - 0.8 * qd[2] * v100;
-        let v55 = 0.8 * v30 * v6 - 0.8 * v5 * v90;
-        let v56 = -0.8 * v30 * v7 - 0.8 * v4 * v90;
-        let v91 = qd[3] * qd[3];
-        let v57 = v11 * v91;
-        let v58 = v10 * v91;
-        let v59 = qd[4] * v17;
-        let v60 = qd[4] * v16;
-        let v61 = -0.4 * v57 - 0.1 * v59;
-        let v62 = -0.4 * v58 - 0.1 * v60;
-        let v63 = -0.1 * v14 - 0.8 * v14 * v36;
-        let v64 = 0.1 * v15 + 0.8 * v37;
-        let v92 = qd[4] * v36;
-        let v93 = qd[5] * v35;
-        let v94 = qd[5] * v36;
-        let v101 = v15 * v94;
-        let v65 = 1.6 * v16 * v93 + v61 - 0.8 * v17 * v92 - 0.8 * qd[5] * v101;
-        let v102 = v14 * v94;
-        let v66 = v62 - 0.8 * v16 * v92 - 1.6 * v17 * v93 - 0.8 * qd[5] * v102;
-        let v67 = 0.8 * v35 * v16 - 0.8 * v15 * v94;
-        let v68 = -0.8 * v35 * v17 - 0.8 * v14 * v94;
-        let v95 = qd[6] * qd[6];
-        let v69 = v21 * v95;
-        let v70 = v20 * v95;
-        let v71 = qd[7] * v27;
-        let v72 = qd[7] * v26;
-        let v73 = -0.4 * v69 - 0.1 * v71;
-        let v74 = -0.4 * v70 - 0.1 * v72;
-        let v75 = -0.1 * v24 - 0.8 * v24 * v41;
-        let v76 = 0.1 * v25 + 0.8 * v42;
-        let v96 = qd[7] * v41;
-        let v97 = qd[8] * v40;
-        let v98 = qd[8] * v41;
-        let v103 = v25 * v98;
-        let v77 = 1.6 * v26 * v97 + v73 - 0.8 * v27 * v96 - 0.8 * qd[8] * v103;
-        let v104 = v24 * v98;
-        let v78 = v74 - 0.8 * v26 * v96 - 1.6 * v27 * v97 - 0.8 * qd[8] * v104;
-        let v79 = 0.8 * v40 * v26 - 0.8 * v25 * v98;
-        let v80 = -0.8 * v40 * v27 - 0.8 * v24 * v98;
-        let v105 = v6 * v30;
-        let v106 = v7 * v30;
-        let v107 = v16 * v35;
-        let v108 = v17 * v35;
-        let v109 = v26 * v40;
-        let v110 = v27 * v40;
-        h[0] = 10.9872 * v1 + 0.36 * v1 * v50 + 0.3 * v1 * v54 - 0.36 * v0 * v49
-            - 0.3 * v0 * v53;
-        h[1] = 1.61865 * v5 + 5.886 * v32 + 0.002 * v4 * v45 + 0.06 * v5 * v50
-            + 0.25 * v49 * v51 + 0.025 * v5 * v54 + 0.25 * v50 * v52 + 0.5 * v51 * v53
-            + 0.5 * v52 * v54 - 0.002 * v5 * v46 - 0.06 * v4 * v49 - 0.025 * v4 * v53;
-        h[2] = 0.2 * v8 * v105 + 0.4 * v33 * v105 - 5.886 * v4 * v30 - 0.2 * v49 * v81
-            - 0.2 * v8 * v99 - 0.2 * v9 * v106 - 0.2 * v50 * v82 - 0.2 * v9 * v100
-            - 0.4 * v33 * v99 - 0.4 * v53 * v81 - 0.32 * v90 * v89 - 0.4 * v34 * v106
-            - 0.4 * v34 * v100 - 0.4 * v54 * v82 - 0.25 * v8 * v55 - 0.25 * v9 * v56
-            - 0.5 * v33 * v55 - 0.5 * v34 * v56;
-        h[3] = 10.9872 * v11 + 0.36 * v11 * v62 + 0.3 * v11 * v66 - 0.36 * v10 * v61
-            - 0.3 * v10 * v65;
-        h[4] = 1.61865 * v15 + 5.886 * v37 + 0.002 * v14 * v57 + 0.06 * v15 * v62
-            + 0.25 * v61 * v63 + 0.025 * v15 * v66 + 0.25 * v62 * v64 + 0.5 * v63 * v65
-            + 0.5 * v64 * v66 - 0.002 * v15 * v58 - 0.06 * v14 * v61 - 0.025 * v14 * v65;
-        h[5] = 0.2 * v18 * v107 + 0.4 * v38 * v107 - 5.886 * v14 * v35 - 0.2 * v61 * v83
-            - 0.2 * v18 * v101 - 0.2 * v19 * v108 - 0.2 * v62 * v84 - 0.2 * v19 * v102
-            - 0.4 * v38 * v101 - 0.4 * v65 * v83 - 0.32 * v94 * v93 - 0.4 * v39 * v108
-            - 0.4 * v39 * v102 - 0.4 * v66 * v84 - 0.25 * v18 * v67 - 0.25 * v19 * v68
-            - 0.5 * v38 * v67 - 0.5 * v39 * v68;
-        h[6] = 10.9872 * v21 + 0.36 * v21 * v74 + 0.3 * v21 * v78 - 0.36 * v20 * v73
-            - 0.3 * v20 * v77;
-        h[7] = 1.61865 * v25 + 5.886 * v42 + 0.002 * v24 * v69 + 0.06 * v25 * v74
-            + 0.25 * v73 * v75 + 0.025 * v25 * v78 + 0.25 * v74 * v76 + 0.5 * v75 * v77
-            + 0.5 * v76 * v78 - 0.002 * v25 * v70 - 0.06 * v24 * v73 - 0.025 * v24 * v77;
-        h[8] = 0.2 * v28 * v109 + 0.4 * v43 * v109 - 5.886 * v24 * v40 - 0.2 * v73 * v85
-            - 0.2 * v28 * v103 - 0.2 * v29 * v110 - 0.2 * v74 * v86 - 0.2 * v29 * v104
-            - 0.4 * v43 * v103 - 0.4 * v77 * v85 - 0.32 * v98 * v97 - 0.4 * v44 * v110
-            - 0.4 * v44 * v104 - 0.4 * v78 * v86 - 0.25 * v28 * v79 - 0.25 * v29 * v80
-            - 0.5 * v43 * v79 - 0.5 * v44 * v80;
+        let v54 = v1 * v87;
+        let v55 = v0 * v87;
+        let v56 = qd[1] * v7;
+        let v57 = qd[1] * v6;
+        let v58 = -0.4 * v54 - 0.1 * v56;
+        let v59 = -0.4 * v55 - 0.1 * v57;
+        let v88 = qd[3] * qd[3];
+        let v60 = v11 * v88;
+        let v61 = v10 * v88;
+        let v62 = qd[4] * v17;
+        let v63 = qd[4] * v16;
+        let v64 = -0.4 * v60 - 0.1 * v62;
+        let v65 = -0.4 * v61 - 0.1 * v63;
+        let v89 = qd[6] * qd[6];
+        let v66 = v21 * v89;
+        let v67 = v20 * v89;
+        let v68 = qd[7] * v27;
+        let v69 = qd[7] * v26;
+        let v70 = -0.4 * v66 - 0.1 * v68;
+        let v71 = -0.4 * v67 - 0.1 * v69;
+        let v90 = qd[1] * v31;
+        let v91 = qd[2] * v30;
+        let v96 = v5 * v84;
+        let v72 = 1.6 * v6 * v91 + v58 - 0.8 * v7 * v90 - 0.8 * qd[2] * v96;
+        let v97 = v4 * v84;
+        let v73 = v59 - 0.8 * v6 * v90 - 1.6 * v7 * v91 - 0.8 * qd[2] * v97;
+        let v92 = qd[4] * v35;
+        let v93 = qd[5] * v34;
+        let v98 = v15 * v85;
+        let v74 = 1.6 * v16 * v93 + v64 - 0.8 * v17 * v92 - 0.8 * qd[5] * v98;
+        let v99 = v14 * v85;
+        let v75 = v65 - 0.8 * v16 * v92 - 1.6 * v17 * v93 - 0.8 * qd[5] * v99;
+        let v94 = qd[7] * v39;
+        let v95 = qd[8] * v38;
+        let v100 = v25 * v86;
+        let v76 = 1.6 * v26 * v95 + v70 - 0.8 * v27 * v94 - 0.8 * qd[8] * v100;
+        let v101 = v24 * v86;
+        let v77 = v71 - 0.8 * v26 * v94 - 1.6 * v27 * v95 - 0.8 * qd[8] * v101;
+        let v102 = v6 * v30;
+        let v103 = v7 * v30;
+        let v104 = v16 * v34;
+        let v105 = v17 * v34;
+        let v106 = v26 * v38;
+        let v107 = v27 * v38;
+        h[0] = 10.9872 * v1 + 0.36 * v1 * v59 + 0.3 * v1 * v73 - 0.36 * v0 * v58
+            - 0.3 * v0 * v72;
+        h[1] = 0.002 * v4 * v54 + 0.06 * v5 * v59 + 0.25 * v42 * v58 + 0.025 * v5 * v73
+            + 0.25 * v43 * v59 + 0.5 * v42 * v72 + 0.5 * v43 * v73
+            + v5 * (5.886 * v31 + 1.61865) - 0.002 * v5 * v55 - 0.06 * v4 * v58
+            - 0.025 * v4 * v72;
+        h[2] = 0.2 * v8 * v102 + 0.4 * v32 * v102 - 0.25 * v8 * v44 - 0.25 * v9 * v45
+            - 0.5 * v32 * v44 - 0.32 * v84 * v91 - 0.5 * v33 * v45 - 5.886 * v4 * v30
+            - 0.2 * v58 * v78 - 0.2 * v8 * v96 - 0.2 * v9 * v103 - 0.2 * v59 * v79
+            - 0.2 * v9 * v97 - 0.4 * v32 * v96 - 0.4 * v72 * v78 - 0.4 * v33 * v103
+            - 0.4 * v33 * v97 - 0.4 * v73 * v79;
+        h[3] = 10.9872 * v11 + 0.36 * v11 * v65 + 0.3 * v11 * v75 - 0.36 * v10 * v64
+            - 0.3 * v10 * v74;
+        h[4] = 0.002 * v14 * v60 + 0.06 * v15 * v65 + 0.25 * v46 * v64
+            + 0.025 * v15 * v75 + 0.25 * v47 * v65 + 0.5 * v46 * v74 + 0.5 * v47 * v75
+            + v15 * (5.886 * v35 + 1.61865) - 0.002 * v15 * v61 - 0.06 * v14 * v64
+            - 0.025 * v14 * v74;
+        h[5] = 0.2 * v18 * v104 + 0.4 * v36 * v104 - 0.25 * v18 * v48 - 0.25 * v19 * v49
+            - 0.5 * v36 * v48 - 0.32 * v85 * v93 - 0.5 * v37 * v49 - 5.886 * v14 * v34
+            - 0.2 * v64 * v80 - 0.2 * v18 * v98 - 0.2 * v19 * v105 - 0.2 * v65 * v81
+            - 0.2 * v19 * v99 - 0.4 * v36 * v98 - 0.4 * v74 * v80 - 0.4 * v37 * v105
+            - 0.4 * v37 * v99 - 0.4 * v75 * v81;
+        h[6] = 10.9872 * v21 + 0.36 * v21 * v71 + 0.3 * v21 * v77 - 0.36 * v20 * v70
+            - 0.3 * v20 * v76;
+        h[7] = 0.002 * v24 * v66 + 0.06 * v25 * v71 + 0.25 * v50 * v70
+            + 0.025 * v25 * v77 + 0.25 * v51 * v71 + 0.5 * v50 * v76 + 0.5 * v51 * v77
+            + v25 * (5.886 * v39 + 1.61865) - 0.002 * v25 * v67 - 0.06 * v24 * v70
+            - 0.025 * v24 * v76;
+        h[8] = 0.2 * v28 * v106 + 0.4 * v40 * v106 - 0.25 * v28 * v52 - 0.25 * v29 * v53
+            - 0.5 * v40 * v52 - 0.32 * v86 * v95 - 0.5 * v41 * v53 - 5.886 * v24 * v38
+            - 0.2 * v70 * v82 - 0.2 * v28 * v100 - 0.2 * v29 * v107 - 0.2 * v71 * v83
+            - 0.2 * v29 * v101 - 0.4 * v40 * v100 - 0.4 * v76 * v82 - 0.4 * v41 * v107
+            - 0.4 * v41 * v101 - 0.4 * v77 * v83;
         h[9] = 0.0;
         h[10] = 0.0;
         h[11] = 25.506;
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
-    pub fn constraints(&self, q: &SVector<f32, 12>, _t: f32, phi: &mut SVector<f32, 9>) {
+    fn constraints(&self, q: &SVector<f32, 12>, _t: f32, phi: &mut SVector<f32, 9>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
         let (v4, v5) = math::sin_cos(q[3]);
@@ -291,7 +287,7 @@ impl ParallelRobotRigid {
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
     #[inline]
-    pub fn constraint_jacobian(
+    fn constraint_jacobian(
         &self,
         q: &SVector<f32, 12>,
         _t: f32,
@@ -344,7 +340,7 @@ impl ParallelRobotRigid {
     }
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
-    pub fn constraint_time_derivative(
+    fn constraint_time_derivative(
         &self,
         _q: &SVector<f32, 12>,
         _t: f32,
@@ -362,7 +358,7 @@ impl ParallelRobotRigid {
     }
     ///Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.
     #[inline]
-    pub fn constraint_rhs(
+    fn constraint_rhs(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -417,7 +413,7 @@ impl ParallelRobotRigid {
     }
     ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
     #[inline]
-    pub fn constraints_and_jacobian(
+    fn constraints_and_jacobian(
         &self,
         q: &SVector<f32, 12>,
         _t: f32,
@@ -486,7 +482,7 @@ impl ParallelRobotRigid {
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]
-    pub fn dynamics_terms(
+    fn dynamics_terms(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -521,235 +517,411 @@ impl ParallelRobotRigid {
         let v28 = -0.4 * v22 - 0.1 * v26;
         let v29 = 0.4 * v23 + 0.1 * v27;
         let (v30, v31) = math::sin_cos(q[2]);
-        let v32 = v5 * v31;
-        let v102 = v5 * v30;
-        let v33 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v102;
-        let v103 = v4 * v30;
-        let v34 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v103;
-        let (v35, v36) = math::sin_cos(q[5]);
-        let v37 = v15 * v36;
-        let v104 = v15 * v35;
-        let v38 = v18 - 0.8 * v36 * v16 - 0.8 * qd[5] * v104;
-        let v105 = v14 * v35;
-        let v39 = 0.8 * v36 * v17 + v19 - 0.8 * qd[5] * v105;
-        let (v40, v41) = math::sin_cos(q[8]);
-        let v42 = v25 * v41;
-        let v106 = v25 * v40;
-        let v43 = v28 - 0.8 * v41 * v26 - 0.8 * qd[8] * v106;
-        let v107 = v24 * v40;
-        let v44 = 0.8 * v41 * v27 + v29 - 0.8 * qd[8] * v107;
+        let v99 = v5 * v30;
+        let v32 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v99;
+        let v100 = v4 * v30;
+        let v33 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v100;
+        let (v34, v35) = math::sin_cos(q[5]);
+        let v101 = v15 * v34;
+        let v36 = v18 - 0.8 * v35 * v16 - 0.8 * qd[5] * v101;
+        let v102 = v14 * v34;
+        let v37 = 0.8 * v35 * v17 + v19 - 0.8 * qd[5] * v102;
+        let (v38, v39) = math::sin_cos(q[8]);
+        let v103 = v25 * v38;
+        let v40 = v28 - 0.8 * v39 * v26 - 0.8 * qd[8] * v103;
+        let v104 = v24 * v38;
+        let v41 = 0.8 * v39 * v27 + v29 - 0.8 * qd[8] * v104;
+        let v42 = -0.1 * v4 - 0.8 * v4 * v31;
+        let v43 = 0.1 * v5 + 0.8 * v5 * v31;
+        let v105 = qd[2] * v31;
+        let v44 = 0.8 * qd[1] * v100 - 0.8 * v5 * v105;
+        let v45 = -0.8 * qd[1] * v99 - 0.8 * v4 * v105;
+        let v46 = v4 * v30;
+        let v47 = -0.1 * v14 - 0.8 * v14 * v35;
+        let v48 = 0.1 * v15 + 0.8 * v15 * v35;
+        let v106 = qd[5] * v35;
+        let v49 = 0.8 * qd[4] * v102 - 0.8 * v15 * v106;
+        let v50 = -0.8 * qd[4] * v101 - 0.8 * v14 * v106;
+        let v51 = v14 * v34;
+        let v52 = -0.1 * v24 - 0.8 * v24 * v39;
+        let v53 = 0.1 * v25 + 0.8 * v25 * v39;
+        let v107 = qd[8] * v39;
+        let v54 = 0.8 * qd[7] * v104 - 0.8 * v25 * v107;
+        let v55 = -0.8 * qd[7] * v103 - 0.8 * v24 * v107;
+        let v56 = v24 * v38;
         let v108 = qd[0] * qd[0];
-        let v45 = v1 * v108;
-        let v46 = v0 * v108;
-        let v47 = qd[1] * v7;
-        let v48 = qd[1] * v6;
-        let v49 = -0.4 * v45 - 0.1 * v47;
-        let v50 = -0.4 * v46 - 0.1 * v48;
-        let v51 = -0.1 * v4 - 0.8 * v4 * v31;
-        let v52 = 0.1 * v5 + 0.8 * v32;
-        let v53 = v4 * v30;
-        let v109 = qd[1] * v31;
-        let v54 = v7 * v109;
-        let v110 = qd[1] * qd[2];
-        let v55 = v53 * v110;
-        let v111 = qd[2] * v31;
-        let v129 = v5 * v111;
-        let v56 = qd[2] * v129;
-        let v57 = v6 * v109;
-        let v58 = v102 * v110;
-        let v130 = v4 * v111;
-        let v59 = qd[2] * v130;
-        let v112 = v54 - 2.0 * v55;
-        let v131 = v49 - 0.8 * v56;
-        let v60 = v131 - 0.8 * v112;
-        let v113 = v57 + 2.0 * v58;
-        let v132 = v50 - 0.8 * v59;
-        let v61 = v132 - 0.8 * v113;
-        let v62 = 0.8 * qd[1] * v53 - 0.8 * v5 * v111;
-        let v63 = -0.8 * qd[1] * v102 - 0.8 * v4 * v111;
-        let v114 = qd[3] * qd[3];
-        let v64 = v11 * v114;
-        let v65 = v10 * v114;
-        let v66 = qd[4] * v17;
-        let v67 = qd[4] * v16;
+        let v57 = v1 * v108;
+        let v58 = v0 * v108;
+        let v59 = qd[1] * v7;
+        let v60 = qd[1] * v6;
+        let v61 = -0.4 * v57 - 0.1 * v59;
+        let v62 = -0.4 * v58 - 0.1 * v60;
+        let v109 = qd[3] * qd[3];
+        let v63 = v11 * v109;
+        let v64 = v10 * v109;
+        let v65 = qd[4] * v17;
+        let v66 = qd[4] * v16;
+        let v67 = -0.4 * v63 - 0.1 * v65;
         let v68 = -0.4 * v64 - 0.1 * v66;
-        let v69 = -0.4 * v65 - 0.1 * v67;
-        let v70 = -0.1 * v14 - 0.8 * v14 * v36;
-        let v71 = 0.1 * v15 + 0.8 * v37;
-        let v72 = v14 * v35;
-        let v115 = qd[4] * v36;
-        let v73 = v17 * v115;
+        let v110 = qd[6] * qd[6];
+        let v69 = v21 * v110;
+        let v70 = v20 * v110;
+        let v71 = qd[7] * v27;
+        let v72 = qd[7] * v26;
+        let v73 = -0.4 * v69 - 0.1 * v71;
+        let v74 = -0.4 * v70 - 0.1 * v72;
+        let v111 = qd[1] * v31;
+        let v75 = v7 * v111;
+        let v112 = qd[1] * qd[2];
+        let v76 = v46 * v112;
+        let v126 = v5 * v105;
+        let v77 = qd[2] * v126;
+        let v78 = v6 * v111;
+        let v79 = v99 * v112;
+        let v127 = v4 * v105;
+        let v80 = qd[2] * v127;
+        let v113 = v75 - 2.0 * v76;
+        let v128 = v61 - 0.8 * v77;
+        let v81 = v128 - 0.8 * v113;
+        let v114 = v78 + 2.0 * v79;
+        let v129 = v62 - 0.8 * v80;
+        let v82 = v129 - 0.8 * v114;
+        let v115 = qd[4] * v35;
+        let v83 = v17 * v115;
         let v116 = qd[4] * qd[5];
-        let v74 = v72 * v116;
-        let v117 = qd[5] * v36;
-        let v133 = v15 * v117;
-        let v75 = qd[5] * v133;
-        let v76 = v16 * v115;
-        let v77 = v104 * v116;
-        let v134 = v14 * v117;
-        let v78 = qd[5] * v134;
-        let v118 = v73 - 2.0 * v74;
-        let v135 = v68 - 0.8 * v75;
-        let v79 = v135 - 0.8 * v118;
-        let v119 = v76 + 2.0 * v77;
-        let v136 = v69 - 0.8 * v78;
-        let v80 = v136 - 0.8 * v119;
-        let v81 = 0.8 * qd[4] * v72 - 0.8 * v15 * v117;
-        let v82 = -0.8 * qd[4] * v104 - 0.8 * v14 * v117;
-        let v120 = qd[6] * qd[6];
-        let v83 = v21 * v120;
-        let v84 = v20 * v120;
-        let v85 = qd[7] * v27;
-        let v86 = qd[7] * v26;
-        let v87 = -0.4 * v83 - 0.1 * v85;
-        let v88 = -0.4 * v84 - 0.1 * v86;
-        let v89 = -0.1 * v24 - 0.8 * v24 * v41;
-        let v90 = 0.1 * v25 + 0.8 * v42;
-        let v91 = v24 * v40;
-        let v121 = qd[7] * v41;
-        let v92 = v27 * v121;
-        let v122 = qd[7] * qd[8];
-        let v93 = v91 * v122;
-        let v123 = qd[8] * v41;
-        let v137 = v25 * v123;
-        let v94 = qd[8] * v137;
-        let v95 = v26 * v121;
-        let v96 = v106 * v122;
-        let v138 = v24 * v123;
-        let v97 = qd[8] * v138;
-        let v124 = v92 - 2.0 * v93;
-        let v139 = v87 - 0.8 * v94;
-        let v98 = v139 - 0.8 * v124;
-        let v125 = v95 + 2.0 * v96;
-        let v140 = v88 - 0.8 * v97;
-        let v99 = v140 - 0.8 * v125;
-        let v100 = 0.8 * qd[7] * v91 - 0.8 * v25 * v123;
-        let v101 = -0.8 * qd[7] * v106 - 0.8 * v24 * v123;
-        let v126 = qd[2] * v30;
-        let v127 = qd[5] * v35;
-        let v128 = qd[8] * v40;
-        let v141 = qd[1] * v53;
-        let v142 = qd[1] * v102;
-        let v143 = qd[4] * v72;
-        let v144 = qd[4] * v104;
-        let v145 = qd[7] * v91;
-        let v146 = qd[7] * v106;
+        let v84 = v51 * v116;
+        let v130 = v15 * v106;
+        let v85 = qd[5] * v130;
+        let v86 = v16 * v115;
+        let v87 = v101 * v116;
+        let v131 = v14 * v106;
+        let v88 = qd[5] * v131;
+        let v117 = v83 - 2.0 * v84;
+        let v132 = v67 - 0.8 * v85;
+        let v89 = v132 - 0.8 * v117;
+        let v118 = v86 + 2.0 * v87;
+        let v133 = v68 - 0.8 * v88;
+        let v90 = v133 - 0.8 * v118;
+        let v119 = qd[7] * v39;
+        let v91 = v27 * v119;
+        let v120 = qd[7] * qd[8];
+        let v92 = v56 * v120;
+        let v134 = v25 * v107;
+        let v93 = qd[8] * v134;
+        let v94 = v26 * v119;
+        let v95 = v103 * v120;
+        let v135 = v24 * v107;
+        let v96 = qd[8] * v135;
+        let v121 = v91 - 2.0 * v92;
+        let v136 = v73 - 0.8 * v93;
+        let v97 = v136 - 0.8 * v121;
+        let v122 = v94 + 2.0 * v95;
+        let v137 = v74 - 0.8 * v96;
+        let v98 = v137 - 0.8 * v122;
+        let v123 = qd[2] * v30;
+        let v124 = qd[5] * v34;
+        let v125 = qd[8] * v38;
+        let v138 = qd[1] * v46;
+        let v139 = qd[1] * v99;
+        let v140 = qd[4] * v51;
+        let v141 = qd[4] * v101;
+        let v142 = qd[7] * v56;
+        let v143 = qd[7] * v103;
         *m = SMatrix::zeros();
         *phi_q = SMatrix::zeros();
         m[(0, 0)] = 0.39466667;
-        m[(0, 1)] = 0.036 * v0 * v4 + 0.036 * v1 * v5 + 0.3 * v1 * v52 - 0.3 * v0 * v51;
+        m[(0, 1)] = 0.036 * v0 * v4 + 0.036 * v1 * v5 + 0.3 * v1 * v43 - 0.3 * v0 * v42;
         m[(1, 0)] = m[(0, 1)];
-        m[(0, 2)] = 0.24 * v0 * v102 - 0.24 * v1 * v53;
+        m[(0, 2)] = 0.24 * v0 * v99 - 0.24 * v1 * v46;
         m[(2, 0)] = m[(0, 2)];
-        m[(1, 1)] = 0.05 * v5 * v52 + 0.5 * v51 * v51 + 0.5 * v52 * v52 + 0.006
-            - 0.05 * v4 * v51;
-        m[(1, 2)] = -0.4 * v51 * v102 - 0.4 * v52 * v53;
+        m[(1, 1)] = 0.05 * v5 * v43 + 0.5 * v42 * v42 + 0.5 * v43 * v43 + 0.006
+            - 0.05 * v4 * v42;
+        m[(1, 2)] = -0.4 * v42 * v99 - 0.4 * v43 * v46;
         m[(2, 1)] = m[(1, 2)];
         m[(2, 2)] = 0.32;
         m[(3, 3)] = 0.39466667;
-        m[(3, 4)] = 0.036 * v10 * v14 + 0.036 * v11 * v15 + 0.3 * v11 * v71
-            - 0.3 * v10 * v70;
+        m[(3, 4)] = 0.036 * v10 * v14 + 0.036 * v11 * v15 + 0.3 * v11 * v48
+            - 0.3 * v10 * v47;
         m[(4, 3)] = m[(3, 4)];
-        m[(3, 5)] = 0.24 * v10 * v104 - 0.24 * v11 * v72;
+        m[(3, 5)] = 0.24 * v10 * v101 - 0.24 * v11 * v51;
         m[(5, 3)] = m[(3, 5)];
-        m[(4, 4)] = 0.05 * v15 * v71 + 0.5 * v70 * v70 + 0.5 * v71 * v71 + 0.006
-            - 0.05 * v14 * v70;
-        m[(4, 5)] = -0.4 * v70 * v104 - 0.4 * v71 * v72;
+        m[(4, 4)] = 0.05 * v15 * v48 + 0.5 * v47 * v47 + 0.5 * v48 * v48 + 0.006
+            - 0.05 * v14 * v47;
+        m[(4, 5)] = -0.4 * v47 * v101 - 0.4 * v48 * v51;
         m[(5, 4)] = m[(4, 5)];
         m[(5, 5)] = 0.32;
         m[(6, 6)] = 0.39466667;
-        m[(6, 7)] = 0.036 * v20 * v24 + 0.036 * v21 * v25 + 0.3 * v21 * v90
-            - 0.3 * v20 * v89;
+        m[(6, 7)] = 0.036 * v20 * v24 + 0.036 * v21 * v25 + 0.3 * v21 * v53
+            - 0.3 * v20 * v52;
         m[(7, 6)] = m[(6, 7)];
-        m[(6, 8)] = 0.24 * v20 * v106 - 0.24 * v21 * v91;
+        m[(6, 8)] = 0.24 * v20 * v103 - 0.24 * v21 * v56;
         m[(8, 6)] = m[(6, 8)];
-        m[(7, 7)] = 0.05 * v25 * v90 + 0.5 * v89 * v89 + 0.5 * v90 * v90 + 0.006
-            - 0.05 * v24 * v89;
-        m[(7, 8)] = -0.4 * v89 * v106 - 0.4 * v90 * v91;
+        m[(7, 7)] = 0.05 * v25 * v53 + 0.5 * v52 * v52 + 0.5 * v53 * v53 + 0.006
+            - 0.05 * v24 * v52;
+        m[(7, 8)] = -0.4 * v52 * v103 - 0.4 * v53 * v56;
         m[(8, 7)] = m[(7, 8)];
         m[(8, 8)] = 0.32;
         m[(9, 9)] = 2.6;
         m[(10, 10)] = 2.6;
         m[(11, 11)] = 2.6;
-        h[0] = 10.9872 * v1 + 0.36 * v1 * v50 + 0.3 * v1 * v61 - 0.36 * v0 * v49
-            - 0.3 * v0 * v60;
-        h[1] = 1.61865 * v5 + 5.886 * v32 + 0.002 * v4 * v45 + 0.06 * v5 * v50
-            + 0.25 * v49 * v51 + 0.025 * v5 * v61 + 0.25 * v50 * v52 + 0.5 * v51 * v60
-            + 0.5 * v52 * v61 - 0.002 * v5 * v46 - 0.06 * v4 * v49 - 0.025 * v4 * v60;
-        h[2] = 0.2 * v8 * v141 + 0.4 * v33 * v141 - 5.886 * v53 - 0.2 * v49 * v102
-            - 0.2 * v8 * v129 - 0.2 * v9 * v142 - 0.2 * v50 * v53 - 0.2 * v9 * v130
-            - 0.4 * v33 * v129 - 0.4 * v60 * v102 - 0.32 * v111 * v126 - 0.4 * v34 * v142
-            - 0.4 * v34 * v130 - 0.4 * v61 * v53 - 0.25 * v8 * v62 - 0.25 * v9 * v63
-            - 0.5 * v33 * v62 - 0.5 * v34 * v63;
-        h[3] = 10.9872 * v11 + 0.36 * v11 * v69 + 0.3 * v11 * v80 - 0.36 * v10 * v68
-            - 0.3 * v10 * v79;
-        h[4] = 1.61865 * v15 + 5.886 * v37 + 0.002 * v14 * v64 + 0.06 * v15 * v69
-            + 0.25 * v68 * v70 + 0.025 * v15 * v80 + 0.25 * v69 * v71 + 0.5 * v70 * v79
-            + 0.5 * v71 * v80 - 0.002 * v15 * v65 - 0.06 * v14 * v68 - 0.025 * v14 * v79;
-        h[5] = 0.2 * v18 * v143 + 0.4 * v38 * v143 - 5.886 * v72 - 0.2 * v68 * v104
-            - 0.2 * v18 * v133 - 0.2 * v19 * v144 - 0.2 * v69 * v72 - 0.2 * v19 * v134
-            - 0.4 * v38 * v133 - 0.4 * v79 * v104 - 0.32 * v117 * v127 - 0.4 * v39 * v144
-            - 0.4 * v39 * v134 - 0.4 * v80 * v72 - 0.25 * v18 * v81 - 0.25 * v19 * v82
-            - 0.5 * v38 * v81 - 0.5 * v39 * v82;
-        h[6] = 10.9872 * v21 + 0.36 * v21 * v88 + 0.3 * v21 * v99 - 0.36 * v20 * v87
-            - 0.3 * v20 * v98;
-        h[7] = 1.61865 * v25 + 5.886 * v42 + 0.002 * v24 * v83 + 0.06 * v25 * v88
-            + 0.25 * v87 * v89 + 0.025 * v25 * v99 + 0.25 * v88 * v90 + 0.5 * v89 * v98
-            + 0.5 * v90 * v99 - 0.002 * v25 * v84 - 0.06 * v24 * v87 - 0.025 * v24 * v98;
-        h[8] = 0.2 * v28 * v145 + 0.4 * v43 * v145 - 5.886 * v91 - 0.2 * v87 * v106
-            - 0.2 * v28 * v137 - 0.2 * v29 * v146 - 0.2 * v88 * v91 - 0.2 * v29 * v138
-            - 0.4 * v43 * v137 - 0.4 * v98 * v106 - 0.32 * v123 * v128 - 0.4 * v44 * v146
-            - 0.4 * v44 * v138 - 0.4 * v99 * v91 - 0.25 * v28 * v100 - 0.25 * v29 * v101
-            - 0.5 * v43 * v100 - 0.5 * v44 * v101;
+        h[0] = 10.9872 * v1 + 0.36 * v1 * v62 + 0.3 * v1 * v82 - 0.36 * v0 * v61
+            - 0.3 * v0 * v81;
+        h[1] = 0.002 * v4 * v57 + 0.06 * v5 * v62 + 0.25 * v42 * v61 + 0.025 * v5 * v82
+            + 0.25 * v43 * v62 + 0.5 * v42 * v81 + 0.5 * v43 * v82
+            + v5 * (5.886 * v31 + 1.61865) - 0.002 * v5 * v58 - 0.06 * v4 * v61
+            - 0.025 * v4 * v81;
+        h[2] = 0.2 * v8 * v138 + 0.4 * v32 * v138 - 0.25 * v8 * v44 - 0.25 * v9 * v45
+            - 0.5 * v32 * v44 - 0.32 * v105 * v123 - 0.5 * v33 * v45 - 5.886 * v46
+            - 0.2 * v61 * v99 - 0.2 * v8 * v126 - 0.2 * v9 * v139 - 0.2 * v62 * v46
+            - 0.2 * v9 * v127 - 0.4 * v32 * v126 - 0.4 * v81 * v99 - 0.4 * v33 * v139
+            - 0.4 * v33 * v127 - 0.4 * v82 * v46;
+        h[3] = 10.9872 * v11 + 0.36 * v11 * v68 + 0.3 * v11 * v90 - 0.36 * v10 * v67
+            - 0.3 * v10 * v89;
+        h[4] = 0.002 * v14 * v63 + 0.06 * v15 * v68 + 0.25 * v47 * v67
+            + 0.025 * v15 * v90 + 0.25 * v48 * v68 + 0.5 * v47 * v89 + 0.5 * v48 * v90
+            + v15 * (5.886 * v35 + 1.61865) - 0.002 * v15 * v64 - 0.06 * v14 * v67
+            - 0.025 * v14 * v89;
+        h[5] = 0.2 * v18 * v140 + 0.4 * v36 * v140 - 0.25 * v18 * v49 - 0.25 * v19 * v50
+            - 0.5 * v36 * v49 - 0.32 * v106 * v124 - 0.5 * v37 * v50 - 5.886 * v51
+            - 0.2 * v67 * v101 - 0.2 * v18 * v130 - 0.2 * v19 * v141 - 0.2 * v68 * v51
+            - 0.2 * v19 * v131 - 0.4 * v36 * v130 - 0.4 * v89 * v101 - 0.4 * v37 * v141
+            - 0.4 * v37 * v131 - 0.4 * v90 * v51;
+        h[6] = 10.9872 * v21 + 0.36 * v21 * v74 + 0.3 * v21 * v98 - 0.36 * v20 * v73
+            - 0.3 * v20 * v97;
+        h[7] = 0.002 * v24 * v69 + 0.06 * v25 * v74 + 0.25 * v52 * v73
+            + 0.025 * v25 * v98 + 0.25 * v53 * v74 + 0.5 * v52 * v97 + 0.5 * v53 * v98
+            + v25 * (5.886 * v39 + 1.61865) - 0.002 * v25 * v70 - 0.06 * v24 * v73
+            - 0.025 * v24 * v97;
+        h[8] = 0.2 * v28 * v142 + 0.4 * v40 * v142 - 0.25 * v28 * v54 - 0.25 * v29 * v55
+            - 0.5 * v40 * v54 - 0.32 * v107 * v125 - 0.5 * v41 * v55 - 5.886 * v56
+            - 0.2 * v73 * v103 - 0.2 * v28 * v134 - 0.2 * v29 * v143 - 0.2 * v74 * v56
+            - 0.2 * v29 * v135 - 0.4 * v40 * v134 - 0.4 * v97 * v103 - 0.4 * v41 * v143
+            - 0.4 * v41 * v135 - 0.4 * v98 * v56;
         h[9] = 0.0;
         h[10] = 0.0;
         h[11] = 25.506;
         phi_q[(0, 0)] = -0.4 * v0;
-        phi_q[(0, 1)] = v51;
+        phi_q[(0, 1)] = v42;
         phi_q[(0, 2)] = -0.8 * v5 * v30;
         phi_q[(0, 9)] = -1.0;
         phi_q[(1, 2)] = 0.8 * v31;
         phi_q[(1, 10)] = -1.0;
         phi_q[(2, 0)] = 0.4 * v1;
-        phi_q[(2, 1)] = v52;
-        phi_q[(2, 2)] = -0.8 * v53;
+        phi_q[(2, 1)] = v43;
+        phi_q[(2, 2)] = -0.8 * v46;
         phi_q[(2, 11)] = -1.0;
         phi_q[(3, 3)] = -0.4 * v10;
-        phi_q[(3, 4)] = v70;
-        phi_q[(3, 5)] = -0.8 * v15 * v35;
+        phi_q[(3, 4)] = v47;
+        phi_q[(3, 5)] = -0.8 * v15 * v34;
         phi_q[(3, 9)] = 0.5;
         phi_q[(3, 10)] = -0.8660254;
-        phi_q[(4, 5)] = 0.8 * v36;
+        phi_q[(4, 5)] = 0.8 * v35;
         phi_q[(4, 9)] = 0.8660254;
         phi_q[(4, 10)] = 0.5;
         phi_q[(5, 3)] = 0.4 * v11;
-        phi_q[(5, 4)] = v71;
-        phi_q[(5, 5)] = -0.8 * v72;
+        phi_q[(5, 4)] = v48;
+        phi_q[(5, 5)] = -0.8 * v51;
         phi_q[(5, 11)] = -1.0;
         phi_q[(6, 6)] = -0.4 * v20;
-        phi_q[(6, 7)] = v89;
-        phi_q[(6, 8)] = -0.8 * v25 * v40;
+        phi_q[(6, 7)] = v52;
+        phi_q[(6, 8)] = -0.8 * v25 * v38;
         phi_q[(6, 9)] = 0.5;
         phi_q[(6, 10)] = 0.8660254;
-        phi_q[(7, 8)] = 0.8 * v41;
+        phi_q[(7, 8)] = 0.8 * v39;
         phi_q[(7, 9)] = -0.8660254;
         phi_q[(7, 10)] = 0.5;
         phi_q[(8, 6)] = 0.4 * v21;
-        phi_q[(8, 7)] = v90;
-        phi_q[(8, 8)] = -0.8 * v91;
+        phi_q[(8, 7)] = v53;
+        phi_q[(8, 8)] = -0.8 * v56;
         phi_q[(8, 11)] = -1.0;
-        gamma[0] = 0.8 * v112 - v131;
-        gamma[1] = 0.8 * qd[2] * v126;
-        gamma[2] = 0.8 * v113 - v132;
-        gamma[3] = 0.8 * v118 - v135;
-        gamma[4] = 0.8 * qd[5] * v127;
-        gamma[5] = 0.8 * v119 - v136;
-        gamma[6] = 0.8 * v124 - v139;
-        gamma[7] = 0.8 * qd[8] * v128;
-        gamma[8] = 0.8 * v125 - v140;
+        gamma[0] = 0.8 * v113 - v128;
+        gamma[1] = 0.8 * qd[2] * v123;
+        gamma[2] = 0.8 * v114 - v129;
+        gamma[3] = 0.8 * v117 - v132;
+        gamma[4] = 0.8 * qd[5] * v124;
+        gamma[5] = 0.8 * v118 - v133;
+        gamma[6] = 0.8 * v121 - v136;
+        gamma[7] = 0.8 * qd[8] * v125;
+        gamma[8] = 0.8 * v122 - v137;
+    }
+    ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
+    #[inline]
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<f32, 12>,
+        qd: &SVector<f32, 12>,
+        qdd: &SVector<f32, 12>,
+        _t: f32,
+        tau: &mut SVector<f32, 12>,
+    ) {
+        let (v0, v1) = math::sin_cos(q[0]);
+        let v2 = v0 * qd[0];
+        let v3 = v1 * qd[0];
+        let (v4, v5) = math::sin_cos(q[1]);
+        let v6 = v4 * qd[1];
+        let v7 = v5 * qd[1];
+        let v8 = -0.4 * v2 - 0.1 * v6;
+        let v9 = 0.4 * v3 + 0.1 * v7;
+        let (v10, v11) = math::sin_cos(q[3]);
+        let v12 = v10 * qd[3];
+        let v13 = v11 * qd[3];
+        let (v14, v15) = math::sin_cos(q[4]);
+        let v16 = v14 * qd[4];
+        let v17 = v15 * qd[4];
+        let v18 = -0.4 * v12 - 0.1 * v16;
+        let v19 = 0.4 * v13 + 0.1 * v17;
+        let (v20, v21) = math::sin_cos(q[6]);
+        let v22 = v20 * qd[6];
+        let v23 = v21 * qd[6];
+        let (v24, v25) = math::sin_cos(q[7]);
+        let v26 = v24 * qd[7];
+        let v27 = v25 * qd[7];
+        let v28 = -0.4 * v22 - 0.1 * v26;
+        let v29 = 0.4 * v23 + 0.1 * v27;
+        let (v30, v31) = math::sin_cos(q[2]);
+        let v90 = v5 * v30;
+        let v32 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v90;
+        let v91 = v4 * v30;
+        let v33 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v91;
+        let (v34, v35) = math::sin_cos(q[5]);
+        let v92 = v15 * v34;
+        let v36 = v18 - 0.8 * v35 * v16 - 0.8 * qd[5] * v92;
+        let v93 = v14 * v34;
+        let v37 = 0.8 * v35 * v17 + v19 - 0.8 * qd[5] * v93;
+        let (v38, v39) = math::sin_cos(q[8]);
+        let v94 = v25 * v38;
+        let v40 = v28 - 0.8 * v39 * v26 - 0.8 * qd[8] * v94;
+        let v95 = v24 * v38;
+        let v41 = 0.8 * v39 * v27 + v29 - 0.8 * qd[8] * v95;
+        let v42 = -0.1 * v4 - 0.8 * v4 * v31;
+        let v43 = 0.1 * v5 + 0.8 * v5 * v31;
+        let v96 = qd[2] * v31;
+        let v44 = 0.8 * v30 * v6 - 0.8 * v5 * v96;
+        let v45 = -0.8 * v30 * v7 - 0.8 * v4 * v96;
+        let v46 = -0.1 * v14 - 0.8 * v14 * v35;
+        let v47 = 0.1 * v15 + 0.8 * v15 * v35;
+        let v97 = qd[5] * v35;
+        let v48 = 0.8 * v34 * v16 - 0.8 * v15 * v97;
+        let v49 = -0.8 * v34 * v17 - 0.8 * v14 * v97;
+        let v50 = -0.1 * v24 - 0.8 * v24 * v39;
+        let v51 = 0.1 * v25 + 0.8 * v25 * v39;
+        let v98 = qd[8] * v39;
+        let v52 = 0.8 * v38 * v26 - 0.8 * v25 * v98;
+        let v53 = -0.8 * v38 * v27 - 0.8 * v24 * v98;
+        let v99 = qd[0] * qd[0];
+        let v54 = v1 * v99;
+        let v55 = v0 * v99;
+        let v56 = qd[1] * v7;
+        let v57 = qd[1] * v6;
+        let v100 = qd[3] * qd[3];
+        let v58 = v11 * v100;
+        let v59 = v10 * v100;
+        let v60 = qd[4] * v17;
+        let v61 = qd[4] * v16;
+        let v101 = qd[6] * qd[6];
+        let v62 = v21 * v101;
+        let v63 = v20 * v101;
+        let v64 = qd[7] * v27;
+        let v65 = qd[7] * v26;
+        let v66 = v0 * qdd[0];
+        let v67 = v1 * qdd[0];
+        let v68 = v4 * qdd[1];
+        let v69 = v5 * qdd[1];
+        let v102 = v54 + 0.25 * v56;
+        let v103 = v66 + 0.25 * v68;
+        let v70 = -0.4 * v102 - 0.4 * v103;
+        let v104 = v55 + 0.25 * v57;
+        let v105 = v67 + 0.25 * v69;
+        let v71 = 0.4 * v105 - 0.4 * v104;
+        let v72 = v10 * qdd[3];
+        let v73 = v11 * qdd[3];
+        let v74 = v14 * qdd[4];
+        let v75 = v15 * qdd[4];
+        let v106 = v58 + 0.25 * v60;
+        let v107 = v72 + 0.25 * v74;
+        let v76 = -0.4 * v106 - 0.4 * v107;
+        let v108 = v59 + 0.25 * v61;
+        let v109 = v73 + 0.25 * v75;
+        let v77 = 0.4 * v109 - 0.4 * v108;
+        let v78 = v20 * qdd[6];
+        let v79 = v21 * qdd[6];
+        let v80 = v24 * qdd[7];
+        let v81 = v25 * qdd[7];
+        let v110 = v62 + 0.25 * v64;
+        let v111 = v78 + 0.25 * v80;
+        let v82 = -0.4 * v110 - 0.4 * v111;
+        let v112 = v63 + 0.25 * v65;
+        let v113 = v79 + 0.25 * v81;
+        let v83 = 0.4 * v113 - 0.4 * v112;
+        let v114 = qd[1] * v31;
+        let v115 = qd[2] * v30;
+        let v120 = v5 * v96;
+        let v84 = 1.6 * v6 * v115 + v70 - 0.8 * v7 * v114 - 0.8 * qd[2] * v120
+            - 0.8 * v31 * v68 - 0.8 * qdd[2] * v90;
+        let v121 = v4 * v96;
+        let v85 = 0.8 * v31 * v69 + v71 - 0.8 * v6 * v114 - 1.6 * v7 * v115
+            - 0.8 * qd[2] * v121 - 0.8 * qdd[2] * v91;
+        let v116 = qd[4] * v35;
+        let v117 = qd[5] * v34;
+        let v122 = v15 * v97;
+        let v86 = 1.6 * v16 * v117 + v76 - 0.8 * v17 * v116 - 0.8 * qd[5] * v122
+            - 0.8 * v35 * v74 - 0.8 * qdd[5] * v92;
+        let v123 = v14 * v97;
+        let v87 = 0.8 * v35 * v75 + v77 - 0.8 * v16 * v116 - 1.6 * v17 * v117
+            - 0.8 * qd[5] * v123 - 0.8 * qdd[5] * v93;
+        let v118 = qd[7] * v39;
+        let v119 = qd[8] * v38;
+        let v124 = v25 * v98;
+        let v88 = 1.6 * v26 * v119 + v82 - 0.8 * v27 * v118 - 0.8 * qd[8] * v124
+            - 0.8 * v39 * v80 - 0.8 * qdd[8] * v94;
+        let v125 = v24 * v98;
+        let v89 = 0.8 * v39 * v81 + v83 - 0.8 * v26 * v118 - 1.6 * v27 * v119
+            - 0.8 * qd[8] * v125 - 0.8 * qdd[8] * v95;
+        let v126 = v6 * v30;
+        let v127 = v7 * v30;
+        let v128 = v16 * v34;
+        let v129 = v17 * v34;
+        let v130 = v26 * v38;
+        let v131 = v27 * v38;
+        tau[0] = 10.9872 * v1 + 0.13066667 * qdd[0] + 0.36 * v1 * v71 + 0.3 * v1 * v85
+            - 0.36 * v0 * v70 - 0.3 * v0 * v84;
+        tau[1] = 0.002 * v4 * v54 + 0.002 * v4 * v66 + 0.002 * v5 * v67 + 0.06 * v5 * v71
+            + 0.25 * v42 * v70 + 0.025 * v5 * v85 + 0.25 * v43 * v71 + 0.5 * v42 * v84
+            + 0.5 * v43 * v85 + v5 * (5.886 * v31 + 1.61865) - 0.002 * v5 * v55
+            - 0.06 * v4 * v70 - 0.025 * v4 * v84;
+        tau[2] = 0.2 * v8 * v126 + 0.4 * v32 * v126 + 0.32 * v31 * v31 * qdd[2]
+            - 0.25 * v8 * v44 - 0.25 * v9 * v45 - 0.5 * v32 * v44 - 0.32 * v96 * v115
+            - 0.5 * v33 * v45 - 5.886 * v4 * v30 - 0.2 * v8 * v120 - 0.2 * v9 * v127
+            - 0.2 * v9 * v121 - 0.4 * v32 * v120 - 0.4 * v33 * v127 - 0.4 * v33 * v121
+            - 0.2 * v70 * v90 - 0.2 * v71 * v91 - 0.4 * v84 * v90 - 0.4 * v85 * v91;
+        tau[3] = 10.9872 * v11 + 0.13066667 * qdd[3] + 0.36 * v11 * v77 + 0.3 * v11 * v87
+            - 0.36 * v10 * v76 - 0.3 * v10 * v86;
+        tau[4] = 0.002 * v14 * v58 + 0.002 * v14 * v72 + 0.002 * v15 * v73
+            + 0.06 * v15 * v77 + 0.25 * v46 * v76 + 0.025 * v15 * v87 + 0.25 * v47 * v77
+            + 0.5 * v46 * v86 + 0.5 * v47 * v87 + v15 * (5.886 * v35 + 1.61865)
+            - 0.002 * v15 * v59 - 0.06 * v14 * v76 - 0.025 * v14 * v86;
+        tau[5] = 0.2 * v18 * v128 + 0.4 * v36 * v128 + 0.32 * v35 * v35 * qdd[5]
+            - 0.25 * v18 * v48 - 0.25 * v19 * v49 - 0.5 * v36 * v48 - 0.32 * v97 * v117
+            - 0.5 * v37 * v49 - 5.886 * v14 * v34 - 0.2 * v18 * v122 - 0.2 * v19 * v129
+            - 0.2 * v19 * v123 - 0.4 * v36 * v122 - 0.4 * v37 * v129 - 0.4 * v37 * v123
+            - 0.2 * v76 * v92 - 0.2 * v77 * v93 - 0.4 * v86 * v92 - 0.4 * v87 * v93;
+        tau[6] = 10.9872 * v21 + 0.13066667 * qdd[6] + 0.36 * v21 * v83 + 0.3 * v21 * v89
+            - 0.36 * v20 * v82 - 0.3 * v20 * v88;
+        tau[7] = 0.002 * v24 * v62 + 0.002 * v24 * v78 + 0.002 * v25 * v79
+            + 0.06 * v25 * v83 + 0.25 * v50 * v82 + 0.025 * v25 * v89 + 0.25 * v51 * v83
+            + 0.5 * v50 * v88 + 0.5 * v51 * v89 + v25 * (5.886 * v39 + 1.61865)
+            - 0.002 * v25 * v63 - 0.06 * v24 * v82 - 0.025 * v24 * v88;
+        tau[8] = 0.2 * v28 * v130 + 0.4 * v40 * v130 + 0.32 * v39 * v39 * qdd[8]
+            - 0.25 * v28 * v52 - 0.25 * v29 * v53 - 0.5 * v40 * v52 - 0.32 * v98 * v119
+            - 0.5 * v41 * v53 - 5.886 * v24 * v38 - 0.2 * v28 * v124 - 0.2 * v29 * v131
+            - 0.2 * v29 * v125 - 0.4 * v40 * v124 - 0.4 * v41 * v131 - 0.4 * v41 * v125
+            - 0.2 * v82 * v94 - 0.2 * v83 * v95 - 0.4 * v88 * v94 - 0.4 * v89 * v95;
+        tau[9] = 2.6 * qdd[9];
+        tau[10] = 2.6 * qdd[10];
+        tau[11] = 2.6 * qdd[11] + 25.506;
     }
     #[inline]
-    pub fn actuator_map(&self, b: &mut SMatrix<f32, 12, 3>) {
+    fn actuator_map(&self, b: &mut SMatrix<f32, 12, 3>) {
         *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
         b[(3, 1)] = 1.0;
@@ -757,7 +929,7 @@ impl ParallelRobotRigid {
     }
     ///Kinetic energy `T`.
     #[inline]
-    pub fn kinetic_energy(
+    fn kinetic_energy(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -813,7 +985,7 @@ impl ParallelRobotRigid {
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
-    pub fn potential_energy(&self, q: &SVector<f32, 12>, _t: f32) -> f32 {
+    fn potential_energy(&self, q: &SVector<f32, 12>, _t: f32) -> f32 {
         let v0 = math::sin(q[0]);
         let v1 = math::sin(q[1]);
         let v2 = math::sin(q[3]);

@@ -1,0 +1,154 @@
+//! The runtime in f32 against the same runtime in f64 (the f32 and f64
+//! modules of the same scenes, the solvers generic over the scalar):
+//!
+//! * the rigid robot's inverse dynamics along the paper's circle (one turn at
+//!   2 rad/s, 1 kHz, warm-started call to call as on the controller): the
+//!   f32 torques and path (all twelve coordinates) against the f64 ones;
+//! * the rigid robot driven quasi-statically towards the edge of its
+//!   workspace: the f32 error grows with the reported condition of the
+//!   Jacobian, and where that condition passes f32's default limit (`1e4`)
+//!   the f32 solve refuses with `SingularConstraintJacobian` while f64 still
+//!   solves;
+//! * RK4 on the flexible spin-up beam (rheonomic hub drive, four elastic
+//!   modes): the f32 trajectory against the f64 one.
+//!
+//! The numbers are printed; the bounds are f32's accuracy (`cond * eps`
+//! with `eps = 1.2e-7`) with a margin.
+
+use flexdyn_runtime::nalgebra::SVector;
+use flexdyn_runtime::{
+    ErrorKind, InverseConfig, InverseDynamics, InverseReport, InverseSolution, Model, Scalar, State,
+};
+
+#[path = "../firmware/src/models.rs"]
+mod models;
+#[path = "../firmware/src/motion.rs"]
+mod motion;
+
+use models::f32::parallel_robot_rigid::ParallelRobotRigid as Rigid32;
+use models::parallel_robot_rigid::ParallelRobotRigid as Rigid64;
+
+/// Largest `|a - b|` over the entries.
+fn max_diff<const N: usize>(a: &SVector<f32, N>, b: &SVector<f64, N>) -> f64 {
+    a.iter()
+        .zip(b.iter())
+        .fold(0.0, |m, (x, y)| m.max((f64::from(*x) - y).abs()))
+}
+
+#[test]
+fn rigid_robot_inverse_dynamics_in_f32_follows_f64_along_the_circle() {
+    let mut s64 = motion::warm_solver(&Rigid64).expect("f64 first pose");
+    let mut s32 = motion::warm_solver(&Rigid32).expect("f32 first pose");
+    let (mut o64, mut o32) = (motion::Solution::<f64>::default(), motion::Solution::default());
+    // One turn at 2 rad/s: pi seconds.
+    let calls = 3142;
+    let (mut tau_err, mut tau_peak, mut q_err) = (0.0f64, 0.0f64, 0.0f64);
+    for k in 1..=calls {
+        assert!(motion::call(&Rigid64, &mut s64, k, &mut o64), "f64 call {k}");
+        assert!(motion::call(&Rigid32, &mut s32, k, &mut o32), "f32 call {k}");
+        tau_err = tau_err.max(max_diff(&o32.tau, &o64.tau));
+        tau_peak = o64.tau.iter().fold(tau_peak, |m, x| m.max(x.abs()));
+        q_err = q_err.max(max_diff(&o32.q, &o64.q));
+    }
+    println!(
+        "rigid robot, circle at 2 rad/s, {calls} calls: f32 torques within {tau_err:.2e} N m \
+         ({:.2e} of the peak {tau_peak:.2} N m), coordinates within {q_err:.2e}",
+        tau_err / tau_peak
+    );
+    assert!(tau_err <= 1e-5 * tau_peak, "{tau_err:e} of {tau_peak}");
+    assert!(q_err <= 1e-5, "{q_err:e}");
+}
+
+/// Quasi-static inverse dynamics of the rigid robot at platform position
+/// `(x, 0, 0.7)`, warm-started by `solver`.
+fn quasi_static<T: Scalar, M: Model<12, 9, 3, T>>(
+    model: &M,
+    solver: &mut InverseDynamics<12, 9, 3, 3, T>,
+    x: f64,
+) -> Result<(InverseSolution<12, 9, 3, T>, InverseReport<T>), flexdyn_runtime::Error> {
+    let p = SVector::from([x, 0.0, 0.7].map(T::of));
+    let zero = SVector::zeros();
+    let mut out = InverseSolution::default();
+    let report = solver.solve(model, T::zero(), &p, &zero, &zero, &mut out)?;
+    Ok((out, report))
+}
+
+#[test]
+fn rigid_robot_near_the_workspace_edge_f32_refuses_where_f64_still_solves() {
+    let q0 = SVector::from(motion::Q0);
+    let mut s64 = InverseDynamics::new([9, 10, 11], q0, InverseConfig::default()).unwrap();
+    let mut s32 =
+        InverseDynamics::new([9, 10, 11], q0.cast::<f32>(), InverseConfig::default()).unwrap();
+    let mut x = 0.1;
+    let mut samples = Vec::new();
+    let refusal = loop {
+        x += 0.002;
+        assert!(x < 1.0, "f32 never refused");
+        let (o64, r64) = quasi_static(&Rigid64, &mut s64, x)
+            .unwrap_or_else(|e| panic!("f64 fails at x = {x} before f32 refuses: {e}"));
+        match quasi_static(&Rigid32, &mut s32, x) {
+            Ok((o32, _)) => {
+                let peak = o64.tau.amax().max(1.0);
+                samples.push((x, r64.jacobian_condition, max_diff(&o32.tau, &o64.tau) / peak));
+            }
+            Err(e) => break (x, r64.jacobian_condition, e),
+        }
+    };
+    for (x, cond, err) in samples.iter().step_by(20) {
+        println!("x = {x:.3} m: condition {cond:.3e}, f32 torque error {err:.2e} (relative)");
+    }
+    let (x, cond, e) = refusal;
+    println!("x = {x:.3} m: f64 solves with condition {cond:.3e}; f32 refuses: {e}");
+    match e.kind {
+        ErrorKind::SingularConstraintJacobian { condition, limit } => {
+            assert_eq!(limit, f64::from(f32::MAX_CONDITION));
+            assert!(condition > limit, "{e}");
+        }
+        _ => panic!("f32 refused with another error: {e}"),
+    }
+    // f64's condition bound there is past f32's limit, and f64's own limit
+    // is far away.
+    assert!(cond > 1e3 && cond < 1e8, "{cond:e}");
+    // Below the limit, the f32 error stays within its accuracy bound
+    // `cond * eps` (with a margin of 10).
+    for &(x, cond, err) in &samples {
+        assert!(
+            err <= 10.0 * cond * f64::from(f32::EPSILON),
+            "x = {x}: error {err:e}, condition {cond:e}"
+        );
+    }
+}
+
+#[test]
+fn spin_up_beam_rk4_in_f32_follows_f64() {
+    use flexdyn_runtime::{Integrator, Rk4};
+    let (m64, m32) = (
+        models::spin_up_beam::SpinUpBeam::default(),
+        models::f32::spin_up_beam::SpinUpBeam::default(),
+    );
+    let mut x64 = State::new(SVector::<f64, 5>::zeros(), SVector::zeros(), 0.0);
+    let mut x32 = State::new(SVector::<f32, 5>::zeros(), SVector::zeros(), 0.0);
+    let (mut r64, mut r32) = (Rk4::<f64>::default(), Rk4::<f32>::default());
+    let (tau64, tau32) = (SVector::<f64, 1>::zeros(), SVector::<f32, 1>::zeros());
+    let (dt, steps) = (5e-3, 3000);
+    let (mut q_err, mut q_peak) = (0.0f64, 0.0f64);
+    for k in 0..steps {
+        r64.step(&m64, &mut x64, &tau64, dt)
+            .unwrap_or_else(|e| panic!("f64 step {k}: {e}"));
+        r32.step(&m32, &mut x32, &tau32, dt as f32)
+            .unwrap_or_else(|e| panic!("f32 step {k}: {e}"));
+        // The elastic coordinates (all but the hub angle).
+        for i in 1..5 {
+            q_err = q_err.max((f64::from(x32.q[i]) - x64.q[i]).abs());
+            q_peak = q_peak.max(x64.q[i].abs());
+        }
+    }
+    let hub = (f64::from(x32.q[0]) - x64.q[0]).abs();
+    println!(
+        "spin-up beam, RK4 dt = {dt} s to t = {} s: f32 elastic coordinates within {q_err:.2e} \
+         (peak {q_peak:.3e}), hub angle within {hub:.2e} rad",
+        x64.t
+    );
+    assert!(q_err <= 1e-3 * q_peak, "{q_err:e} of {q_peak:e}");
+    assert!(hub <= 1e-4 * x64.q[0].abs().max(1.0), "{hub:e}");
+}
