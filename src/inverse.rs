@@ -15,8 +15,12 @@
 //!   generalized-alpha) integrate the free coordinates. They start at rest in
 //!   static equilibrium under the prescription at the first time: Newton on
 //!   `h(q, 0, t0) - Phi_q^T lambda - B tau = 0`, `Phi(q, t0) = 0`,
-//!   `q_S = p(t0)` for `(q, lambda, tau)`; the velocities are the smallest in
-//!   the mass norm that satisfy `Phi_q qd + Phi_t = 0` and `qd_S = p'(t0)`.
+//!   `q_S = p(t0)` for `(q, lambda, tau)`; the velocities satisfy
+//!   `Phi_q qd + Phi_t = 0` and `qd_S = p'(t0)` and are either the smallest
+//!   in the mass norm ([`FreeRates::LeastEnergy`]) or zero on the coordinates
+//!   the constraints do not need ([`FreeRates::Zero`]). The trial step of
+//!   [`servo_run`] is taken without the coordinate projection
+//!   ([`ServoConfig::trial_projection`]), as the flexible robot's.
 //!
 //! Either way the inputs must be determined by the prescription: as many
 //! prescribed coordinates as actuators, and a non-singular projected
@@ -62,6 +66,24 @@ pub struct Problem<'a> {
     pub guess: Vec<f64>,
     /// Output times, uniformly spaced from the first.
     pub times: Vec<f64>,
+    /// Initial rates of the free coordinates (servo case).
+    pub free_rates: FreeRates,
+}
+
+/// The initial rates of the coordinates that the prescription and the
+/// constraints leave free (the servo case). Both satisfy the velocity
+/// constraints `Phi_q qd + Phi_t = 0` with the prescribed rates.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum FreeRates {
+    /// The rates of least kinetic energy `qd^T M qd / 2`.
+    #[default]
+    LeastEnergy,
+    /// Zero, except on the coordinates the velocity constraints need: the
+    /// first unprescribed coordinates in the scene's order whose columns of
+    /// `Phi_q` are independent take the rates the constraints ask for, every
+    /// later one starts at rest. With rigid coordinates listed before elastic
+    /// ones (as the robot scenes do), the elastic rates start at zero.
+    Zero,
 }
 
 /// How the motion was solved.
@@ -311,10 +333,13 @@ where
     };
     let x0 = target(t0);
     let q = static_equilibrium(model, &index, &problem.held_free, &x0.position, guess, t0)?;
-    let qd = rest_velocities(model, &index, &x0.velocity, &q, t0)?;
+    let qd = initial_velocities(model, &index, &x0.velocity, &q, t0, problem.free_rates)?;
     let mut state = State { q, qd, t: t0 };
-    let servo = Servo::new(model, Coordinates(index), target, ServoConfig::default())
-        .map_err(|e| e.to_string())?;
+    let config = ServoConfig {
+        trial_projection: false,
+        ..ServoConfig::default()
+    };
+    let servo = Servo::new(model, Coordinates(index), target, config).map_err(|e| e.to_string())?;
     // L-stable (rho_inf = 0), as the robot's servo: the elastic modes a
     // step of the rigid motion does not resolve are damped, not rung.
     let config = GeneralizedAlphaConfig {
@@ -451,40 +476,112 @@ where
     ))
 }
 
-/// The velocities of least kinetic energy with `Phi_q qd + Phi_t = 0` and
-/// `qd_S = v`.
-fn rest_velocities<M, const NQ: usize, const NC: usize, const NU: usize>(
+/// The initial velocities with `Phi_q qd + Phi_t = 0` and `qd_S = v`,
+/// as `free_rates` picks them.
+fn initial_velocities<M, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
     index: &[usize; NU],
     v: &SVector<f64, NU>,
     q: &SVector<f64, NQ>,
     t: f64,
+    free_rates: FreeRates,
 ) -> Result<SVector<f64, NQ>, String>
 where
     M: Model<NQ, NC, NU>,
 {
-    let mut m = SMatrix::<f64, NQ, NQ>::zeros();
     let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
     let mut phi_t = SVector::<f64, NC>::zeros();
-    model.mass_matrix(q, t, &mut m);
     model.constraint_jacobian(q, t, &mut phi_q);
     model.constraint_time_derivative(q, t, &mut phi_t);
-    let a = DMatrix::from_fn(NC + NU, NQ, |r, c| match r < NC {
-        true => phi_q[(r, c)],
-        false => f64::from(u8::from(index[r - NC] == c)),
-    });
-    let rhs = DVector::from_fn(NC + NU, |r, _| match r < NC {
-        true => -phi_t[r],
-        false => v[r - NC],
-    });
+    match free_rates {
+        FreeRates::LeastEnergy => {
+            let mut m = SMatrix::<f64, NQ, NQ>::zeros();
+            model.mass_matrix(q, t, &mut m);
+            // The rows of Phi_q qd = -Phi_t, then qd_S = v.
+            let a = DMatrix::from_fn(NC + NU, NQ, |r, c| match r < NC {
+                true => phi_q[(r, c)],
+                false => f64::from(u8::from(index[r - NC] == c)),
+            });
+            let rhs = DVector::from_fn(NC + NU, |r, _| match r < NC {
+                true => -phi_t[r],
+                false => v[r - NC],
+            });
+            least_energy_velocities(&m, &a, &rhs, t)
+        }
+        FreeRates::Zero => needed_velocities(&phi_q, &phi_t, index, v, t),
+    }
+}
+
+/// The velocities of least kinetic energy `qd^T M qd / 2` with `a qd = rhs`.
+fn least_energy_velocities<const NQ: usize>(
+    m: &SMatrix<f64, NQ, NQ>,
+    a: &DMatrix<f64>,
+    rhs: &DVector<f64>,
+    t: f64,
+) -> Result<SVector<f64, NQ>, String> {
     let singular = || format!("at t = {t} s: the initial velocities are not determined");
     let m_inv = DMatrix::from_column_slice(NQ, NQ, m.as_slice())
         .try_inverse()
         .ok_or_else(singular)?;
-    let schur = &a * &m_inv * a.transpose();
-    let y = schur.full_piv_lu().solve(&rhs).ok_or_else(singular)?;
+    let schur = a * &m_inv * a.transpose();
+    let y = schur.full_piv_lu().solve(rhs).ok_or_else(singular)?;
     let qd = m_inv * a.transpose() * y;
     Ok(SVector::from_iterator(qd.iter().copied()))
+}
+
+/// The velocities with `Phi_q qd + Phi_t = 0` and `qd_S = v` (`S` the
+/// coordinates `index`), nonzero only on `S` and on the first columns of
+/// `Phi_q` outside `S` (in order) that are independent: the rates the
+/// velocity constraints need, every other one zero ([`FreeRates::Zero`]).
+/// An error names `t` when the constraints cannot be met so.
+pub fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
+    phi_q: &SMatrix<f64, NC, NQ>,
+    phi_t: &SVector<f64, NC>,
+    index: &[usize; NU],
+    v: &SVector<f64, NU>,
+    t: f64,
+) -> Result<SVector<f64, NQ>, String> {
+    let mut qd = SVector::<f64, NQ>::zeros();
+    for (k, &i) in index.iter().enumerate() {
+        qd[i] = v[k];
+    }
+    // Greedy: keep a column when it is independent of the kept ones
+    // (Gram-Schmidt, twice, against an orthonormal basis of them).
+    let mut basis: Vec<SVector<f64, NC>> = Vec::with_capacity(NC);
+    let mut needed = Vec::with_capacity(NC);
+    for j in (0..NQ).filter(|j| !index.contains(j)) {
+        if basis.len() == NC {
+            break;
+        }
+        let column = phi_q.column(j).into_owned();
+        let mut r = column;
+        for _ in 0..2 {
+            for b in &basis {
+                r -= b * b.dot(&r);
+            }
+        }
+        if r.norm() > 1e-10 * column.norm() {
+            basis.push(r.normalize());
+            needed.push(j);
+        }
+    }
+    let a = DMatrix::from_fn(NC, needed.len(), |r, c| phi_q[(r, needed[c])]);
+    let rhs = DVector::from_iterator(NC, (-(phi_q * qd + phi_t)).iter().copied());
+    let w = a
+        .svd(true, true)
+        .solve(&rhs, 1e-12)
+        .map_err(|e| format!("at t = {t} s: the initial velocities are not determined: {e}"))?;
+    for (c, &i) in needed.iter().enumerate() {
+        qd[i] = w[c];
+    }
+    let residual = (phi_q * qd + phi_t).amax();
+    if residual.is_nan() || residual > 1e-9 * (1.0 + rhs.amax()) {
+        return Err(format!(
+            "at t = {t} s: the velocity constraints cannot be met with the prescribed rates \
+             (residual {residual:.3e})"
+        ));
+    }
+    Ok(qd)
 }
 
 impl Solution {

@@ -15,6 +15,7 @@ pub mod inverse;
 pub mod plot;
 pub mod progress;
 pub mod sized;
+pub mod spline;
 pub mod table;
 
 /// The generated scene modules (one per file in `scenes/`).

@@ -269,20 +269,24 @@ pub trait Sized {
 }
 
 /// The capacities `(NQ, NC, NU)` of [`with_padding`], smallest first.
-pub const LADDER: [(usize, usize, usize); 3] = [(6, 2, 2), (16, 10, 4), (40, 20, 8)];
+pub const LADDER: [(usize, usize, usize); 4] = [(6, 2, 2), (16, 10, 4), (40, 20, 8), (64, 24, 8)];
 
 /// Run `s` on `model` padded to the smallest rung of [`LADDER`] it fits;
-/// an error naming the sizes when it fits none. The largest rung's solvers
-/// keep matrices of up to 60 x 60 on the stack: call this on a thread with
-/// a few MiB of stack (the main thread's is enough).
+/// an error naming the sizes when it fits none. The largest rung (sized for
+/// the flexible parallel robot, 39 coordinates, 12 constraints, 3 actuators,
+/// with room to spare) has solvers that keep matrices of up to 128 x 128 on
+/// the stack: call this on a thread with a few MiB of stack (the main
+/// thread's is enough).
 pub fn with_padding<S: Sized>(model: &dyn DynModel, s: S) -> Result<S::Output, String> {
     let sizes = (model.nq(), model.nc(), model.nu());
     if fits(sizes, LADDER[0]) {
         Ok(s.run(&Padded::<6, 2, 2>::new(model)?))
     } else if fits(sizes, LADDER[1]) {
         Ok(s.run(&Padded::<16, 10, 4>::new(model)?))
-    } else {
+    } else if fits(sizes, LADDER[2]) {
         Ok(s.run(&Padded::<40, 20, 8>::new(model)?))
+    } else {
+        Ok(s.run(&Padded::<64, 24, 8>::new(model)?))
     }
 }
 
@@ -365,6 +369,10 @@ mod tests {
     fn too_large_scenes_and_pad_inputs_are_reported() {
         assert!(fits((1, 0, 1), LADDER[0]) && fits((12, 9, 3), LADDER[1]));
         assert!(!fits((41, 0, 0), LADDER[2]) && !fits((3, 21, 0), LADDER[2]));
+        // The flexible parallel robot (39 coordinates, 12 constraints, 3
+        // actuators) fits the largest rung.
+        assert!(!fits((39, 12, 3), LADDER[2]) && fits((39, 12, 3), LADDER[3]));
+        assert!(!fits((65, 0, 0), LADDER[3]) && !fits((3, 25, 0), LADDER[3]));
         let dynamic = crate::dynamic::erase(crate::scenes::pendulum::Pendulum::default());
         let p = Padded::<6, 2, 2>::new(&*dynamic).unwrap();
         assert_eq!(p.pad_input_coordinates(), vec![3]);

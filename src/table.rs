@@ -37,6 +37,30 @@ impl Table {
         Ok(self.rows.iter().map(|r| r[k]).collect())
     }
 
+    /// The column `t` of a table read from `file`, checked to be non-empty and
+    /// strictly increasing; errors name the file and the line.
+    pub fn times(&self, file: &Path) -> Result<Vec<f64>, String> {
+        let file = file.display();
+        let t = self.column("t").map_err(|_| {
+            format!(
+                "{file}: no column `t` (columns: {})",
+                self.columns.join(", ")
+            )
+        })?;
+        if t.is_empty() {
+            return Err(format!("{file}: no rows"));
+        }
+        if let Some(k) = (1..t.len()).find(|&k| t[k] <= t[k - 1]) {
+            return Err(format!(
+                "{file}: line {}: t = {} does not increase (previous row: {})",
+                k + 2,
+                t[k],
+                t[k - 1]
+            ));
+        }
+        Ok(t)
+    }
+
     /// CSV text; numbers in shortest round-trip form.
     pub fn to_csv(&self) -> String {
         let mut s = self.columns.join(",");

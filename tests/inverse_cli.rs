@@ -1,10 +1,11 @@
 //! `flexdyn::inverse` on compiled-in scenes against independent references:
 //! the pendulum's closed-form torque, the slider-crank's closed-form
 //! kinematics and its power balance, the cart-pole's free pole integrated
-//! under the servo against an independent integration of its equation, and
-//! clear errors for prescriptions that do not determine the inputs.
+//! under the servo against an independent integration of its equation,
+//! sampled prescriptions (CSV) against the closed form, and clear errors
+//! for prescriptions that do not determine the inputs.
 
-use flexdyn::inverse::{solve, Method, Prescribed, Problem};
+use flexdyn::inverse::{solve, FreeRates, Method, Prescribed, Problem};
 use flexdyn::runtime::nalgebra::SVector;
 use flexdyn::runtime::Model;
 use flexdyn::scenes::{cart_pole::CartPole, pendulum::Pendulum, slider_crank::SliderCrank};
@@ -38,6 +39,7 @@ fn pendulum_torque_is_the_closed_form() {
         held_free: vec![],
         guess: vec![0.0],
         times: times(2.0, 0.01),
+        free_rates: FreeRates::LeastEnergy,
     };
     let out = solve::<_, 1, 0, 1, 1>(&Pendulum::default(), &problem).unwrap();
     assert_eq!(out.method, Method::Determined);
@@ -76,6 +78,7 @@ fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> flexdyn::inverse::Solution {
         held_free: vec![],
         guess: vec![0.3, 0.1, 0.4],
         times: times(1.0, 0.01),
+        free_rates: FreeRates::LeastEnergy,
     };
     solve::<_, 3, 2, 1, 1>(&SliderCrank, &problem).unwrap()
 }
@@ -156,6 +159,7 @@ fn cart_pole_servo_integrates_the_free_pole_and_gives_the_cart_force() {
         held_free: vec![],
         guess: vec![0.0, 3.0],
         times: times(1.0, 0.001),
+        free_rates: FreeRates::LeastEnergy,
     };
     let out = solve::<_, 2, 0, 1, 1>(&CartPole, &problem).unwrap();
     assert_eq!(out.method, Method::Servo);
@@ -195,6 +199,7 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
         held_free: vec![],
         guess: vec![0.3, 0.1, 0.4],
         times: times(0.1, 0.01),
+        free_rates: FreeRates::LeastEnergy,
     };
     // No prescription at all: fewer than the actuators.
     let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &base()).unwrap_err();
@@ -375,4 +380,68 @@ fn command_on_an_interpreted_pendulum_gives_the_closed_form_torque() {
             tau[k]
         );
     }
+}
+
+/// `--prescriptions P.csv`: the pendulum's `theta = 0.8 sin 3t` sampled at
+/// 101 points over `[0, pi/3]` (zero curvature at both ends, where the
+/// natural spline is exact to fourth order) gives the closed-form torque to
+/// the spline's accuracy (its acceleration error `O(h^2)`); unknown columns
+/// and samples that do not cover the run are refused, naming the file.
+#[test]
+fn command_follows_sampled_prescriptions_from_a_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut table = flexdyn::table::Table::new(&["t", "theta"]);
+    for k in 0..=100 {
+        let t = std::f64::consts::PI / 3.0 * k as f64 / 100.0;
+        table.push(vec![t, 0.8 * (3.0 * t).sin()]);
+    }
+    let samples = d.join("p.csv");
+    table.write(&samples).unwrap();
+    let sc = scene("pendulum");
+    let run = |csv: &std::path::Path, duration: &str| {
+        inverse(
+            d,
+            &[
+                "--scene",
+                sc.to_str().unwrap(),
+                "--duration",
+                duration,
+                "--dt",
+                "0.05",
+                "--prescriptions",
+                csv.to_str().unwrap(),
+            ],
+        )
+    };
+    let text = run(&samples, "1").unwrap();
+    std::fs::remove_file(d.join("out.csv")).unwrap();
+    let out = flexdyn::table::Table::parse(&text).unwrap();
+    let (t, tau) = (out.column("t").unwrap(), out.column("tau").unwrap());
+    let mut worst = 0.0f64;
+    for k in 0..t.len() {
+        let th = 0.8 * (3.0 * t[k]).sin();
+        let want = 0.25 * (-7.2 * (3.0 * t[k]).sin()) + 9.81 * 0.5 * th.sin();
+        worst = worst.max((tau[k] - want).abs());
+    }
+    println!("sampled prescription: largest torque error {worst:.3e} N m");
+    assert!(worst < 1e-3, "{worst}");
+    assert!(worst > 0.0, "sampled, not exact");
+    let e = run(&samples, "1.2").unwrap_err();
+    assert!(
+        e.contains("p.csv") && e.contains("`theta`") && e.contains("cover"),
+        "{e}"
+    );
+    std::fs::write(d.join("bad.csv"), "t,thta\n0,0\n1,1\n").unwrap();
+    let e = run(&d.join("bad.csv"), "1").unwrap_err();
+    assert!(
+        e.contains("column `thta` of") && e.contains("is not a coordinate") && e.contains("theta"),
+        "{e}"
+    );
+    std::fs::write(d.join("time.csv"), "t,theta\n0,0\n0,1\n").unwrap();
+    let e = run(&d.join("time.csv"), "1").unwrap_err();
+    assert!(
+        e.contains("line 3") && e.contains("does not increase"),
+        "{e}"
+    );
 }

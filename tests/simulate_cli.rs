@@ -53,6 +53,11 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 /// the table, or the error text. On failure, checks that `dir` holds no
 /// output (partial or temporary) besides the given `inputs`.
 fn simulate(dir: &Path, args: &[&str]) -> Result<(Table, String), String> {
+    simulate_noted(dir, &[args, &["--quiet"]].concat())
+}
+
+/// [`simulate`] without `--quiet`: the notes on stderr.
+fn simulate_noted(dir: &Path, args: &[&str]) -> Result<(Table, String), String> {
     let csv = dir.join("out.csv");
     let before: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
@@ -63,7 +68,6 @@ fn simulate(dir: &Path, args: &[&str]) -> Result<(Table, String), String> {
         .args(args)
         .arg("--csv")
         .arg(&csv)
-        .arg("--quiet")
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
@@ -237,23 +241,26 @@ fn four_bar_started_off_its_constraints_is_projected_and_stays_on_them() {
         "s.json",
         r#"{"q": [0.5, 0.52, 0.01], "qd": [1.0, 0.0, 0.0], "t": 0}"#,
     );
-    let (t, stderr) = simulate(
-        dir.path(),
-        &[
-            "--scene",
-            scene("four_bar").to_str().unwrap(),
-            "--duration",
-            "2",
-            "--initial",
-            s.to_str().unwrap(),
-        ],
-    )
-    .unwrap();
+    let four_bar = scene("four_bar");
+    let args = [
+        "--scene",
+        four_bar.to_str().unwrap(),
+        "--duration",
+        "2",
+        "--initial",
+        s.to_str().unwrap(),
+    ];
+    let (t, stderr) = simulate_noted(dir.path(), &args).unwrap();
     assert!(
         stderr.contains("projected onto the constraints: th2 0.52 ->"),
         "{stderr}"
     );
     assert!(stderr.contains("th1_dot 1.0 ->"), "{stderr}");
+    assert!(stderr.contains("integrator: adaptive RK4"), "{stderr}");
+    // --quiet: the same run, nothing on stderr.
+    let (quiet, stderr) = simulate(dir.path(), &args).unwrap();
+    assert!(stderr.is_empty(), "--quiet printed: {stderr}");
+    assert_eq!(quiet.column("th2"), t.column("th2"));
     let drift = max_abs(column(&t, "drift").into_iter());
     let e: Vec<f64> = column(&t, "T")
         .iter()

@@ -9,8 +9,12 @@
 //! px = "0.1*cos(2*t)"
 //! ```
 //!
-//! A `--prescribe` of a coordinate the motion file also names replaces the
-//! file's. The scene runs through [`crate::sized::with_padding`]: compiled
+//! or as sampled motions, a CSV (`--prescriptions P.csv`: a column `t`,
+//! strictly increasing, and one column per prescribed coordinate, named
+//! after it), interpolated by natural cubic splines ([`crate::spline`]) so
+//! that rates and accelerations are continuous. The CSV's columns replace
+//! the motion file's for the same coordinate, and a `--prescribe` replaces
+//! both. The scene runs through [`crate::sized::with_padding`]: compiled
 //! in, or interpreted.
 
 use std::collections::BTreeMap;
@@ -18,8 +22,9 @@ use std::path::{Path, PathBuf};
 
 use crate::cli::eval::Compiled;
 use crate::codegen::TimeFunction;
-use crate::inverse::{solve, Prescribed, Problem, Solution};
+use crate::inverse::{solve, FreeRates, Prescribed, Problem, Solution};
 use crate::sized::{with_padding, Padded, Sized, LADDER};
+use crate::spline::Spline;
 use crate::table::{Outputs, Table};
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
 use flexdyn_runtime::Model;
@@ -47,11 +52,23 @@ pub struct Args {
     /// Motion file (TOML, a `[prescribe]` table of `NAME = "EXPR"`).
     #[arg(long)]
     pub motion: Option<PathBuf>,
+    /// Sampled prescriptions (CSV: `t`, then one column per prescribed
+    /// coordinate, named after it), interpolated by natural cubic splines;
+    /// the samples must cover `0..duration`.
+    #[arg(long)]
+    pub prescriptions: Option<PathBuf>,
     /// Newton's starting point: a state in the `eval` format
     /// (`{"q": [..], "qd": [..], "t": 0}`; only `q` is used). Default: the
     /// scene's `initial` values (0 where not given).
     #[arg(long)]
     pub initial: Option<PathBuf>,
+    /// Initial rates of the coordinates the prescription and the
+    /// constraints leave free (when they are integrated): of least kinetic
+    /// energy, or zero on every coordinate the velocity constraints do not
+    /// need (the first independent ones in the scene's order take the rates
+    /// the constraints ask for).
+    #[arg(long, value_enum, default_value_t = FreeRates::LeastEnergy)]
+    pub free_rates: FreeRates,
     /// Output CSV: `t`, the actuators, the coordinates, `lambda_<k>` for each
     /// constraint `k`.
     #[arg(long)]
@@ -62,7 +79,28 @@ pub struct Args {
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     let scene = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
     let times = output_times(args.duration, args.dt)?;
-    let prescribed = prescriptions(&scene, &args.prescribe, args.motion.as_deref())?;
+    let prescribed = prescriptions(
+        &scene,
+        &args.prescribe,
+        args.motion.as_deref(),
+        args.prescriptions.as_deref(),
+    )?;
+    if let Some(path) = &args.prescriptions {
+        let end = times.last().copied().unwrap_or(0.0);
+        for (i, p) in &prescribed {
+            if let Prescription::Sampled(spline) = p {
+                let (a, b) = spline.span();
+                if a > 0.0 || b < end {
+                    return Err(format!(
+                        "{}: the samples of `{}` cover t = {a} .. {b} s, the run needs \
+                         0 .. {end} s",
+                        path.display(),
+                        scene.coordinates[*i].name
+                    ));
+                }
+            }
+        }
+    }
     let guess = match &args.initial {
         Some(path) => initial_guess(path, scene.coordinates.len())?,
         None => scene.coordinates.iter().map(|c| c.initial).collect(),
@@ -75,6 +113,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         prescribed,
         guess,
         times,
+        free_rates: args.free_rates,
     };
     let (columns, solution) = (job.columns(), with_padding(model.as_ref(), job)??);
     let mut table = Table::new(&columns.iter().map(String::as_str).collect::<Vec<_>>());
@@ -106,16 +145,42 @@ pub fn output_times(duration: f64, dt: f64) -> Result<Vec<f64>, String> {
     Ok((0..=steps).map(|k| k as f64 * dt).collect())
 }
 
-/// The prescriptions of the motion file, then of the command line (which
-/// replace the file's for the same coordinate), as coordinate indices with
-/// their functions of time. Errors name the coordinate (listing the valid
-/// ones), the expression and where in it.
+/// A prescribed motion of one coordinate.
+pub enum Prescription {
+    /// An expression of `t`.
+    Function(TimeFunction),
+    /// A spline through a CSV column.
+    Sampled(Spline),
+}
+
+impl Prescription {
+    /// Value, rate and acceleration at `t`.
+    pub fn eval(&self, t: f64) -> [f64; 3] {
+        match self {
+            Prescription::Function(f) => f.eval(t),
+            Prescription::Sampled(s) => s.eval(t),
+        }
+    }
+}
+
+/// What a prescription is given as.
+enum Source {
+    Text(String),
+    Samples(Vec<f64>, Vec<f64>),
+}
+
+/// The prescriptions of the motion file, then of the CSV, then of the
+/// command line (each replacing the previous for the same coordinate), as
+/// coordinate indices with their motions. Errors name the coordinate
+/// (listing the valid ones), the expression and where in it, or the file
+/// and column.
 pub fn prescriptions(
     scene: &crate::codegen::Model,
     prescribe: &[String],
     motion: Option<&Path>,
-) -> Result<Vec<(usize, TimeFunction)>, String> {
-    let mut texts = BTreeMap::<String, (String, String)>::new();
+    samples: Option<&Path>,
+) -> Result<Vec<(usize, Prescription)>, String> {
+    let mut texts = BTreeMap::<String, (Source, String)>::new();
     if let Some(path) = motion {
         let where_ = path.display().to_string();
         let text = std::fs::read_to_string(path)
@@ -137,7 +202,16 @@ pub fn prescriptions(
                 format!("motion file {where_}: `prescribe.{name}` must be a string expression")
             })?;
             let at = format!("motion file {where_}, `prescribe.{name}`");
-            texts.insert(name.clone(), (expr.to_owned(), at));
+            texts.insert(name.clone(), (Source::Text(expr.to_owned()), at));
+        }
+    }
+    if let Some(path) = samples {
+        let table = Table::read(path)?;
+        let t = table.times(path)?;
+        for name in table.columns.iter().filter(|c| *c != "t") {
+            let at = format!("column `{name}` of {}", path.display());
+            let values = Source::Samples(t.clone(), table.column(name)?);
+            texts.insert(name.clone(), (values, at));
         }
     }
     let mut given = Vec::new();
@@ -151,11 +225,11 @@ pub fn prescriptions(
         }
         given.push(name);
         let at = format!("--prescribe {name}");
-        texts.insert(name.to_owned(), (expr.to_owned(), at));
+        texts.insert(name.to_owned(), (Source::Text(expr.to_owned()), at));
     }
     let names: Vec<&str> = scene.coordinates.iter().map(|c| c.name.as_str()).collect();
     let mut out = Vec::with_capacity(texts.len());
-    for (name, (expr, at)) in texts {
+    for (name, (source, at)) in texts {
         let index = names.iter().position(|n| *n == name).ok_or_else(|| {
             format!(
                 "{at}: `{name}` is not a coordinate of scene `{}` (its coordinates: {})",
@@ -163,7 +237,14 @@ pub fn prescriptions(
                 names.join(", ")
             )
         })?;
-        let f = TimeFunction::parse(scene, &expr).map_err(|e| format!("{at}: {e}"))?;
+        let f = match source {
+            Source::Text(expr) => Prescription::Function(
+                TimeFunction::parse(scene, &expr).map_err(|e| format!("{at}: {e}"))?,
+            ),
+            Source::Samples(t, y) => {
+                Prescription::Sampled(Spline::new(t, y).map_err(|e| format!("{at}: {e}"))?)
+            }
+        };
         out.push((index, f));
     }
     out.sort_by_key(|(i, _)| *i);
@@ -191,9 +272,10 @@ struct Job {
     coordinates: Vec<String>,
     constraints: Vec<String>,
     actuators: Vec<String>,
-    prescribed: Vec<(usize, TimeFunction)>,
+    prescribed: Vec<(usize, Prescription)>,
     guess: Vec<f64>,
     times: Vec<f64>,
+    free_rates: FreeRates,
 }
 
 impl Job {
@@ -220,10 +302,12 @@ impl Sized for Job {
         const P0: usize = LADDER[0].0 - LADDER[0].1;
         const P1: usize = LADDER[1].0 - LADDER[1].1;
         const P2: usize = LADDER[2].0 - LADDER[2].1;
+        const P3: usize = LADDER[3].0 - LADDER[3].1;
         match NQ - NC {
             P0 => self.solve::<NQ, NC, NU, P0>(model),
             P1 => self.solve::<NQ, NC, NU, P1>(model),
             P2 => self.solve::<NQ, NC, NU, P2>(model),
+            P3 => self.solve::<NQ, NC, NU, P3>(model),
             n => Err(format!(
                 "internal: no inverse-dynamics size for {n} prescribed coordinates"
             )),
@@ -266,6 +350,7 @@ impl Job {
             actuators: self.actuators,
             guess: self.guess,
             times: self.times,
+            free_rates: self.free_rates,
         };
         solve::<_, NQ, NC, NU, NP>(model, &problem)
     }

@@ -92,7 +92,8 @@ pub struct Args {
     /// Columns to plot, comma-separated (default: the coordinates).
     #[arg(long, value_delimiter = ',')]
     pub columns: Vec<String>,
-    /// No progress bar.
+    /// Nothing on stderr unless it fails: no progress bar, no notes (the
+    /// integrator and its tolerance, the initial state's projection).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -328,23 +329,7 @@ fn drives(
     if let Some(path) = &args.inputs_csv {
         let table = Table::read(path)?;
         let file = path.display();
-        let t = table.column("t").map_err(|_| {
-            format!(
-                "{file}: no column `t` (columns: {})",
-                table.columns.join(", ")
-            )
-        })?;
-        if t.is_empty() {
-            return Err(format!("{file}: no rows"));
-        }
-        if let Some(k) = (1..t.len()).find(|&k| t[k] <= t[k - 1]) {
-            return Err(format!(
-                "{file}: line {}: t = {} does not increase (previous row: {})",
-                k + 2,
-                t[k],
-                t[k - 1]
-            ));
-        }
+        let t = table.times(path)?;
         for name in table.columns.iter().filter(|c| *c != "t") {
             let v = table.column(name)?;
             let signal = Signal::Column { t: t.clone(), v };
@@ -462,7 +447,7 @@ impl Sized for Setup<'_> {
             padded.pad(&self.state.qd),
             self.state.t,
         );
-        make_consistent(padded, &mut state)?;
+        make_consistent(padded, &mut state, self.quiet)?;
         // Actuator j on coordinate joints[j]; actuators without PD get zero gains.
         let mut joints = [0usize; NU];
         let (mut kp, mut kd) = ([0.0; NU], [0.0; NU]);
@@ -527,10 +512,12 @@ impl Sized for Setup<'_> {
             ),
             _ => {
                 let atol = self.tolerance * 1e-2;
-                eprintln!(
-                    "integrator: adaptive RK4, relative tolerance {:e}, absolute {atol:e}",
-                    self.tolerance
-                );
+                if !self.quiet {
+                    eprintln!(
+                        "integrator: adaptive RK4, relative tolerance {:e}, absolute {atol:e}",
+                        self.tolerance
+                    );
+                }
                 let mut g = AdaptiveRk4::new(self.tolerance, atol);
                 g.settings = settings;
                 run.go(g, &closed, &open, state)
@@ -539,11 +526,12 @@ impl Sized for Setup<'_> {
     }
 }
 
-/// Project the initial state onto the constraints, reporting what changed;
-/// an error when it cannot be done.
+/// Project the initial state onto the constraints, reporting what changed
+/// (unless `quiet`); an error when it cannot be done.
 fn make_consistent<const NQ: usize, const NC: usize, const NU: usize>(
     padded: &Padded<'_, NQ, NC, NU>,
     state: &mut State<NQ>,
+    quiet: bool,
 ) -> Result<(), String> {
     if padded.nc() == 0 {
         return Ok(());
@@ -552,6 +540,9 @@ fn make_consistent<const NQ: usize, const NC: usize, const NU: usize>(
     let report = project(padded, state, &ProjectionConfig::default()).map_err(|e| {
         format!("the initial state cannot be made consistent with the constraints: {e}")
     })?;
+    if quiet {
+        return Ok(());
+    }
     let names = padded.model().coordinates();
     for (what, suffix, a, b) in [
         ("position", "", &before.q, &state.q),

@@ -427,19 +427,19 @@ pub const SERVO_RHO_INF: f64 = 0.0;
 /// on the path at `times[0]` ([`initial_state`]). Returns the state and the
 /// torques at every time; `tick` is called after each.
 ///
-/// Each step is a predictor-corrector pair: a trial step of the servo model
+/// Each step is a predictor-corrector pair
+/// ([`flexdyn_runtime::control::servo_run`]): a trial step of the servo model
 /// gives the torques at the step's end; the step taken is the plain model's
 /// under the torques interpolated linearly over the step, from the same
 /// integrator memory. So the recorded trajectory is exactly the one that
 /// `parallel-robot simulate` reproduces (same scheme and step) from the
-/// torque table. This is [`flexdyn_runtime::control::servo_run`]'s scheme
-/// except that the trial step is taken without the coordinate projection,
-/// so that the torques are those at the state its Newton iteration
-/// converged to: projecting the trial state moves the stiff elastic
-/// coordinates off the iteration's accelerations, and the torques there
-/// differ by up to 3 N m at 10 rad/s; at the coarse steps of the hard cases
-/// (0.05 s) the run then fails (singular Newton matrix after seven steps).
-/// `servo_run` offers no way to switch the trial's projection off. For a
+/// torque table. The trial step is taken without the coordinate projection
+/// ([`flexdyn_runtime::control::ServoConfig::trial_projection`] off), so
+/// that the torques are those at the state its Newton iteration converged
+/// to: projecting the trial state moves the stiff elastic coordinates off the
+/// iteration's accelerations, and the torques there differ by up to 3 N m at
+/// 10 rad/s; at the coarse steps of the hard cases (0.05 s) the run then
+/// fails (singular Newton matrix after seven steps). For a
 /// scene with no elastic coordinates this reproduces the rigid inverse
 /// dynamics. Every point of the path is checked against the closed-form
 /// inverse kinematics first, which tells precisely why one cannot be reached.
@@ -454,10 +454,8 @@ pub fn flexible_inverse<M, const NQ: usize, const NC: usize>(
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
-    use flexdyn_runtime::control::{Coordinates, Servo, ServoConfig, ServoSample, Target};
+    use flexdyn_runtime::control::{servo_run, Coordinates, Servo, ServoConfig, Target};
     use flexdyn_runtime::integrate::{GeneralizedAlpha, StepSettings};
-    use flexdyn_runtime::nalgebra::SVector;
-    use flexdyn_runtime::{Integrator, Linear};
     let Some(&t0) = times.first() else {
         return Ok(Vec::new());
     };
@@ -490,6 +488,7 @@ where
     // The servo's closure stabilisation must be the integrator's.
     let servo_config = ServoConfig {
         dynamics: settings.dynamics,
+        trial_projection: false,
         ..Default::default()
     };
     let servo = Servo::new(model, Coordinates(layout.platform), path, servo_config)
@@ -500,31 +499,12 @@ where
         ..Default::default()
     };
     let mut integ = GeneralizedAlpha::<NQ, NC>::new(settings, config);
-    let err = |e: flexdyn_runtime::Error| e.to_string();
-    let mut tau = servo.solve(&state.q, &state.qd, t0).map_err(err)?.tau;
     let mut out = Vec::with_capacity(times.len());
-    out.push(ServoSample { state, tau });
-    tick();
-    let zero = SVector::<f64, 3>::zeros();
-    for _ in 1..times.len() {
-        // The trial step without the projection (see above).
-        let mut trial_integ = integ;
-        trial_integ.settings.projection = None;
-        let mut trial = state;
-        Integrator::<NQ, NC, 3>::step(&mut trial_integ, &servo, &mut trial, &zero, dt)
-            .map_err(|e| servo.take_failure().unwrap_or(e).to_string())?;
-        let next = servo.solve(&trial.q, &trial.qd, trial.t).map_err(err)?.tau;
-        let input = Linear {
-            t0: state.t,
-            tau0: tau,
-            t1: trial.t,
-            tau1: next,
-        };
-        Integrator::<NQ, NC, 3>::step(&mut integ, model, &mut state, &input, dt).map_err(err)?;
-        tau = next;
-        out.push(ServoSample { state, tau });
+    servo_run(&servo, &mut integ, &mut state, dt, times.len() - 1, |s| {
+        out.push(*s);
         tick();
-    }
+    })
+    .map_err(|e| e.to_string())?;
     Ok(out)
 }
 
@@ -949,9 +929,6 @@ pub const RIGID_COORDINATES: [&str; 12] = [
     "th11", "th12", "th13", "th21", "th22", "th23", "th31", "th32", "th33", "px", "py", "pz",
 ];
 
-/// Names of the platform's small-rotation coordinates in the flexible scenes.
-pub const PLATFORM_ROTATIONS: [&str; 3] = ["apx", "apy", "apz"];
-
 /// Where a robot scene keeps the quantities the robot commands need, found
 /// by name (coordinates) and from the actuator map (actuated joints).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1028,9 +1005,13 @@ impl Layout {
 /// platform held at `p` ([`static_equilibrium`]: the elastic coordinates at
 /// their gravity sag, the joint angles adjusted to it), so that a run does
 /// not start by releasing the undeformed structure under load. Rates: the
-/// platform's `v`, every other rate from the velocity constraints (minimum
-/// norm; for the rigid robot the nine joint rates exactly). Checked to
-/// satisfy the position and velocity constraints to `1e-9`.
+/// platform's `v`, and those the velocity constraints need on the first
+/// coordinates in the scene's order whose constraint columns are independent
+/// ([`flexdyn::inverse::needed_velocities`], as `flexdyn inverse
+/// --free-rates zero`): the joint rates and the platform's rotation rates
+/// (the robot scenes list them before the elastic coordinates); the elastic
+/// rates are zero. Checked to satisfy the position and velocity constraints
+/// to `1e-9`.
 pub fn initial_state<M, const NQ: usize, const NC: usize>(
     model: &M,
     layout: &Layout,
@@ -1042,7 +1023,7 @@ pub fn initial_state<M, const NQ: usize, const NC: usize>(
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
-    use flexdyn_runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
+    use flexdyn_runtime::nalgebra::{SMatrix, SVector};
     let rigid = inverse_kinematics(g, p).map_err(|e| format!("initial state: {e}"))?;
     let mut q = SVector::<f64, NQ>::zeros();
     for (k, &i) in layout.rigid.iter().enumerate() {
@@ -1051,34 +1032,12 @@ where
     if layout.is_flexible() {
         q = static_equilibrium(model, layout, &q, t)?.0;
     }
-    let mut qd = SVector::<f64, NQ>::zeros();
-    for k in 0..3 {
-        qd[layout.platform[k]] = v[k];
-    }
-    // The joint rates (and the platform's rotation rates, where it has
-    // rotation coordinates): Phi_q[:, free] w = -(Phi_q qd_platform + Phi_t),
-    // least squares; the elastic rates stay zero.
     let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
     let mut phi_t = SVector::<f64, NC>::zeros();
     model.constraint_jacobian(&q, t, &mut phi_q);
     model.constraint_time_derivative(&q, t, &mut phi_t);
-    let mut free: Vec<usize> = layout.rigid[..9].to_vec();
-    free.extend(
-        M::COORDINATES
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| PLATFORM_ROTATIONS.contains(c))
-            .map(|(i, _)| i),
-    );
-    let a = DMatrix::from_fn(NC, free.len(), |r, c| phi_q[(r, free[c])]);
-    let rhs = DVector::from_iterator(NC, (-(phi_q * qd + phi_t)).iter().copied());
-    let w = a
-        .svd(true, true)
-        .solve(&rhs, 1e-12)
+    let qd = flexdyn::inverse::needed_velocities(&phi_q, &phi_t, &layout.platform, &v.into(), t)
         .map_err(|e| format!("initial state: {e}"))?;
-    for (c, &i) in free.iter().enumerate() {
-        qd[i] = w[c];
-    }
     let state = flexdyn_runtime::State::new(q, qd, t);
     let drift = flexdyn_runtime::constraint_drift(model, &state);
     if !(drift.position < 1e-9 && drift.velocity < 1e-9) {

@@ -129,17 +129,27 @@ pub struct ServoConfig {
     pub max_condition: f64,
     /// Cap on Jacobi SVD sweeps of the servo matrix.
     pub max_sweeps: u32,
+    /// Whether [`servo_run`]'s trial step keeps the integrator's coordinate
+    /// projection. Off, the inputs are those at the state the trial step's
+    /// own iteration reached: on stiff elastic coordinates projecting the
+    /// trial state moves them off the iteration's accelerations (the flexible
+    /// parallel robot's torques then differ by up to 3 N m at 10 rad/s, and
+    /// at coarse steps the projection's Newton matrix turns singular). The
+    /// step taken keeps its projection either way.
+    pub trial_projection: bool,
 }
 
 impl Default for ServoConfig {
     /// Both stabilisations at the default Baumgarte gains (as the default
-    /// [`crate::StepSettings`]), condition limit `1e8`, 40 sweeps.
+    /// [`crate::StepSettings`]), condition limit `1e8`, 40 sweeps, trial
+    /// step with projection.
     fn default() -> Self {
         ServoConfig {
             output_gains: Baumgarte::default(),
             dynamics: DynamicsConfig::default(),
             max_condition: 1e8,
             max_sweeps: 40,
+            trial_projection: true,
         }
     }
 }
@@ -471,7 +481,9 @@ pub struct ServoSummary {
 /// integrator's own memory. So the recorded motion is exactly the forward
 /// simulation, by the same integrator and step, of the recorded inputs; the
 /// servo stabilisation acts on that motion. `record` gets `tau_{n+1}` with
-/// the state the plain step reached (not the trial's).
+/// the state the plain step reached (not the trial's). With
+/// [`ServoConfig::trial_projection`] off, the trial step is taken without
+/// the integrator's coordinate projection.
 ///
 /// Stops at the first error (the state is then the last one recorded): a
 /// failure of the servo solve inside the trial step is returned as such
@@ -514,6 +526,9 @@ where
     for _ in 0..steps {
         servo.take_failure();
         let mut trial_integrator = integrator.clone();
+        if !servo.config.trial_projection {
+            trial_integrator.settings_mut().projection = None;
+        }
         let mut trial = *state;
         trial_integrator
             .step(servo, &mut trial, &zero, dt)

@@ -291,6 +291,10 @@ impl AdaptiveRk4 {
 }
 
 impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for AdaptiveRk4 {
+    fn settings_mut(&mut self) -> &mut StepSettings {
+        &mut self.settings
+    }
+
     /// Advances by exactly `dt` with as many error-controlled substeps as
     /// needed (at most `max_substeps`, otherwise [`ErrorKind::SubstepLimit`]).
     /// The report's `iterations` is the number of substeps. State and

@@ -74,6 +74,10 @@ impl GaussLegendre4 {
 }
 
 impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for GaussLegendre4 {
+    fn settings_mut(&mut self) -> &mut StepSettings {
+        &mut self.settings
+    }
+
     fn step<M, I>(
         &mut self,
         model: &M,

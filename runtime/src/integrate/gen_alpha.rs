@@ -206,6 +206,10 @@ impl<const NQ: usize, const NU: usize> Ctx<NQ, NU> {
 impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
     for GeneralizedAlpha<NQ, NC>
 {
+    fn settings_mut(&mut self) -> &mut StepSettings {
+        &mut self.settings
+    }
+
     fn step<M, I>(
         &mut self,
         model: &M,

@@ -113,6 +113,10 @@ pub trait Integrator<const NQ: usize, const NC: usize, const NU: usize, T: Scala
     where
         M: Model<NQ, NC, NU, T>,
         I: Input<NU, T> + ?Sized;
+
+    /// The integrator's step settings (e.g. for [`crate::control::servo_run`]
+    /// to take its trial step without the coordinate projection).
+    fn settings_mut(&mut self) -> &mut StepSettings<T>;
 }
 
 /// Summary of [`run`].

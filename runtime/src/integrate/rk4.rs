@@ -157,6 +157,10 @@ where
 impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
     for Rk4<T>
 {
+    fn settings_mut(&mut self) -> &mut StepSettings<T> {
+        &mut self.settings
+    }
+
     fn step<M, I>(
         &mut self,
         model: &M,

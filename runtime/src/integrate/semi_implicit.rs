@@ -68,6 +68,10 @@ impl SemiImplicitEuler {
 impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
     for SemiImplicitEuler
 {
+    fn settings_mut(&mut self) -> &mut StepSettings {
+        &mut self.settings
+    }
+
     fn step<M, I>(
         &mut self,
         model: &M,
