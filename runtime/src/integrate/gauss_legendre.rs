@@ -48,10 +48,10 @@ pub struct GaussLegendre4<T: Scalar = f64> {
     /// Cap on fixed-point sweeps per step.
     pub max_iterations: u32,
     /// Relative tolerance of the stage iteration (default `1e-13`, at
-    /// least `8 eps`: `9.5e-7` in f32).
+    /// least `100 eps`: `1.2e-5` in f32).
     pub rtol: T,
     /// Absolute tolerance of the stage iteration (default `1e-15`, at
-    /// least `0.08 eps`: `9.5e-9` in f32).
+    /// least `eps`: `1.2e-7` in f32).
     pub atol: T,
 }
 
@@ -60,8 +60,8 @@ impl<T: Scalar> Default for GaussLegendre4<T> {
         GaussLegendre4 {
             settings: StepSettings::default(),
             max_iterations: 50,
-            rtol: T::of(1e-13).max(T::EPSILON * T::of(8.0)),
-            atol: T::of(1e-15).max(T::EPSILON * T::of(0.08)),
+            rtol: T::of(1e-13).max(T::EPSILON * T::of(100.0)),
+            atol: T::of(1e-15).max(T::EPSILON),
         }
     }
 }
