@@ -22,6 +22,7 @@ enum Command {
     Eval(cli::eval::Args),
     Simulate(cli::simulate::Args),
     Inverse(cli::inverse::Args),
+    Import(cli::import::Args),
 }
 
 fn main() -> ExitCode {
@@ -31,6 +32,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => cli::eval::run(&args, &cli::eval::COMPILED_SCENES),
         Command::Simulate(args) => cli::simulate::run(&args, &cli::eval::COMPILED_SCENES),
         Command::Inverse(args) => cli::inverse::run(&args, &cli::eval::COMPILED_SCENES),
+        Command::Import(args) => cli::import::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

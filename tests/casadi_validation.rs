@@ -7,6 +7,8 @@
 
 #[path = "common/casadi.rs"]
 mod casadi;
+#[path = "common/python_env.rs"]
+mod python_env;
 
 #[test]
 fn casadi_validates_every_term_of_every_scene() {

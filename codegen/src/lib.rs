@@ -58,6 +58,7 @@ pub use emit::FunctionReport;
 pub use error::{Error, Source};
 pub use export::export_json;
 pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
+pub use load::urdf::{import_urdf, UrdfOptions};
 pub use model::{Model, Precision};
 pub use schedule::OpCount;
 pub use time_function::TimeFunction;

@@ -8,7 +8,11 @@
 
 use std::path::Path;
 
-use flexdyn_codegen::{Error, Model, Source, Symbol};
+#[path = "common/energies.rs"]
+mod common;
+
+use common::energies;
+use flexdyn_codegen::{Error, Model, Source};
 
 fn load(text: &str) -> Result<Model, Error> {
     Model::from_source(&Source::new(Path::new("scene.toml"), text.to_owned()))
@@ -85,25 +89,6 @@ fn shaft_stiffness() -> f64 {
     let radius = (area / std::f64::consts::PI).sqrt();
     let polar = std::f64::consts::PI * radius.powi(4) / 2.0;
     g * polar / l
-}
-
-/// Total T and V of a model at (q, qd), runtime parameters at `params`.
-fn energies(model: &Model, q: &[f64], qd: &[f64], params: &[f64]) -> (f64, f64) {
-    let ids: Vec<_> = model
-        .components
-        .iter()
-        .flat_map(|c| [c.kinetic, c.potential])
-        .collect();
-    let values = model.graph.eval(&ids, &|s| match s {
-        Symbol::Q(i) => q[i as usize],
-        Symbol::Qd(i) => qd[i as usize],
-        Symbol::Param(i) => params[i as usize],
-        Symbol::Time => 0.0,
-        Symbol::Qdd(_) => f64::NAN, // not read by these terms
-    });
-    values
-        .chunks(2)
-        .fold((0.0, 0.0), |(t, v), c| (t + c[0], v + c[1]))
 }
 
 fn compare(component: &str, reference: &str, params: &[f64]) {

@@ -355,11 +355,16 @@ fn negative_mass_for_every_massive_type() {
             ));
             let e = fail(&text);
             let at = locate(&text, "mass =", mass);
+            // A rigid body may be massless (a URDF link), so only negative.
+            let need = match kind {
+                "rigid_body" => "mass must be non-negative",
+                _ => "mass must be positive",
+            };
             check(
                 &e,
                 at,
                 Some("component `part`"),
-                &["mass must be positive", &format!("found {shown}")],
+                &[need, &format!("found {shown}")],
             );
         }
     }
@@ -414,10 +419,12 @@ fn rigid_body(inertia: &str) -> String {
 }
 
 #[test]
-fn inertia_must_be_positive_definite() {
+fn inertia_must_be_positive_semi_definite() {
     assert!(load(&rigid_body("[[1, 0, 0], [0, 2, 0], [0, 0, 3]]")).is_ok());
+    // Singular tensors: a thin rod, a point.
+    assert!(load(&rigid_body("[[1, 0, 0], [0, 0, 0], [0, 0, 1]]")).is_ok());
+    assert!(load(&rigid_body("[0, 0, 0]")).is_ok());
     for inertia in [
-        "[[1, 0, 0], [0, 0, 0], [0, 0, 1]]",
         "[[1, 0, 0], [0, 1, 0], [0, 0, -0.5]]",
         "[[1, 2, 0], [2, 1, 0], [0, 0, 1]]",
     ] {
@@ -428,7 +435,7 @@ fn inertia_must_be_positive_definite() {
             &e,
             at,
             Some("component `body`"),
-            &["inertia tensor is not positive definite"],
+            &["inertia tensor is not positive semi-definite"],
         );
     }
 }
@@ -960,4 +967,33 @@ fn valid_scenes_are_written_once() {
     .unwrap();
     let third = run();
     assert_eq!(third.written, vec![out.path().join("two.rs")]);
+}
+
+#[test]
+fn negative_armature_is_rejected() {
+    let text = scene(
+        "[[components]]\nname = \"p\"\ntype = \"point_mass\"\nmass = 1\nposition = [\"x\", 0, 0]\n\n\
+         [[actuators]]\nname = \"u\"\ncoordinate = \"x\"\narmature = -0.5\n",
+    );
+    let e = fail(&text);
+    let at = locate(&text, "armature", "-0.5");
+    check(
+        &e,
+        at,
+        Some("actuator `u`"),
+        &["armature must be non-negative"],
+    );
+    // A valid one adds `armature qd^2 / 2` to the kinetic energy.
+    let m = load(&text.replace("-0.5", "0.5")).unwrap();
+    let rotor = m
+        .components
+        .iter()
+        .find(|c| c.name == "u_armature")
+        .unwrap();
+    let x = m.coordinates.iter().position(|c| c.name == "x").unwrap();
+    let t = m.graph.eval(&[rotor.kinetic], &|s| match s {
+        flexdyn_codegen::Symbol::Qd(i) if i as usize == x => 3.0,
+        _ => 0.7,
+    })[0];
+    assert_eq!(t, 0.5 * 0.5 * 9.0);
 }

@@ -5,5 +5,6 @@
 pub mod eval;
 pub mod export;
 pub mod generate;
+pub mod import;
 pub mod inverse;
 pub mod simulate;

@@ -16,8 +16,9 @@ use std::path::PathBuf;
 
 use flexdyn_runtime::control::{Feedback, JointPd, Target};
 use flexdyn_runtime::{
-    project, AdaptiveRk4, FromFn, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig,
-    Integrator, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State, StepSettings,
+    project, AdaptiveRk4, ErrorKind, FromFn, GaussLegendre4, GeneralizedAlpha,
+    GeneralizedAlphaConfig, Integrator, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State,
+    StepSettings,
 };
 use nalgebra::SVector;
 
@@ -603,9 +604,23 @@ impl Run<'_> {
         for k in 1..=steps {
             let end = (t0 + k as f64 * self.dt).min(t0 + self.duration);
             let h = end - state.t;
-            integrator
-                .step(model, &mut state, input, h)
-                .map_err(|e| format!("step {k} (t = {} s, dt = {h} s): {e}", state.t))?;
+            integrator.step(model, &mut state, input, h).map_err(|e| {
+                let hint = match e.kind {
+                    ErrorKind::MassMatrixNotPositiveDefinite { pivot, .. } => self
+                        .model
+                        .coordinates()
+                        .get(pivot)
+                        .map(|c| {
+                            format!(
+                                " (coordinate `{c}`: no mass or inertia moves with it apart \
+                                 from the coordinates before it)"
+                            )
+                        })
+                        .unwrap_or_default(),
+                    _ => String::new(),
+                };
+                format!("step {k} (t = {} s, dt = {h} s): {e}{hint}", state.t)
+            })?;
             state.t = end;
             table.push(self.row(&state));
             progress.inc();

@@ -14,6 +14,7 @@
 //! is a topological order of the graph.
 
 mod diff;
+pub mod exact;
 mod reverse;
 
 use std::collections::HashMap;
@@ -57,6 +58,20 @@ pub enum Func {
 }
 
 impl Func {
+    /// Evaluate the function at a constant being folded: sines, cosines and
+    /// tangents of multiples of `pi/12` exactly ([`exact`]).
+    pub fn fold(self, x: f64) -> f64 {
+        match self {
+            Func::Sin => exact::sin_cos(x).0,
+            Func::Cos => exact::sin_cos(x).1,
+            Func::Tan => {
+                let (s, c) = exact::sin_cos(x);
+                s / c
+            }
+            _ => self.apply(x),
+        }
+    }
+
     /// Evaluate the function.
     pub fn apply(self, x: f64) -> f64 {
         match self {
@@ -228,30 +243,45 @@ impl Graph {
 
     /// Linear combination `constant + sum(c * term)` in canonical form.
     pub fn linear(&mut self, terms: &[(Id, f64)], constant: f64) -> Id {
+        // Constants added up, with the sum of their magnitudes for the
+        // cancellation rule ([`exact::cancel`]).
         let mut constant = constant;
+        let mut magnitude = constant.abs();
         let mut flat: Vec<(Id, f64)> = Vec::with_capacity(terms.len());
         for &(id, c) in terms {
             if c == 0.0 {
                 continue;
             }
             match self.node(id) {
-                Node::Const(k) => constant += c * k.get(),
+                Node::Const(k) => {
+                    constant += c * k.get();
+                    magnitude += (c * k.get()).abs();
+                }
                 Node::Sum(ts, k) => {
                     constant += c * k.get();
+                    magnitude += (c * k.get()).abs();
                     flat.extend(ts.iter().map(|&(t, ct)| (t, c * ct.get())));
                 }
                 _ => flat.push((id, c)),
             }
         }
+        constant = exact::cancel(constant, magnitude);
         flat.sort_by_key(|&(id, _)| id);
-        let mut merged: Vec<(Id, f64)> = Vec::with_capacity(flat.len());
+        let mut merged: Vec<(Id, f64, f64)> = Vec::with_capacity(flat.len());
         for (id, c) in flat {
             match merged.last_mut() {
-                Some((last, lc)) if *last == id => *lc += c,
-                _ => merged.push((id, c)),
+                Some((last, lc, lm)) if *last == id => {
+                    *lc += c;
+                    *lm += c.abs();
+                }
+                _ => merged.push((id, c, c.abs())),
             }
         }
-        merged.retain(|&(_, c)| c != 0.0);
+        let mut merged: Vec<(Id, f64)> = merged
+            .into_iter()
+            .map(|(id, c, m)| (id, exact::cancel(c, m)))
+            .filter(|&(_, c)| c != 0.0)
+            .collect();
         self.pythagorean(&mut merged, &mut constant);
         if !constant.is_finite() || merged.iter().any(|(_, c)| !c.is_finite()) {
             // Overflow while folding: keep the operation unfolded is not
@@ -447,7 +477,7 @@ impl Graph {
     /// `f(a)`, folded when `a` is a constant and the result finite.
     pub fn call(&mut self, f: Func, a: Id) -> Id {
         if let Some(x) = self.as_const(a) {
-            let y = f.apply(x);
+            let y = f.fold(x);
             if y.is_finite() {
                 return self.constant(y);
             }

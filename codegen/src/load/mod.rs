@@ -9,6 +9,7 @@
 
 pub mod parse;
 pub mod scene;
+pub mod urdf;
 
 use std::path::Path;
 
@@ -146,7 +147,7 @@ fn check_lower_case(source: &Source, name: &Spanned<String>) -> Result<(), Error
     Ok(())
 }
 
-const RUST_KEYWORDS: &[&str] = &[
+pub(crate) const RUST_KEYWORDS: &[&str] = &[
     "as", "async", "await", "break", "const", "continue", "crate", "dyn", "else", "enum", "extern",
     "false", "fn", "for", "gen", "if", "impl", "in", "let", "loop", "match", "mod", "move", "mut",
     "pub", "ref", "return", "self", "Self", "static", "struct", "super", "trait", "true", "type",

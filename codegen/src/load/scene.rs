@@ -204,8 +204,12 @@ pub struct ComponentDef {
     pub from: Option<Spanned<Vec<SScalar>>>,
     /// Second end of a rod.
     pub to: Option<Spanned<Vec<SScalar>>>,
-    /// Inertia tensor about the centre of mass in frame axes (3x3).
-    pub inertia: Option<Spanned<Vec<Vec<SScalar>>>>,
+    /// Inertia tensor about the centre of mass (`rigid_body`): three rows
+    /// of the full 3x3 tensor, or its diagonal `[ixx, iyy, izz]`.
+    pub inertia: Option<Spanned<Vec<Spanned<InertiaEntry>>>>,
+    /// Orientation `[roll, pitch, yaw]` of the inertia's axes in the frame
+    /// (`rigid_body`; URDF convention `R = Rz(yaw) Ry(pitch) Rx(roll)`).
+    pub inertia_rpy: Option<Spanned<Vec<SScalar>>>,
     /// Stiffness of a spring.
     pub stiffness: Option<SScalar>,
     /// Damping coefficient of a damper.
@@ -237,6 +241,53 @@ pub struct ComponentDef {
     pub damping_ratio: Option<Spanned<ScalarList>>,
     /// Centrifugal (geometric) stiffening of a flexible link.
     pub geometric_stiffening: Option<Spanned<bool>>,
+}
+
+/// An entry of a rigid body's `inertia`: a row of the full tensor, or one
+/// element of the diagonal shorthand.
+#[derive(Debug, Clone)]
+pub enum InertiaEntry {
+    /// A row `[i_k1, i_k2, i_k3]`.
+    Row(Vec<SScalar>),
+    /// A diagonal element.
+    Diagonal(Scalar),
+}
+
+struct InertiaEntryVisitor;
+
+impl<'de> Visitor<'de> for InertiaEntryVisitor {
+    type Value = InertiaEntry;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a row of three values or a diagonal element")
+    }
+
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<InertiaEntry, E> {
+        ScalarVisitor.visit_f64(v).map(InertiaEntry::Diagonal)
+    }
+
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<InertiaEntry, E> {
+        ScalarVisitor.visit_i64(v).map(InertiaEntry::Diagonal)
+    }
+
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<InertiaEntry, E> {
+        ScalarVisitor.visit_u64(v).map(InertiaEntry::Diagonal)
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<InertiaEntry, E> {
+        ScalarVisitor.visit_str(v).map(InertiaEntry::Diagonal)
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<InertiaEntry, A::Error> {
+        Vec::<SScalar>::deserialize(de::value::SeqAccessDeserializer::new(seq))
+            .map(InertiaEntry::Row)
+    }
+}
+
+impl<'de> Deserialize<'de> for InertiaEntry {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<InertiaEntry, D::Error> {
+        d.deserialize_any(InertiaEntryVisitor)
+    }
 }
 
 /// Material of a flexible link.
@@ -402,6 +453,9 @@ pub struct ActuatorDef {
     pub coordinate: Spanned<String>,
     /// Gain (generalized force per unit input), 1 by default.
     pub gain: Option<Spanned<f64>>,
+    /// Rotor (armature) inertia reflected to the coordinate: adds the
+    /// kinetic energy `armature qd^2 / 2`.
+    pub armature: Option<SScalar>,
 }
 
 /// The whole scene file.

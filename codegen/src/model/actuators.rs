@@ -1,8 +1,9 @@
 //! Actuators (a unit input's generalized force on one coordinate, times a
-//! gain) and the optional outputs a scene asks for.
+//! gain, and the rotor inertia reflected to it, `armature`: the kinetic
+//! energy `armature qd^2 / 2`) and the optional outputs a scene asks for.
 
 use super::context::Context;
-use super::{Actuator, Coordinate, Outputs, Precision};
+use super::{Actuator, Component, Coordinate, Outputs, Precision};
 use crate::error::Error;
 use crate::load::check_ident;
 use crate::load::scene::SceneDef;
@@ -55,6 +56,35 @@ impl Context<'_> {
                 )),
             },
         }
+    }
+
+    /// The rotor inertias of the actuators that declare `armature`, as
+    /// components `<actuator>_armature` with `T = armature qd^2 / 2`
+    /// (`armature` non-negative, parameter-only). Called after
+    /// [`Context::actuators`], which checks names and coordinates.
+    pub(super) fn armatures(
+        &mut self,
+        def: &SceneDef,
+        actuators: &[Actuator],
+    ) -> Result<Vec<Component>, Error> {
+        let mut out = Vec::new();
+        for (a, actuator) in def.actuators.iter().zip(actuators) {
+            let Some(s) = &a.armature else { continue };
+            let ctx = format!("actuator `{}`", actuator.name);
+            let inertia = self.positive(s, &ctx, "armature", false)?;
+            let rate = self.graph.qd(actuator.coordinate);
+            let rate2 = self.graph.powi(rate, 2);
+            let product = self.graph.mul(inertia, rate2);
+            let zero = self.graph.constant(0.0);
+            out.push(Component {
+                name: format!("{}_armature", actuator.name),
+                kind: "armature".to_owned(),
+                kinetic: self.graph.scale(product, 0.5),
+                potential: zero,
+                dissipation: zero,
+            });
+        }
+        Ok(out)
     }
 
     /// The optional outputs named by the scene.

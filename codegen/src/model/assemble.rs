@@ -58,6 +58,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         cx.constraint(i, c, &mut constraints)?;
     }
     let actuators = cx.actuators(def, &coordinates)?;
+    component_energies.extend(cx.armatures(def, &actuators)?);
     let outputs = cx.outputs(def)?;
     let precision = cx.precision(def)?;
     Ok(Model {

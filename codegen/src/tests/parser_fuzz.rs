@@ -45,7 +45,7 @@ fn cases() -> u32 {
 
 /// A runner with a fixed seed (varied by `FLEXDYN_FUZZ_SEED`, a number) and
 /// no failure files.
-fn runner(property: u8) -> TestRunner {
+pub(super) fn runner(property: u8) -> TestRunner {
     let mut seed = [property; 32];
     if let Ok(v) = std::env::var("FLEXDYN_FUZZ_SEED") {
         let extra: u64 = v
@@ -410,13 +410,13 @@ fn the_seed_scenes_are_valid() {
 }
 
 #[derive(Debug, Clone)]
-enum Mutation {
+pub(super) enum Mutation {
     Insert(usize, u8),
     Delete(usize),
     Replace(usize, u8),
 }
 
-fn mutation() -> impl Strategy<Value = Mutation> {
+pub(super) fn mutation() -> impl Strategy<Value = Mutation> {
     // Bytes that matter to TOML and to the expression grammar, then any.
     let byte = prop_oneof![
         proptest::sample::select(b"\"'\\[]{}()=,.#\n\t -+*/^0123456789eqdxtn_".to_vec()),
@@ -430,7 +430,7 @@ fn mutation() -> impl Strategy<Value = Mutation> {
     ]
 }
 
-fn mutate(text: &str, mutations: &[Mutation]) -> String {
+pub(super) fn mutate(text: &str, mutations: &[Mutation]) -> String {
     let mut bytes = text.as_bytes().to_vec();
     for m in mutations {
         let n = bytes.len();

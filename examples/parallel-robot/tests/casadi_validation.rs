@@ -6,6 +6,8 @@
 
 #[path = "../../../tests/common/casadi.rs"]
 mod casadi;
+#[path = "../../../tests/common/python_env.rs"]
+mod python_env;
 
 #[test]
 fn casadi_validates_every_term_of_every_robot_scene() {

@@ -145,7 +145,7 @@ pub(super) fn required<'c, T>(
 
 fn check_fields(cx: &Context, c: &ComponentDef, allowed: &[&str], ctx: &str) -> Result<(), Error> {
     let span = |s: &Option<SScalar>| s.as_ref().map(|s| s.span().start);
-    let present: [(&str, Option<usize>); 24] = [
+    let present: [(&str, Option<usize>); 25] = [
         ("kinetic", c.kinetic.as_ref().map(|s| s.span().start)),
         ("potential", c.potential.as_ref().map(|s| s.span().start)),
         (
@@ -158,6 +158,10 @@ fn check_fields(cx: &Context, c: &ComponentDef, allowed: &[&str], ctx: &str) -> 
         ("from", c.from.as_ref().map(|s| s.span().start)),
         ("to", c.to.as_ref().map(|s| s.span().start)),
         ("inertia", c.inertia.as_ref().map(|s| s.span().start)),
+        (
+            "inertia_rpy",
+            c.inertia_rpy.as_ref().map(|s| s.span().start),
+        ),
         ("stiffness", c.stiffness.as_ref().map(|s| s.span().start)),
         ("damping", c.damping.as_ref().map(|s| s.span().start)),
         ("expression", c.expression.as_ref().map(|s| s.span().start)),

@@ -1,6 +1,10 @@
 //! `rigid_body`: a rigid body of mass `m` turning with `frame`, centre of
-//! mass at `position` (the frame's origin by default), inertia tensor about
-//! its centre in frame axes: `T = (m |v|^2 + w . I w) / 2`, `V = -m g . r`.
+//! mass at `position` (the frame's origin by default), inertia tensor `I0`
+//! about its centre: `T = (m |v|^2 + w . I w) / 2`, `V = -m g . r`, with
+//! `I = R I0 R^T` in frame axes, `R = Rz(yaw) Ry(pitch) Rx(roll)` from
+//! `inertia_rpy` (the URDF convention; identity by default). The mass may be
+//! zero and the tensor singular (massless and point-like bodies): the mass
+//! must be non-negative and `I0` symmetric positive semi-definite.
 
 use toml::Spanned;
 
@@ -8,12 +12,12 @@ use super::{required, Energies, Kind};
 use crate::error::Error;
 use crate::expr::Id;
 use crate::geometry::{Frame, Point};
-use crate::load::scene::{ComponentDef, SScalar};
+use crate::load::scene::{ComponentDef, InertiaEntry, SScalar, Scalar};
 use crate::model::context::Context;
 
 pub(super) const KIND: Kind = Kind {
     name: "rigid_body",
-    fields: &["mass", "position", "frame", "inertia"],
+    fields: &["mass", "position", "frame", "inertia", "inertia_rpy"],
     adds_coordinates: false,
     read,
 };
@@ -22,7 +26,8 @@ struct RigidBody {
     mass: SScalar,
     frame: Spanned<String>,
     position: Option<Spanned<Vec<SScalar>>>,
-    inertia: Spanned<Vec<Vec<SScalar>>>,
+    inertia: Spanned<Vec<Spanned<InertiaEntry>>>,
+    inertia_rpy: Option<Spanned<Vec<SScalar>>>,
 }
 
 fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn Energies>, Error> {
@@ -31,16 +36,21 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
         frame: required(cx, c, &c.frame, ctx, "frame")?.clone(),
         position: c.position.clone(),
         inertia: required(cx, c, &c.inertia, ctx, "inertia")?.clone(),
+        inertia_rpy: c.inertia_rpy.clone(),
     }))
 }
 
 impl Energies for RigidBody {
     fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
         let zero = cx.graph.constant(0.0);
-        let m = cx.positive(&self.mass, ctx, "mass", true)?;
+        let m = cx.positive(&self.mass, ctx, "mass", false)?;
         let frame = cx.lookup_frame(&self.frame, ctx)?;
         let com = centre_of_mass(cx, &self.frame, &frame, self.position.as_ref(), ctx)?;
         let inertia = inertia(cx, &self.inertia, ctx)?;
+        let inertia = match &self.inertia_rpy {
+            Some(rpy) => rotated(cx, &inertia, rpy, ctx)?,
+            None => inertia,
+        };
         let (kinetic, potential) = body_energies(cx, m, &com, &frame, &inertia);
         Ok([kinetic, potential, zero])
     }
@@ -84,20 +94,53 @@ pub(super) fn body_energies(
     (kinetic, cx.gravity_potential(m, com.position))
 }
 
-/// The inertia tensor: 3x3, parameter-only, symmetric, positive definite.
+/// The inertia tensor, full (three rows) or diagonal (three values):
+/// parameter-only, symmetric, positive semi-definite.
 fn inertia(
     cx: &mut Context,
-    rows: &Spanned<Vec<Vec<SScalar>>>,
+    entries: &Spanned<Vec<Spanned<InertiaEntry>>>,
     ctx: &str,
 ) -> Result<[[Id; 3]; 3], Error> {
-    let at = rows.span().start;
-    if rows.get_ref().len() != 3 || rows.get_ref().iter().any(|r| r.len() != 3) {
-        return Err(cx.err(at, Some(ctx), "inertia must be a 3x3 array"));
+    let at = entries.span().start;
+    let shape = "inertia must be a 3x3 array (three rows) or the diagonal `[ixx, iyy, izz]`";
+    let zero = Spanned::new(at..at, Scalar::Number(0.0));
+    let mut cells: [[&SScalar; 3]; 3] = [[&zero; 3]; 3];
+    let items = entries.get_ref();
+    if items.len() != 3 {
+        return Err(cx.err(at, Some(ctx), shape));
+    }
+    let diagonal: Vec<SScalar>;
+    if items
+        .iter()
+        .all(|e| matches!(e.get_ref(), InertiaEntry::Diagonal(_)))
+    {
+        diagonal = items
+            .iter()
+            .map(|e| match e.get_ref() {
+                InertiaEntry::Diagonal(v) => Spanned::new(e.span(), v.clone()),
+                InertiaEntry::Row(_) => unreachable!("checked above"),
+            })
+            .collect();
+        for (k, d) in diagonal.iter().enumerate() {
+            cells[k][k] = d;
+        }
+    } else {
+        for (i, e) in items.iter().enumerate() {
+            match e.get_ref() {
+                InertiaEntry::Row(r) if r.len() == 3 => {
+                    for (j, s) in r.iter().enumerate() {
+                        cells[i][j] = s;
+                    }
+                }
+                _ => return Err(cx.err(e.span().start, Some(ctx), shape)),
+            }
+        }
     }
     let mut ids = [[cx.graph.constant(0.0); 3]; 3];
     let mut val = [[0.0; 3]; 3];
-    for (i, row) in rows.get_ref().iter().enumerate() {
-        for (j, s) in row.iter().enumerate() {
+    for i in 0..3 {
+        for j in 0..3 {
+            let s = cells[i][j];
             ids[i][j] = cx.scalar(s, Some(ctx), false)?;
             val[i][j] = cx.nominal_value(ids[i][j], s.span().start, ctx, "inertia")?;
         }
@@ -109,27 +152,49 @@ fn inertia(
     if asymmetric {
         return Err(cx.err(at, Some(ctx), "inertia tensor is not symmetric"));
     }
-    if !positive_definite_3x3(&val) {
-        return Err(cx.err(at, Some(ctx), "inertia tensor is not positive definite"));
+    let smallest = nalgebra::Matrix3::from_fn(|i, j| val[i][j])
+        .symmetric_eigenvalues()
+        .min();
+    if smallest.is_nan() || smallest < -1e-12 * scale {
+        return Err(cx.err(
+            at,
+            Some(ctx),
+            format!(
+                "inertia tensor is not positive semi-definite (smallest principal moment {smallest:e})"
+            ),
+        ));
     }
     Ok(ids)
 }
 
-/// Cholesky test for a symmetric 3x3 matrix.
-fn positive_definite_3x3(a: &[[f64; 3]; 3]) -> bool {
-    let mut l = [[0.0f64; 3]; 3];
-    for i in 0..3 {
-        for j in 0..=i {
-            let s: f64 = a[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                if s.is_nan() || s <= 0.0 {
-                    return false;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    true
+/// `R I R^T` with `R = Rz(yaw) Ry(pitch) Rx(roll)` from `[roll, pitch, yaw]`
+/// (parameter-only angles).
+fn rotated(
+    cx: &mut Context,
+    inertia: &[[Id; 3]; 3],
+    rpy: &Spanned<Vec<SScalar>>,
+    ctx: &str,
+) -> Result<[[Id; 3]; 3], Error> {
+    let [roll, pitch, yaw] = rpy.get_ref().as_slice() else {
+        return Err(cx.err(
+            rpy.span().start,
+            Some(ctx),
+            "inertia_rpy must be `[roll, pitch, yaw]` (three angles, radians)",
+        ));
+    };
+    let mut angle = |s: &SScalar| -> Result<Id, Error> {
+        let id = cx.scalar(s, Some(ctx), false)?;
+        cx.nominal_value(id, s.span().start, ctx, "inertia_rpy")?;
+        Ok(id)
+    };
+    let (r, p, y) = (angle(roll)?, angle(pitch)?, angle(yaw)?);
+    let g = &mut cx.graph;
+    let rz = g.axis_rotation([0.0, 0.0, 1.0], y);
+    let ry = g.axis_rotation([0.0, 1.0, 0.0], p);
+    let rx = g.axis_rotation([1.0, 0.0, 0.0], r);
+    let rzy = g.matmul(&rz, &ry);
+    let rot = g.matmul(&rzy, &rx);
+    let transpose: [[Id; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| rot[j][i]));
+    let ri = g.matmul(&rot, inertia);
+    Ok(g.matmul(&ri, &transpose))
 }

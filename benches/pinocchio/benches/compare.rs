@@ -1,0 +1,320 @@
+//! flexdyn's generated Rust for robots imported from URDF, against Pinocchio
+//! (C++ at -O3) on the same URDFs, side by side in one criterion run, on the
+//! same 300 seeded random states:
+//!
+//! * `dynamics_terms` (M and h in one program) against `crba` +
+//!   `nonLinearEffects`;
+//! * the generated `inverse_dynamics` (`M qdd + h` as one program) against
+//!   `rnea`;
+//! * forward dynamics (generated terms + the runtime's Cholesky solve,
+//!   `flexdyn_runtime::accelerations`) against `aba`.
+//!
+//! The URDFs' joint damping is in flexdyn's scenes (dampers) and added on
+//! Pinocchio's side by the shim (its algorithms leave `model.damping` out).
+//!
+//! Before timing, every result of both sides is compared on every state
+//! (coordinates matched by joint name); the run stops if they disagree by
+//! more than 1e-12 relative to the scale of the term.
+
+use std::ffi::{c_char, c_void, CStr, CString};
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use flexdyn_runtime::nalgebra::{SMatrix, SVector};
+use flexdyn_runtime::{accelerations, DynamicsConfig, Model};
+
+mod robots {
+    include!(concat!(env!("OUT_DIR"), "/robots.rs"));
+}
+#[allow(dead_code)]
+mod ur5 {
+    include!(concat!(env!("OUT_DIR"), "/flexdyn/ur5.rs"));
+}
+#[allow(dead_code)]
+mod panda {
+    include!(concat!(env!("OUT_DIR"), "/flexdyn/panda.rs"));
+}
+
+extern "C" {
+    fn pin_bench_new(
+        urdf: *const c_char,
+        locked: *const c_char,
+        err: *mut c_char,
+        errlen: usize,
+    ) -> *mut c_void;
+    fn pin_bench_free(b: *mut c_void);
+    fn pin_bench_nv(b: *const c_void) -> i32;
+    fn pin_bench_joint_name(b: *const c_void, i: i32) -> *const c_char;
+    fn pin_bench_crba_nle(b: *mut c_void, q: *const f64, v: *const f64);
+    fn pin_bench_rnea(b: *mut c_void, q: *const f64, v: *const f64, a: *const f64);
+    fn pin_bench_aba(b: *mut c_void, q: *const f64, v: *const f64, tau: *const f64);
+    fn pin_bench_read(
+        b: *const c_void,
+        v: *const f64,
+        m: *mut f64,
+        nle: *mut f64,
+        tau: *mut f64,
+        ddq: *mut f64,
+    );
+}
+
+/// A Pinocchio model and data, with its velocity order mapped to flexdyn's
+/// coordinates: `to_pin[i]` is Pinocchio's index of flexdyn coordinate `i`.
+struct Pinocchio {
+    handle: *mut c_void,
+    to_pin: Vec<usize>,
+}
+
+impl Pinocchio {
+    fn load(name: &str, coordinates: &[&str]) -> Pinocchio {
+        let (_, urdf, locked) = robots::ROBOTS
+            .iter()
+            .find(|r| r.0 == name)
+            .expect("robot listed by build.rs");
+        let urdf = CString::new(*urdf).expect("path without NUL");
+        let locked = CString::new(*locked).expect("names without NUL");
+        let mut err = vec![0 as c_char; 512];
+        // SAFETY: the strings are NUL-terminated and `err` holds `err.len()` bytes.
+        let handle =
+            unsafe { pin_bench_new(urdf.as_ptr(), locked.as_ptr(), err.as_mut_ptr(), err.len()) };
+        if handle.is_null() {
+            // SAFETY: the shim wrote a NUL-terminated message.
+            let msg = unsafe { CStr::from_ptr(err.as_ptr()) };
+            panic!("Pinocchio could not load {name}: {}", msg.to_string_lossy());
+        }
+        // SAFETY: `handle` is a live model.
+        let nv = unsafe { pin_bench_nv(handle) } as usize;
+        assert_eq!(
+            nv,
+            coordinates.len(),
+            "{name}: Pinocchio has {nv} velocities"
+        );
+        let names: Vec<String> = (0..nv)
+            // SAFETY: the index is in range; the shim returns a NUL-terminated name.
+            .map(|i| unsafe { CStr::from_ptr(pin_bench_joint_name(handle, i as i32)) })
+            .map(|s| s.to_string_lossy().into_owned())
+            .collect();
+        let to_pin = coordinates
+            .iter()
+            .map(|c| {
+                names
+                    .iter()
+                    .position(|n| n == c)
+                    .unwrap_or_else(|| panic!("{name}: Pinocchio has no joint {c} ({names:?})"))
+            })
+            .collect();
+        Pinocchio { handle, to_pin }
+    }
+
+    fn to_pin<const N: usize>(&self, x: &SVector<f64, N>) -> Vec<f64> {
+        let mut y = vec![0.0; N];
+        for (i, &p) in self.to_pin.iter().enumerate() {
+            y[p] = x[i];
+        }
+        y
+    }
+}
+
+impl Drop for Pinocchio {
+    fn drop(&mut self) {
+        // SAFETY: created by `pin_bench_new`, freed once.
+        unsafe { pin_bench_free(self.handle) }
+    }
+}
+
+/// One random state: `q`, `qd`, `qdd` and `tau`, each in Pinocchio's order
+/// too.
+struct State<const N: usize> {
+    q: SVector<f64, N>,
+    qd: SVector<f64, N>,
+    qdd: SVector<f64, N>,
+    tau: SVector<f64, N>,
+    pin: [Vec<f64>; 4],
+}
+
+/// `count` states from a fixed-seed generator: angles in [-pi, pi], rates
+/// in [-2, 2] rad/s, accelerations in [-5, 5] rad/s^2, torques in [-20, 20].
+fn states<const N: usize>(pin: &Pinocchio, count: usize) -> Vec<State<N>> {
+    let mut seed: u64 = 0x5EED_F1E7;
+    let mut uniform = move |a: f64| {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        a * (2.0 * ((seed >> 11) as f64 / (1u64 << 53) as f64) - 1.0)
+    };
+    (0..count)
+        .map(|_| {
+            let q = SVector::<f64, N>::from_fn(|_, _| uniform(std::f64::consts::PI));
+            let qd = SVector::<f64, N>::from_fn(|_, _| uniform(2.0));
+            let qdd = SVector::<f64, N>::from_fn(|_, _| uniform(5.0));
+            let tau = SVector::<f64, N>::from_fn(|_, _| uniform(20.0));
+            let pin = [
+                pin.to_pin(&q),
+                pin.to_pin(&qd),
+                pin.to_pin(&qdd),
+                pin.to_pin(&tau),
+            ];
+            State {
+                q,
+                qd,
+                qdd,
+                tau,
+                pin,
+            }
+        })
+        .collect()
+}
+
+/// Largest difference of two equally long slices relative to the larger of
+/// their largest magnitudes (or 1).
+fn relative_error(a: &[f64], b: &[f64]) -> f64 {
+    let scale = a.iter().chain(b).fold(1.0f64, |s, x| s.max(x.abs()));
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |e, (x, y)| e.max((x - y).abs()))
+        / scale
+}
+
+/// `M qdd + h` by the generated `inverse_dynamics` program.
+fn inverse_dynamics<R: Model<N, 0, N>, const N: usize>(r: &R, s: &State<N>) -> SVector<f64, N> {
+    let mut tau = SVector::<f64, N>::zeros();
+    r.inverse_dynamics(&s.q, &s.qd, &s.qdd, 0.0, &mut tau);
+    tau
+}
+
+fn compare<R: Model<N, 0, N> + Default, const N: usize>(c: &mut Criterion, name: &str) {
+    let robot = R::default();
+    let pin = Pinocchio::load(name, &R::COORDINATES);
+    let states = states::<N>(&pin, 300);
+    let config = DynamicsConfig::default();
+    let mut worst = [0.0f64; 4];
+    for s in &states {
+        let mut m = SMatrix::<f64, N, N>::zeros();
+        let mut h = SVector::<f64, N>::zeros();
+        let mut phi_q = SMatrix::<f64, 0, N>::zeros();
+        let mut gamma = SVector::<f64, 0>::zeros();
+        robot.dynamics_terms(&s.q, &s.qd, 0.0, &mut m, &mut h, &mut phi_q, &mut gamma);
+        let tau = inverse_dynamics(&robot, s);
+        let qdd = accelerations(&robot, &config, &s.q, &s.qd, 0.0, &s.tau)
+            .expect("forward dynamics")
+            .qdd;
+        let (mut pm, mut ph, mut pt, mut pa) =
+            (vec![0.0; N * N], vec![0.0; N], vec![0.0; N], vec![0.0; N]);
+        // SAFETY: every array holds N (or N * N) numbers, as the model has N velocities.
+        unsafe {
+            pin_bench_crba_nle(pin.handle, s.pin[0].as_ptr(), s.pin[1].as_ptr());
+            pin_bench_rnea(
+                pin.handle,
+                s.pin[0].as_ptr(),
+                s.pin[1].as_ptr(),
+                s.pin[2].as_ptr(),
+            );
+            pin_bench_aba(
+                pin.handle,
+                s.pin[0].as_ptr(),
+                s.pin[1].as_ptr(),
+                s.pin[3].as_ptr(),
+            );
+            pin_bench_read(
+                pin.handle,
+                s.pin[1].as_ptr(),
+                pm.as_mut_ptr(),
+                ph.as_mut_ptr(),
+                pt.as_mut_ptr(),
+                pa.as_mut_ptr(),
+            );
+        }
+        let p = &pin.to_pin;
+        let ours_m: Vec<f64> = (0..N * N).map(|k| m[(k % N, k / N)]).collect();
+        let theirs_m: Vec<f64> = (0..N * N).map(|k| pm[p[k % N] + N * p[k / N]]).collect();
+        let pick = |v: &[f64]| -> Vec<f64> { p.iter().map(|&i| v[i]).collect() };
+        worst[0] = worst[0].max(relative_error(&ours_m, &theirs_m));
+        worst[1] = worst[1].max(relative_error(h.as_slice(), &pick(&ph)));
+        worst[2] = worst[2].max(relative_error(tau.as_slice(), &pick(&pt)));
+        worst[3] = worst[3].max(relative_error(qdd.as_slice(), &pick(&pa)));
+    }
+    println!(
+        "{name}: {N} joints; largest relative difference to Pinocchio over {} states: \
+         M {:.1e}, h {:.1e}, rnea {:.1e}, aba {:.1e}",
+        states.len(),
+        worst[0],
+        worst[1],
+        worst[2],
+        worst[3]
+    );
+    // aba goes through a factorisation on our side: a looser bound.
+    assert!(
+        worst[..3].iter().all(|&e| e < 1e-12) && worst[3] < 1e-9,
+        "{name}: flexdyn and Pinocchio disagree"
+    );
+
+    let mut g = c.benchmark_group(name);
+    let mut i = 0;
+    g.bench_function("flexdyn dynamics_terms", |b| {
+        let (mut m, mut h) = (SMatrix::<f64, N, N>::zeros(), SVector::<f64, N>::zeros());
+        let (mut phi_q, mut gamma) = (SMatrix::<f64, 0, N>::zeros(), SVector::<f64, 0>::zeros());
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            robot.dynamics_terms(&s.q, &s.qd, 0.0, &mut m, &mut h, &mut phi_q, &mut gamma);
+            black_box((&m, &h));
+        })
+    });
+    g.bench_function("pinocchio crba + nonLinearEffects", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            // SAFETY: arrays of N numbers for a model of N velocities.
+            unsafe { pin_bench_crba_nle(pin.handle, s.pin[0].as_ptr(), s.pin[1].as_ptr()) }
+        })
+    });
+    g.bench_function("flexdyn inverse_dynamics", |b| {
+        b.iter(|| black_box(inverse_dynamics(&robot, next(&states, &mut i))))
+    });
+    g.bench_function("pinocchio rnea", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            // SAFETY: arrays of N numbers for a model of N velocities.
+            unsafe {
+                pin_bench_rnea(
+                    pin.handle,
+                    s.pin[0].as_ptr(),
+                    s.pin[1].as_ptr(),
+                    s.pin[2].as_ptr(),
+                )
+            }
+        })
+    });
+    g.bench_function("flexdyn forward dynamics", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            black_box(accelerations(&robot, &config, &s.q, &s.qd, 0.0, &s.tau).map(|a| a.qdd))
+        })
+    });
+    g.bench_function("pinocchio aba", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            // SAFETY: arrays of N numbers for a model of N velocities.
+            unsafe {
+                pin_bench_aba(
+                    pin.handle,
+                    s.pin[0].as_ptr(),
+                    s.pin[1].as_ptr(),
+                    s.pin[3].as_ptr(),
+                )
+            }
+        })
+    });
+    g.finish();
+}
+
+/// The state after the `i`-th, cycling.
+fn next<'a, T>(states: &'a [T], i: &mut usize) -> &'a T {
+    *i = (*i + 1) % states.len();
+    &states[*i]
+}
+
+fn robots(c: &mut Criterion) {
+    compare::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
+    compare::<panda::Panda, { panda::NQ }>(c, "panda");
+}
+
+criterion_group!(benches, robots);
+criterion_main!(benches);

@@ -1,0 +1,57 @@
+//! `flexdyn import urdf ROBOT.urdf --out robot.toml`: a URDF robot
+//! description imported as an editable scene file
+//! ([`crate::codegen::import_urdf`]). The scene is loaded once before it is
+//! written, so a file that is written is one the other commands accept; it
+//! is written whole or not at all.
+
+use std::path::PathBuf;
+
+use crate::codegen::{import_urdf, Model, Source, UrdfOptions};
+
+/// Import a robot description from another format as a scene file.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    pub format: Format,
+}
+
+/// The formats `import` reads.
+#[derive(Debug, clap::Subcommand)]
+pub enum Format {
+    /// A URDF file: links become frames and rigid bodies (fixed joints
+    /// merged), revolute, continuous and prismatic joints coordinates and
+    /// actuators of their names; gravity -9.81 along z.
+    Urdf(UrdfArgs),
+}
+
+/// Arguments of `import urdf`.
+#[derive(Debug, clap::Args)]
+pub struct UrdfArgs {
+    /// The URDF file.
+    pub urdf: PathBuf,
+    /// The scene file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// A joint (URDF name) to hold fixed at zero, merging its child into
+    /// the parent body (e.g. a gripper's fingers); may be repeated.
+    #[arg(long = "fix", value_name = "JOINT")]
+    pub fix: Vec<String>,
+}
+
+/// Run the command.
+pub fn run(args: &Args) -> Result<(), String> {
+    let Format::Urdf(args) = &args.format;
+    let text = std::fs::read_to_string(&args.urdf)
+        .map_err(|e| format!("cannot read {}: {e}", args.urdf.display()))?;
+    let options = UrdfOptions {
+        fix: args.fix.clone(),
+    };
+    let scene = import_urdf(&Source::new(&args.urdf, text), &options).map_err(|e| e.to_string())?;
+    Model::from_source(&Source::new(&args.out, scene.clone())).map_err(|e| {
+        format!(
+            "the scene imported from {} does not load (not written): {e}",
+            args.urdf.display()
+        )
+    })?;
+    crate::table::write_atomic(&args.out, &scene)
+}

@@ -1,0 +1,253 @@
+"""Validate `flexdyn import urdf` + `flexdyn eval` against Pinocchio.
+
+For each robot: import its URDF (from example-robot-data in this Python
+environment) with `flexdyn import urdf`, evaluate the mass matrix M and the
+bias forces h of the imported scene with `flexdyn eval --scene` (the
+interpreter) at seeded random states, and compare with Pinocchio's
+`crba` (symmetrized), `nonLinearEffects` and `rnea` (against M qdd + h).
+Joints are matched by name. Pinocchio leaves joint damping out of both;
+the damping forces `d qd` of the URDF's `<dynamics damping>` are added to
+its values. The UR5 is validated a second time with rotor inertias
+(`armature` on its actuators, Pinocchio's `model.armature`). Errors are relative to the scale of each term: the largest
+magnitude of the reference over all states.
+
+For UR5 and Panda the imported scene's generated Rust module
+(`flexdyn generate`) is also scanned: no numeric literal in it may be
+nonzero and below 1e-14 in magnitude (a round-off of zero; with exact
+constant folding, rotations by multiples of pi/2 leave none).
+
+Exit status 0 when every term of every robot is within the tolerance, 1
+otherwise. `--perturb` changes one inertia entry of each imported scene
+(the first entry of the last rigid body's inertia, times 1 + 1e-6) before
+evaluating it: the comparison must then fail.
+
+`--shipped DIR` checks that the scenes shipped in DIR for these robots
+(`ur5.toml` in `scenes/`) are the import of today, below their header
+comment.
+
+Usage: validate.py --flexdyn BIN --work DIR [--states N] [--perturb] [--shipped DIR]
+"""
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pinocchio as pin
+
+TOLERANCE = 1e-12
+
+# (name, URDF path under example-robot-data's robots/, joints held fixed at 0,
+# whether to scan the generated code for round-off of zeros)
+ROBOTS = [
+    ("ur5", "ur_description/urdf/ur5_robot.urdf", [], True),
+    # The Panda's two finger joints (prismatic, the second a mimic of the
+    # first) are held fixed at 0: the hand and fingers become part of the
+    # last arm link, on both sides (Pinocchio: buildReducedModel at 0).
+    (
+        "panda",
+        "panda_description/urdf/panda.urdf",
+        ["panda_finger_joint1", "panda_finger_joint2"],
+        True,
+    ),
+    # A tree with prismatic joints (grippers), 19 moving joints.
+    ("baxter", "baxter_description/urdf/baxter.urdf", [], False),
+]
+
+# Robots validated again with rotor inertias: `armature = ARMATURE[k]` added
+# to the k-th actuator of the imported scene, `model.armature` set alike.
+ARMATURE = {"ur5": [0.3, 0.25, 0.2, 0.05, 0.04, 0.03]}
+
+
+def add_armature(text, values):
+    """`armature = v` after the `coordinate = ...` line of each actuator."""
+    parts = text.split("[[actuators]]\n")
+    out = [parts[0]]
+    for part, v in zip(parts[1:], values, strict=True):
+        lines = part.split("\n")
+        k = next(i for i, l in enumerate(lines) if l.startswith("coordinate = "))
+        lines.insert(k + 1, f"armature = {v!r}")
+        out.append("\n".join(lines))
+    return "[[actuators]]\n".join(out)
+
+
+def robots_dir():
+    prefix = os.path.join(sys.prefix, "lib")
+    for root, dirs, _ in os.walk(prefix):
+        if root.endswith(os.path.join("cmeel.prefix", "share", "example-robot-data")):
+            return os.path.join(root, "robots")
+    sys.exit("example-robot-data's robots/ folder not found under " + prefix)
+
+
+def identifier(name):
+    """The scene identifier `flexdyn import urdf` gives a URDF joint name."""
+    s = re.sub(r"[^A-Za-z0-9_]", "_", name)
+    if not s[:1].isalpha():
+        s = "j_" + s
+    return s
+
+
+def run(cmd):
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed:\n{out.stdout}\n{out.stderr}")
+
+
+def perturb(text):
+    """The first entry of the last `inertia = ...` line times 1 + 1e-6."""
+    lines = text.splitlines(keepends=True)
+    k = max(i for i, l in enumerate(lines) if l.startswith("inertia = "))
+    m = re.match(r"(inertia = \[+)([-0-9.eE+]+)", lines[k])
+    value = float(m.group(2)) * (1 + 1e-6)
+    lines[k] = m.group(1) + repr(value) + lines[k][m.end():]
+    return "".join(lines)
+
+
+LITERAL = re.compile(r"(?<![A-Za-z0-9_.])(\d+\.\d*(?:e[-+]?\d+)?|\d+e[-+]?\d+)")
+
+
+def round_off_literals(name, scene, args):
+    """The nonzero numeric literals below 1e-14 of the scene's generated module."""
+    out = os.path.join(args.work, "generated")
+    run([args.flexdyn, "generate", "--scene", scene, "--out", out, "--quiet"])
+    with open(os.path.join(out, f"{name}.rs")) as f:
+        values = [float(x) for x in LITERAL.findall(f.read())]
+    return len(values), [x for x in values if x != 0.0 and abs(x) < 1e-14]
+
+
+def reference_model(path, fixed):
+    model = pin.buildModelFromUrdf(path)
+    if fixed:
+        ids = [model.getJointId(n) for n in fixed]
+        model = pin.buildReducedModel(model, ids, pin.neutral(model))
+    return model
+
+
+def validate(name, path, fixed, scan, args, armature=None):
+    scene = os.path.join(args.work, f"{name}.toml")
+    cmd = [args.flexdyn, "import", "urdf", path, "--out", scene]
+    for j in fixed:
+        cmd += ["--fix", j]
+    run(cmd)
+    ok = True
+    shipped = args.shipped and os.path.join(args.shipped, f"{name}.toml")
+    if shipped and not armature and os.path.exists(shipped):
+        with open(shipped) as f:
+            text = f.read()
+        with open(scene) as f:
+            fresh = f.read()
+        same = text[text.index("# Imported by") :] == fresh
+        ok &= same
+        print(f"{name}: shipped {shipped} {'is the import' if same else 'FAILED: differs from a fresh import'}")
+    if armature:
+        with open(scene) as f:
+            text = add_armature(f.read(), armature)
+        scene = os.path.join(args.work, f"{name}_armature.toml")
+        with open(scene, "w") as f:
+            f.write(text)
+        name += " with armature"
+    if args.perturb:
+        with open(scene) as f:
+            text = perturb(f.read())
+        with open(scene, "w") as f:
+            f.write(text)
+    with open(scene) as f:
+        coordinates = re.findall(r'^\[\[coordinates\]\]\n(?:#.*\n)*name = "([^"]*)"', f.read(), re.M)
+    n = len(coordinates)
+
+    model = reference_model(path, fixed)
+    joints = {}
+    for jid in range(1, model.njoints):
+        joints[identifier(model.names[jid])] = model.joints[jid]
+    for c, v in zip(coordinates, armature or []):
+        model.armature[joints[c].idx_v] = v
+    data = model.createData()
+    missing = [c for c in coordinates if c not in joints]
+    if missing or model.nv != n:
+        sys.exit(f"{name}: coordinates {coordinates} do not match Pinocchio's joints {list(joints)}")
+
+    rng = np.random.default_rng(20261123)
+    states, refs = [], []
+    for _ in range(args.states):
+        q = rng.uniform(-np.pi, np.pi, n)
+        qd = rng.uniform(-3.0, 3.0, n)
+        qdd = rng.uniform(-5.0, 5.0, n)
+        qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+        for i, c in enumerate(coordinates):
+            j = joints[c]
+            if j.nq == 2:  # continuous: (cos, sin)
+                qp[j.idx_q : j.idx_q + 2] = [np.cos(q[i]), np.sin(q[i])]
+            else:
+                qp[j.idx_q] = q[i]
+            vp[j.idx_v] = qd[i]
+            ap[j.idx_v] = qdd[i]
+        order = [joints[c].idx_v for c in coordinates]
+        m = pin.crba(model, data, qp)
+        m = np.triu(m) + np.triu(m, 1).T
+        damping = model.damping * vp
+        h = pin.nonLinearEffects(model, data, qp, vp) + damping
+        tau = pin.rnea(model, data, qp, vp, ap) + damping
+        refs.append((m[np.ix_(order, order)], h[order], tau[order], qdd))
+        states.append({"q": q.tolist(), "qd": qd.tolist(), "t": 0.0})
+    stem = os.path.splitext(os.path.basename(scene))[0]
+    states_file = os.path.join(args.work, f"{stem}.states.json")
+    with open(states_file, "w") as f:
+        json.dump({"states": states}, f)
+    out_file = os.path.join(args.work, f"{stem}.eval.json")
+    run([args.flexdyn, "eval", "--interpret", "--scene", scene, "--states", states_file, "--out", out_file])
+    with open(out_file) as f:
+        results = json.load(f)["results"]
+
+    worst = {"M": 0.0, "h": 0.0, "M qdd + h": 0.0}
+    scale = {"M": 0.0, "h": 0.0, "M qdd + h": 0.0}
+    for r, (m_ref, h_ref, tau_ref, qdd) in zip(results, refs):
+        m = np.array(r["mass_matrix"])
+        h = np.array(r["bias"])
+        for term, got, want in (
+            ("M", m, m_ref),
+            ("h", h, h_ref),
+            ("M qdd + h", m @ qdd + h, tau_ref),
+        ):
+            worst[term] = max(worst[term], float(np.abs(got - want).max()))
+            scale[term] = max(scale[term], float(np.abs(want).max()))
+    if scan:
+        count, small = round_off_literals(name, scene, args)
+        ok &= not small
+        print(
+            f"{name}: generated code: {count} literals, {len(small)} nonzero below 1e-14 "
+            f"{'ok' if not small else 'FAILED: ' + str(sorted(set(small))[:5])}"
+        )
+    for term in worst:
+        rel = worst[term] / scale[term]
+        good = rel <= TOLERANCE
+        ok &= good
+        print(
+            f"{name}: {term}: max error {worst[term]:.3e}, scale {scale[term]:.3e}, "
+            f"relative {rel:.3e} {'ok' if good else 'FAILED'}"
+        )
+    return ok
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--flexdyn", required=True)
+    p.add_argument("--work", required=True)
+    p.add_argument("--states", type=int, default=1000)
+    p.add_argument("--perturb", action="store_true")
+    p.add_argument("--shipped")
+    args = p.parse_args()
+    base = robots_dir()
+    ok = True
+    for name, rel, fixed, scan in ROBOTS:
+        ok &= validate(name, os.path.join(base, rel), fixed, scan, args)
+        if name in ARMATURE:
+            ok &= validate(name, os.path.join(base, rel), fixed, False, args, ARMATURE[name])
+    print("pinocchio validation:", "passed" if ok else "FAILED")
+    sys.exit(0 if ok else 1)
+
+
+if __name__ == "__main__":
+    main()

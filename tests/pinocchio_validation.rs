@@ -1,0 +1,62 @@
+//! URDF robots imported with `flexdyn import urdf` and evaluated with
+//! `flexdyn eval --scene` (the interpreter, no rebuild), compared with
+//! Pinocchio (`crba`, `nonLinearEffects`, `rnea`) at 1000 seeded random
+//! states by `tests/pinocchio/validate.py`: UR5, Panda (arm joints; the
+//! fingers held fixed) and Baxter (a tree with prismatic joints), to 1e-12
+//! of each term's scale. Plus a negative run: with one inertia entry of
+//! each imported scene changed by a relative 1e-6 the comparison must fail.
+//! The shipped `scenes/ur5.toml` must be the import of today. The Python
+//! environment is the CasADi validation's (`common/python_env.rs`).
+
+#[path = "common/python_env.rs"]
+mod python_env;
+
+use std::path::PathBuf;
+use std::process::Command;
+
+/// The script's exit status and output; `None` when Python is missing.
+fn validate(extra: &[&str]) -> Option<(Option<i32>, String)> {
+    let repo = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let python = python_env::test_python(&repo, "pinocchio_validation")?;
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let out = python_env::run(
+        Command::new(python)
+            .arg(repo.join("tests/pinocchio/validate.py"))
+            .arg("--flexdyn")
+            .arg(env!("CARGO_BIN_EXE_flexdyn"))
+            .arg("--work")
+            .arg(dir.path())
+            .args(extra)
+            .env("PYTHONDONTWRITEBYTECODE", "1"),
+        "running the Pinocchio validation",
+    );
+    Some((out.status.code(), python_env::output_text(&out)))
+}
+
+#[test]
+fn imported_robots_match_pinocchio() {
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let Some((code, text)) = validate(&["--shipped", scenes]) else {
+        return;
+    };
+    println!("{text}");
+    assert_eq!(code, Some(0), "the Pinocchio validation failed:\n{text}");
+}
+
+#[test]
+fn a_perturbed_inertia_fails_the_comparison() {
+    let Some((code, text)) = validate(&["--states", "50", "--perturb"]) else {
+        return;
+    };
+    println!("{text}");
+    assert_eq!(code, Some(1), "expected the comparison to fail:\n{text}");
+    for robot in ["ur5", "panda", "baxter"] {
+        assert!(
+            text.contains(&format!("{robot}: M: "))
+                && text
+                    .lines()
+                    .any(|l| l.starts_with(&format!("{robot}: M:")) && l.ends_with("FAILED")),
+            "the perturbed {robot} passed:\n{text}"
+        );
+    }
+}
