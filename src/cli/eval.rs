@@ -1,8 +1,9 @@
 //! `flexdyn eval`: every generated term of any scene at states read from
 //! JSON, written as JSON (what the CasADi validation compares). A scene
-//! compiled into the binary is evaluated by its compiled module, any other
-//! scene file is generated in memory and interpreted
-//! ([`crate::interpreted`]): bitwise the same numbers.
+//! compiled into the binary is evaluated by its compiled module (when the
+//! file still describes it: an edited copy is interpreted), any other scene
+//! file is generated in memory and interpreted ([`crate::interpreted`]):
+//! bitwise the same numbers.
 
 use std::path::{Path, PathBuf};
 
@@ -49,29 +50,45 @@ pub struct Compiled {
     pub perturbed_model: fn(&str) -> Option<Box<dyn DynModel>>,
 }
 
+/// Which model answers for a scene file (see [`Compiled::choose`]).
+enum Choice {
+    /// The compiled-in module of the same terms.
+    Compiled(Box<dyn DynModel>),
+    /// The file, generated in memory and interpreted.
+    Interpreted(crate::interpreted::InterpretedModel),
+}
+
 impl Compiled {
-    /// The model of a scene file: the compiled-in one when the file
-    /// describes it (same terms, bitwise, at a sample state; so an edited
-    /// copy of a shipped scene is never answered by the stale compiled
-    /// module), else the file interpreted. `interpret` forces the latter.
+    /// The compiled-in model when the file describes it (same terms,
+    /// bitwise, at a sample state; so an edited copy of a shipped scene is
+    /// never answered by the stale compiled module), else the file
+    /// interpreted. `interpret` forces the latter.
+    fn choose(&self, scene: &Path, name: &str, interpret: bool) -> Result<Choice, String> {
+        let interpreted = crate::interpreted::InterpretedModel::load(scene)?;
+        match (self.model)(name).filter(|_| !interpret) {
+            Some(c) if same_terms(c.as_ref(), &interpreted) => Ok(Choice::Compiled(c)),
+            Some(_) => {
+                eprintln!(
+                    "note: {} differs from the compiled-in scene `{name}`: interpreting it",
+                    scene.display()
+                );
+                Ok(Choice::Interpreted(interpreted))
+            }
+            None => Ok(Choice::Interpreted(interpreted)),
+        }
+    }
+
+    /// The model of a scene file, chosen as [`Compiled::choose`] says.
     pub fn load(
         &self,
         scene: &Path,
         name: &str,
         interpret: bool,
     ) -> Result<Box<dyn DynModel>, String> {
-        let interpreted = crate::interpreted::InterpretedModel::load(scene)?;
-        match (self.model)(name).filter(|_| !interpret) {
-            Some(c) if same_terms(c.as_ref(), &interpreted) => Ok(c),
-            Some(_) => {
-                eprintln!(
-                    "note: {} differs from the compiled-in scene `{name}`: interpreting it",
-                    scene.display()
-                );
-                Ok(Box::new(interpreted))
-            }
-            None => Ok(Box::new(interpreted)),
-        }
+        Ok(match self.choose(scene, name, interpret)? {
+            Choice::Compiled(c) => c,
+            Choice::Interpreted(i) => Box::new(i),
+        })
     }
 }
 
@@ -108,10 +125,12 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     } else {
         compiled.model
     };
-    let compiled_in = !args.interpret && lookup(&parsed.name).is_some();
-    let interpreted = match compiled_in || args.perturbed {
+    let interpreted = match args.perturbed {
         true => None,
-        false => Some(crate::interpreted::InterpretedModel::load(&args.scene)?),
+        false => match compiled.choose(&args.scene, &parsed.name, args.interpret)? {
+            Choice::Compiled(_) => None,
+            Choice::Interpreted(i) => Some(i),
+        },
     };
     let fresh = |name: &str| -> Result<Box<dyn DynModel>, String> {
         match &interpreted {
