@@ -90,6 +90,35 @@ where
         return Ok(ProjectionReport::default());
     }
     state.check_finite()?;
+    project_finite(model, state, config, velocity_from_position_dt, after_step)
+}
+
+/// [`project_with`] on a finite state: the solves, with their matrices on
+/// the stack (hundreds of KiB for the padded models of the root crate).
+///
+/// Kept out of line so that no cheap early return precedes the large frame.
+/// With such a return (the finiteness check above) LLVM's x86-64 backend
+/// may shrink-wrap the prologue, moving it after that check; the prologue's
+/// inline stack probe loop uses `r11` as its scratch register without
+/// checking that it is free there, and when the register allocator had
+/// kept a value in `r11` across the check (here the address of
+/// `state.qd`), the probe overwrote it: the velocity projection then read
+/// `qd` from probed stack memory. Seen with rustc 1.95 on the padded
+/// (64, 24, 8) model: a velocity drift of 0.68 before projection instead
+/// of 1e-6, torques off by 1.7e-5 N m, vanishing with `-C codegen-units=1`
+/// or any change of the inlining (the same class of bug as LLVM's RISC-V
+/// issue 198699). Here the frame is set up on entry, before any branch.
+#[inline(never)]
+fn project_finite<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    state: &mut State<NQ, T>,
+    config: &ProjectionConfig<T>,
+    velocity_from_position_dt: T,
+    after_step: bool,
+) -> Result<ProjectionReport<T>, Error>
+where
+    M: Model<NQ, NC, NU, T>,
+{
     let positions = project_positions(model, state, config).map_err(|e| {
         e.in_stage(Stage::PositionProjection {
             tolerance: config.position_tolerance.into(),
