@@ -323,10 +323,10 @@ impl Builder {
     }
 
     /// Generate every scene in `precision`, whatever its scene file says
-    /// (scene key `precision`, default `f64`). An `f32` module offers the
-    /// model's functions as inherent `f32` methods instead of implementing
-    /// the runtime's (`f64`) `Model` trait, so it cannot go into the index
-    /// module or get the C interface: both are errors.
+    /// (scene key `precision`, default `f64`). An `f32` module implements
+    /// the runtime's `Model<NQ, NC, NU, f32>`; the index module and the C
+    /// interface are for `f64` models only, so asking for either with `f32`
+    /// is an error.
     pub fn precision(mut self, precision: Precision) -> Builder {
         self.precision = Some(precision);
         self

@@ -153,15 +153,6 @@ impl Emitter<'_> {
         format_ident!("{}", self.model.precision.rust_type())
     }
 
-    /// `pub` for the inherent methods of an `f32` model, nothing in the
-    /// trait impl of an `f64` one.
-    fn vis(&self) -> TokenStream {
-        match self.model.precision {
-            Precision::F64 => quote!(),
-            Precision::F32 => quote!(pub),
-        }
-    }
-
     fn param_ident(&self, i: u32) -> proc_macro2::Ident {
         format_ident!("{}", self.model.runtime_parameters[i as usize].name)
     }
@@ -376,7 +367,7 @@ impl Emitter<'_> {
         let (sig, outputs, slots, p) = (&f.sig, &f.outputs, &f.slots, &f.program);
         let used = self.inputs(&f.ids);
         let body = self.stmts(p);
-        let (real, vis) = (self.real(), self.vis());
+        let real = self.real();
         let mut assigns = TokenStream::new();
         let mut args = TokenStream::new();
         for (k, o) in outputs.iter().enumerate() {
@@ -444,7 +435,7 @@ impl Emitter<'_> {
         quote! {
             #[doc = #doc]
             #[inline]
-            #vis fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #qdd_arg #t: #real, #args) #ret {
+            fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #qdd_arg #t: #real, #args) #ret {
                 #body
                 #assigns
                 #tail
@@ -462,7 +453,7 @@ impl Emitter<'_> {
         let e = self.code(&p.outputs[0], SUM);
         let (q, qd, t) = input_idents(used);
         let fname = format_ident!("{}", name);
-        let (real, vis) = (self.real(), self.vis());
+        let real = self.real();
         let qd_arg = if with_qd {
             quote!(#qd: &SVector<#real, #nq>,)
         } else {
@@ -471,7 +462,7 @@ impl Emitter<'_> {
         quote! {
             #[doc = #doc]
             #[inline]
-            #vis fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #t: #real) -> #real {
+            fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #t: #real) -> #real {
                 #body
                 #e
             }
@@ -535,7 +526,7 @@ pub fn emit(
     let nu = model.actuators.len();
     let (nq_l, nc_l, nu_l) = (usize_lit(n), usize_lit(nc), usize_lit(nu));
     let sname = format_ident!("{}", struct_name(&model.name));
-    let (real, vis) = (e.real(), e.vis());
+    let real = e.real();
     let scene = model.name.as_str();
 
     // The trait's functions, then the optional outputs (the trait's
@@ -594,8 +585,8 @@ pub fn emit(
             quote!(#name => self.#id = value,)
         });
         quote! {
-            #vis const PARAMETERS: &'static [&'static str] = &[#(#names),*];
-            #vis fn set_parameter(&mut self, name: &str, value: #real) -> bool {
+            const PARAMETERS: &'static [&'static str] = &[#(#names),*];
+            fn set_parameter(&mut self, name: &str, value: #real) -> bool {
                 match name {
                     #(#arms)*
                     _ => return false,
@@ -637,23 +628,23 @@ pub fn emit(
         )]
     };
     let consts = quote! {
-        #vis const NAME: &'static str = #scene;
-        #vis const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
-        #vis const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];
+        const NAME: &'static str = #scene;
+        const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
+        const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];
     };
     let members = quote! {
         #consts
         #core
         #[inline]
-        #vis fn actuator_map(&self, #b_arg: &mut SMatrix<#real, #nq_l, #nu_l>) {
+        fn actuator_map(&self, #b_arg: &mut SMatrix<#real, #nq_l, #nu_l>) {
             #b_assigns
         }
         #scalars
         #parameters
         #optional
     };
-    // An f64 model implements the runtime's trait; an f32 one has the same
-    // functions as inherent methods, with the runtime's f32 functions.
+    // The runtime's trait, in the model's scalar type (`f64`, the trait's
+    // default, left out).
     let (math, implementation) = match model.precision {
         Precision::F64 => (
             quote!(use #runtime::math;),
@@ -661,7 +652,7 @@ pub fn emit(
         ),
         Precision::F32 => (
             quote!(use #runtime::math::f32 as math;),
-            quote!(impl #sname { #members }),
+            quote!(impl #runtime::Model<#nq_l, #nc_l, #nu_l, f32> for #sname { #members }),
         ),
     };
     let tokens = quote! {
@@ -702,9 +693,7 @@ pub fn emit(
         "total", total.adds, total.muls, total.divs, total.calls
     ));
     if model.precision == Precision::F32 {
-        header.push_str(
-            "// Precision f32: inherent methods of the model struct (the runtime's `Model` trait is f64).\n\n",
-        );
+        header.push_str("// Precision f32: implements the runtime's `Model<.., f32>`.\n\n");
     }
     if let (Some(c), true) = (perturbation, e.perturbed) {
         header.push_str(&format!(

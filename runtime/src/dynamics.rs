@@ -14,6 +14,7 @@ use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
 use crate::linalg::{cholesky, solve_lower, solve_lower_transpose, SpdSolver};
 use crate::model::Model;
+use crate::scalar::Scalar;
 use nalgebra::{SMatrix, SVector};
 
 /// Baumgarte stabilisation gains: the acceleration constraint becomes
@@ -47,55 +48,58 @@ impl Default for Baumgarte {
 
 /// Configuration of the constrained acceleration solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DynamicsConfig {
+pub struct DynamicsConfig<T: Scalar = f64> {
     /// Baumgarte gains.
     pub baumgarte: Baumgarte,
     /// Largest accepted condition estimate of the (equilibrated)
     /// `Phi_q M^-1 Phi_q^T`; above it the solve fails with
     /// [`ErrorKind::SingularConstraintJacobian`].
-    pub max_condition: f64,
+    pub max_condition: T,
 }
 
-impl Default for DynamicsConfig {
+impl<T: Scalar> Default for DynamicsConfig<T> {
     fn default() -> Self {
         DynamicsConfig {
             baumgarte: Baumgarte::default(),
-            max_condition: 1e12,
+            max_condition: T::KKT_MAX_CONDITION,
         }
     }
 }
 
 /// Result of a forward-dynamics solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Accelerations<const NQ: usize, const NC: usize> {
+pub struct Accelerations<const NQ: usize, const NC: usize, T: Scalar = f64> {
     /// Generalized accelerations `qdd`.
-    pub qdd: SVector<f64, NQ>,
+    pub qdd: SVector<T, NQ>,
     /// Constraint forces (Lagrange multipliers) `lambda`; the generalized
     /// constraint force is `Phi_q^T lambda`.
-    pub lambda: SVector<f64, NC>,
+    pub lambda: SVector<T, NC>,
     /// Condition estimate of `Phi_q M^-1 Phi_q^T` (1 when unconstrained).
-    pub condition: f64,
+    pub condition: T,
 }
 
 /// Factored saddle-point matrix `[[M, Phi_q^T], [Phi_q, 0]]`.
-pub(crate) struct Kkt<const NQ: usize, const NC: usize> {
-    l: SMatrix<f64, NQ, NQ>,
-    y: SMatrix<f64, NQ, NC>,
-    s: SpdSolver<NC>,
-    pub(crate) condition: f64,
+pub(crate) struct Kkt<const NQ: usize, const NC: usize, T: Scalar = f64> {
+    l: SMatrix<T, NQ, NQ>,
+    y: SMatrix<T, NQ, NC>,
+    s: SpdSolver<NC, T>,
+    pub(crate) condition: T,
 }
 
-impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
+impl<T: Scalar, const NQ: usize, const NC: usize> Kkt<NQ, NC, T> {
     /// Factors the KKT matrix; errors are reported at time `t`.
     pub(crate) fn new(
-        mut m: SMatrix<f64, NQ, NQ>,
-        phi_q: &SMatrix<f64, NC, NQ>,
-        max_condition: f64,
-        t: f64,
+        mut m: SMatrix<T, NQ, NQ>,
+        phi_q: &SMatrix<T, NC, NQ>,
+        max_condition: T,
+        t: T,
     ) -> Result<Self, Error> {
         if let Err((pivot, value)) = cholesky(&mut m) {
             return Err(Error::new(
-                ErrorKind::MassMatrixNotPositiveDefinite { pivot, value },
+                ErrorKind::MassMatrixNotPositiveDefinite {
+                    pivot,
+                    value: value.into(),
+                },
                 t,
             ));
         }
@@ -111,8 +115,8 @@ impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
             }),
             Err(condition) => Err(Error::new(
                 ErrorKind::SingularConstraintJacobian {
-                    condition,
-                    limit: max_condition,
+                    condition: condition.into(),
+                    limit: max_condition.into(),
                 },
                 t,
             )),
@@ -120,7 +124,7 @@ impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
     }
 
     /// `sqrt(v^T M^-1 v)`.
-    pub(crate) fn inverse_mass_norm(&self, v: &SVector<f64, NQ>) -> f64 {
+    pub(crate) fn inverse_mass_norm(&self, v: &SVector<T, NQ>) -> T {
         let mut z = *v;
         solve_lower(&self.l, &mut z);
         z.norm()
@@ -129,9 +133,9 @@ impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
     /// Solves `M x - Phi_q^T mu = f`, `Phi_q x = c`.
     pub(crate) fn solve(
         &self,
-        f: &SVector<f64, NQ>,
-        c: &SVector<f64, NC>,
-    ) -> (SVector<f64, NQ>, SVector<f64, NC>) {
+        f: &SVector<T, NQ>,
+        c: &SVector<T, NC>,
+    ) -> (SVector<T, NQ>, SVector<T, NC>) {
         let mut z = *f;
         solve_lower(&self.l, &mut z);
         let mut mu = c - self.y.transpose() * z;
@@ -149,16 +153,16 @@ impl<const NQ: usize, const NC: usize> Kkt<NQ, NC> {
 /// are checked. Errors: [`ErrorKind::NonFiniteModelOutput`],
 /// [`ErrorKind::MassMatrixNotPositiveDefinite`],
 /// [`ErrorKind::SingularConstraintJacobian`], [`ErrorKind::NonFiniteResult`].
-pub fn accelerations<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn accelerations<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    config: &DynamicsConfig,
-    q: &SVector<f64, NQ>,
-    qd: &SVector<f64, NQ>,
-    t: f64,
-    tau: &SVector<f64, NU>,
-) -> Result<Accelerations<NQ, NC>, Error>
+    config: &DynamicsConfig<T>,
+    q: &SVector<T, NQ>,
+    qd: &SVector<T, NQ>,
+    t: T,
+    tau: &SVector<T, NU>,
+) -> Result<Accelerations<NQ, NC, T>, Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
     let b = eval::actuator_map(model, t)?;
@@ -177,17 +181,17 @@ where
 
 /// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` from the given `Phi_q`
 /// and `gamma` (zero-sized when `NC == 0`).
-pub(crate) fn stabilised_rhs<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn stabilised_rhs<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
     gains: &Baumgarte,
-    q: &SVector<f64, NQ>,
-    qd: &SVector<f64, NQ>,
-    t: f64,
-    phi_q: &SMatrix<f64, NC, NQ>,
-    gamma: SVector<f64, NC>,
-) -> Result<SVector<f64, NC>, Error>
+    q: &SVector<T, NQ>,
+    qd: &SVector<T, NQ>,
+    t: T,
+    phi_q: &SMatrix<T, NC, NQ>,
+    gamma: SVector<T, NC>,
+) -> Result<SVector<T, NC>, Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     if NC == 0 {
         return Ok(SVector::zeros());
@@ -197,7 +201,7 @@ where
         let phi = eval::constraints(model, q, t)?;
         let phi_t = eval::constraint_time_derivative(model, q, t)?;
         let phi_dot = phi_q * qd + phi_t;
-        c -= phi_dot * (2.0 * gains.alpha) + phi * (gains.beta * gains.beta);
+        c -= phi_dot * T::of(2.0 * gains.alpha) + phi * T::of(gains.beta * gains.beta);
     }
     Ok(c)
 }

@@ -356,11 +356,11 @@ pub struct Error {
 }
 
 impl Error {
-    /// Creates an error.
-    pub const fn new(kind: ErrorKind, t: f64) -> Self {
+    /// Creates an error at time `t` (`f64` or `f32`).
+    pub fn new(kind: ErrorKind, t: impl Into<f64>) -> Self {
         Error {
             kind,
-            t,
+            t: t.into(),
             stage: None,
         }
     }

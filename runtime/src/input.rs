@@ -5,18 +5,19 @@
 //! [`FromFn`] wraps any `Fn(f64) -> SVector` (e.g. a controller or a lookup
 //! table).
 
+use crate::scalar::Scalar;
 use nalgebra::SVector;
 
 /// Actuator input `tau(t)`.
-pub trait Input<const NU: usize> {
+pub trait Input<const NU: usize, T: Scalar = f64> {
     /// The input at time `t`.
-    fn at(&self, t: f64) -> SVector<f64, NU>;
+    fn at(&self, t: T) -> SVector<T, NU>;
 }
 
 /// A constant vector: zero-order hold over the step.
-impl<const NU: usize> Input<NU> for SVector<f64, NU> {
+impl<T: Scalar, const NU: usize> Input<NU, T> for SVector<T, NU> {
     #[inline]
-    fn at(&self, _t: f64) -> SVector<f64, NU> {
+    fn at(&self, _t: T) -> SVector<T, NU> {
         *self
     }
 }
@@ -24,28 +25,28 @@ impl<const NU: usize> Input<NU> for SVector<f64, NU> {
 /// Linear interpolation between `(t0, tau0)` and `(t1, tau1)`; constant
 /// extrapolation outside `[t0, t1]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Linear<const NU: usize> {
+pub struct Linear<const NU: usize, T: Scalar = f64> {
     /// Start time.
-    pub t0: f64,
+    pub t0: T,
     /// Input at `t0`.
-    pub tau0: SVector<f64, NU>,
+    pub tau0: SVector<T, NU>,
     /// End time.
-    pub t1: f64,
+    pub t1: T,
     /// Input at `t1`.
-    pub tau1: SVector<f64, NU>,
+    pub tau1: SVector<T, NU>,
 }
 
-impl<const NU: usize> Input<NU> for Linear<NU> {
-    fn at(&self, t: f64) -> SVector<f64, NU> {
+impl<T: Scalar, const NU: usize> Input<NU, T> for Linear<NU, T> {
+    fn at(&self, t: T) -> SVector<T, NU> {
         let span = self.t1 - self.t0;
-        if !(span > 0.0) || t <= self.t0 {
+        if !(span > T::zero()) || t <= self.t0 {
             return self.tau0;
         }
         if t >= self.t1 {
             return self.tau1;
         }
         let s = (t - self.t0) / span;
-        self.tau0 * (1.0 - s) + self.tau1 * s
+        self.tau0 * (T::one() - s) + self.tau1 * s
     }
 }
 
@@ -53,12 +54,12 @@ impl<const NU: usize> Input<NU> for Linear<NU> {
 #[derive(Clone, Copy, Debug)]
 pub struct FromFn<F>(pub F);
 
-impl<F, const NU: usize> Input<NU> for FromFn<F>
+impl<F, T: Scalar, const NU: usize> Input<NU, T> for FromFn<F>
 where
-    F: Fn(f64) -> SVector<f64, NU>,
+    F: Fn(T) -> SVector<T, NU>,
 {
     #[inline]
-    fn at(&self, t: f64) -> SVector<f64, NU> {
+    fn at(&self, t: T) -> SVector<T, NU> {
         (self.0)(t)
     }
 }

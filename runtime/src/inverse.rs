@@ -58,24 +58,24 @@ use crate::eval;
 use crate::linalg::{
     all_finite, first_non_finite, invert_in_place, mul_vec_acc, norm_squared, tr_mul_vec_acc, Svd,
 };
-use crate::math::sqrt;
 use crate::model::Model;
+use crate::scalar::Scalar;
 use crate::state::inf_norm;
 use nalgebra::{SMatrix, SVector};
 
 /// Configuration of the inverse-dynamics solver.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InverseConfig {
+pub struct InverseConfig<T: Scalar = f64> {
     /// Target `max |Phi|` of the position solve (model units).
-    pub position_tolerance: f64,
+    pub position_tolerance: T,
     /// Cap on Newton iterations of the position solve.
     pub max_iterations: u32,
     /// Singular values below `rank_tolerance * sigma_max` count as zero when
     /// deciding the rank of `Phi_q` (redundant constraints).
-    pub rank_tolerance: f64,
+    pub rank_tolerance: T,
     /// Largest accepted condition (`sigma_max / sigma_k`) of the Jacobian of
     /// the free coordinates and of the projected actuation matrix.
-    pub max_condition: f64,
+    pub max_condition: T,
     /// Cap on Jacobi SVD sweeps.
     pub max_sweeps: u32,
     /// Try the fast path (square systems inverted on the stack,
@@ -84,13 +84,13 @@ pub struct InverseConfig {
     pub fast_path: bool,
 }
 
-impl Default for InverseConfig {
+impl<T: Scalar> Default for InverseConfig<T> {
     fn default() -> Self {
         InverseConfig {
-            position_tolerance: 1e-12,
+            position_tolerance: T::POSITION_TOLERANCE,
             max_iterations: 20,
-            rank_tolerance: 1e-10,
-            max_condition: 1e8,
+            rank_tolerance: T::RANK_TOLERANCE,
+            max_condition: T::MAX_CONDITION,
             max_sweeps: 40,
             fast_path: true,
         }
@@ -99,25 +99,27 @@ impl Default for InverseConfig {
 
 /// Full solution of one inverse-dynamics call.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InverseSolution<const NQ: usize, const NC: usize, const NU: usize> {
+pub struct InverseSolution<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f64> {
     /// Time.
-    pub t: f64,
+    pub t: T,
     /// All coordinates.
-    pub q: SVector<f64, NQ>,
+    pub q: SVector<T, NQ>,
     /// All velocities.
-    pub qd: SVector<f64, NQ>,
+    pub qd: SVector<T, NQ>,
     /// All accelerations.
-    pub qdd: SVector<f64, NQ>,
+    pub qdd: SVector<T, NQ>,
     /// Actuator inputs.
-    pub tau: SVector<f64, NU>,
+    pub tau: SVector<T, NU>,
     /// Constraint forces (multipliers; generalized force `Phi_q^T lambda`).
-    pub lambda: SVector<f64, NC>,
+    pub lambda: SVector<T, NC>,
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize> Default for InverseSolution<NQ, NC, NU> {
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Default
+    for InverseSolution<NQ, NC, NU, T>
+{
     fn default() -> Self {
         InverseSolution {
-            t: 0.0,
+            t: T::zero(),
             q: SVector::zeros(),
             qd: SVector::zeros(),
             qdd: SVector::zeros(),
@@ -144,7 +146,7 @@ pub enum SolvePath {
 
 /// Diagnostics of one inverse-dynamics call.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct InverseReport {
+pub struct InverseReport<T: Scalar = f64> {
     /// Newton iterations of the position solve.
     pub iterations: u32,
     /// Jacobians evaluated and factored in this call (inverses of `J_f` or
@@ -152,33 +154,33 @@ pub struct InverseReport {
     /// with the previous call's inverse converged.
     pub factorizations: u32,
     /// `max |Phi|` at the solution.
-    pub position_residual: f64,
+    pub position_residual: T,
     /// `max |Phi_q qd + Phi_t|` at the solution.
-    pub velocity_residual: f64,
+    pub velocity_residual: T,
     /// `max |Phi_q qdd - gamma|` at the solution.
-    pub acceleration_residual: f64,
+    pub acceleration_residual: T,
     /// Condition of the Jacobian of the free coordinates at the solution:
     /// `sigma_max / sigma_min` on the SVD path, its upper bound
     /// `|J_f|_F |J_f^-1|_F` (at most `NC` times larger) on the fast path.
-    pub jacobian_condition: f64,
+    pub jacobian_condition: T,
     /// How the velocity and acceleration systems were solved.
     pub kinematics: SolvePath,
     /// Diagnostics of the force solve.
-    pub forces: ForceReport,
+    pub forces: ForceReport<T>,
 }
 
 /// Diagnostics of [`forces`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ForceReport {
+pub struct ForceReport<T: Scalar = f64> {
     /// Numerical rank of `Phi_q`.
     pub constraint_rank: usize,
     /// Condition of `B` projected onto the null space of `Phi_q`, over the
     /// singular values that must be non-zero (`min(NU, NQ - rank Phi_q)`);
     /// an upper bound of it on the fast path.
-    pub actuation_condition: f64,
+    pub actuation_condition: T,
     /// `max |Phi_q^T lambda + B tau - (M qdd + h)|`: zero (to rounding) unless
     /// the system is under-actuated for this motion.
-    pub residual: f64,
+    pub residual: T,
     /// How the system was solved.
     pub path: SolvePath,
 }
@@ -199,35 +201,35 @@ pub struct ForceReport {
 /// Errors: non-finite model outputs, [`ErrorKind::DecompositionNotConverged`],
 /// [`ErrorKind::SingularActuation`], [`ErrorKind::NonFiniteResult`].
 #[allow(clippy::type_complexity)]
-pub fn forces<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn forces<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    config: &InverseConfig,
-    q: &SVector<f64, NQ>,
-    qd: &SVector<f64, NQ>,
-    qdd: &SVector<f64, NQ>,
-    t: f64,
-) -> Result<(SVector<f64, NU>, SVector<f64, NC>, ForceReport), Error>
+    config: &InverseConfig<T>,
+    q: &SVector<T, NQ>,
+    qd: &SVector<T, NQ>,
+    qdd: &SVector<T, NQ>,
+    t: T,
+) -> Result<(SVector<T, NU>, SVector<T, NC>, ForceReport<T>), Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
-    let mut r = SVector::<f64, NQ>::zeros();
+    let mut r = SVector::<T, NQ>::zeros();
     eval::inverse_dynamics_into(model, q, qd, qdd, t, &mut r)?;
     let b = eval::actuator_map(model, t)?;
     let phi_q = eval::constraint_jacobian(model, q, t)?;
     forces_from(config, &phi_q, &b, &r, t)
 }
 
-type ForceSolution<const NC: usize, const NU: usize> =
-    (SVector<f64, NU>, SVector<f64, NC>, ForceReport);
+type ForceSolution<T, const NC: usize, const NU: usize> =
+    (SVector<T, NU>, SVector<T, NC>, ForceReport<T>);
 
 /// [`forces`] from evaluated `Phi_q`, `B` and `r = M qdd + h`.
-fn forces_from<const NQ: usize, const NC: usize, const NU: usize>(
-    config: &InverseConfig,
-    phi_q: &SMatrix<f64, NC, NQ>,
-    b: &SMatrix<f64, NQ, NU>,
-    r: &SVector<f64, NQ>,
-    t: f64,
-) -> Result<ForceSolution<NC, NU>, Error> {
+fn forces_from<T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+    config: &InverseConfig<T>,
+    phi_q: &SMatrix<T, NC, NQ>,
+    b: &SMatrix<T, NQ, NU>,
+    r: &SVector<T, NQ>,
+    t: T,
+) -> Result<ForceSolution<T, NC, NU>, Error> {
     if config.fast_path && NC + NU == NQ {
         if let Some(solution) = forces_square(config, phi_q, b, r, t)? {
             return Ok(solution);
@@ -238,15 +240,15 @@ fn forces_from<const NQ: usize, const NC: usize, const NU: usize>(
 
 /// Fast path of [`forces`] for `NC + NU = NQ`; `Ok(None)` when its
 /// assumptions do not hold.
-fn forces_square<const NQ: usize, const NC: usize, const NU: usize>(
-    config: &InverseConfig,
-    phi_q: &SMatrix<f64, NC, NQ>,
-    b: &SMatrix<f64, NQ, NU>,
-    r: &SVector<f64, NQ>,
-    t: f64,
-) -> Result<Option<ForceSolution<NC, NU>>, Error> {
+fn forces_square<T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+    config: &InverseConfig<T>,
+    phi_q: &SMatrix<T, NC, NQ>,
+    b: &SMatrix<T, NQ, NU>,
+    r: &SVector<T, NQ>,
+    t: T,
+) -> Result<Option<ForceSolution<T, NC, NU>>, Error> {
     // [Phi_q^T B], inverted in place.
-    let mut inv = SMatrix::<f64, NQ, NQ>::zeros();
+    let mut inv = SMatrix::<T, NQ, NQ>::zeros();
     for j in 0..NC {
         for i in 0..NQ {
             inv[(i, j)] = phi_q[(j, i)];
@@ -260,7 +262,7 @@ fn forces_square<const NQ: usize, const NC: usize, const NU: usize>(
     if !invert_in_place(&mut inv) {
         return Ok(None);
     }
-    let (mut s2, mut t2) = (0.0, 0.0);
+    let (mut s2, mut t2) = (T::zero(), T::zero());
     for j in 0..NQ {
         for i in 0..NQ {
             let x = inv[(i, j)] * inv[(i, j)];
@@ -271,18 +273,19 @@ fn forces_square<const NQ: usize, const NC: usize, const NU: usize>(
             }
         }
     }
-    let full_rank = sqrt(norm_squared(phi_q) * s2) * config.rank_tolerance < 1.0;
+    let full_rank =
+        Scalar::square_root(norm_squared(phi_q) * s2) * config.rank_tolerance < T::one();
     let actuation_condition = if NU == 0 {
-        1.0
+        T::one()
     } else {
-        sqrt(norm_squared(b) * t2)
+        Scalar::square_root(norm_squared(b) * t2)
     };
     if !full_rank || !(actuation_condition <= config.max_condition) {
         return Ok(None);
     }
     let x = inv * r;
-    let mut lambda = SVector::<f64, NC>::zeros();
-    let mut tau = SVector::<f64, NU>::zeros();
+    let mut lambda = SVector::<T, NC>::zeros();
+    let mut tau = SVector::<T, NU>::zeros();
     for i in 0..NC {
         lambda[i] = x[i];
     }
@@ -305,17 +308,17 @@ fn forces_square<const NQ: usize, const NC: usize, const NU: usize>(
 
 /// Checks the results and computes the residual of a force solve.
 #[allow(clippy::too_many_arguments)]
-fn finish_forces<const NQ: usize, const NC: usize, const NU: usize>(
-    phi_q: &SMatrix<f64, NC, NQ>,
-    b: &SMatrix<f64, NQ, NU>,
-    r: &SVector<f64, NQ>,
-    tau: SVector<f64, NU>,
-    lambda: SVector<f64, NC>,
+fn finish_forces<T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+    phi_q: &SMatrix<T, NC, NQ>,
+    b: &SMatrix<T, NQ, NU>,
+    r: &SVector<T, NQ>,
+    tau: SVector<T, NU>,
+    lambda: SVector<T, NC>,
     constraint_rank: usize,
-    actuation_condition: f64,
+    actuation_condition: T,
     path: SolvePath,
-    t: f64,
-) -> Result<ForceSolution<NC, NU>, Error> {
+    t: T,
+) -> Result<ForceSolution<T, NC, NU>, Error> {
     eval::check_result(&tau, Quantity::Input, t)?;
     eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
     let mut res = -r;
@@ -335,13 +338,13 @@ fn finish_forces<const NQ: usize, const NC: usize, const NU: usize>(
 }
 
 /// SVD path of [`forces`].
-fn forces_svd<const NQ: usize, const NC: usize, const NU: usize>(
-    config: &InverseConfig,
-    phi_q: &SMatrix<f64, NC, NQ>,
-    b: &SMatrix<f64, NQ, NU>,
-    r: &SVector<f64, NQ>,
-    t: f64,
-) -> Result<ForceSolution<NC, NU>, Error> {
+fn forces_svd<T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+    config: &InverseConfig<T>,
+    phi_q: &SMatrix<T, NC, NQ>,
+    b: &SMatrix<T, NQ, NU>,
+    r: &SVector<T, NQ>,
+    t: T,
+) -> Result<ForceSolution<T, NC, NU>, Error> {
     let p_svd = svd(&phi_q.transpose(), config.max_sweeps, t)?;
     let rank_c = p_svd.rank(config.rank_tolerance);
     // Components of r and B outside the range of Phi_q^T, i.e. along the
@@ -350,7 +353,7 @@ fn forces_svd<const NQ: usize, const NC: usize, const NU: usize>(
     p_svd.remove_range(&mut r_free, rank_c);
     let mut b_free = *b;
     for j in 0..NU {
-        let mut col: SVector<f64, NQ> = b.column(j).into_owned();
+        let mut col: SVector<T, NQ> = b.column(j).into_owned();
         p_svd.remove_range(&mut col, rank_c);
         b_free.set_column(j, &col);
     }
@@ -360,15 +363,15 @@ fn forces_svd<const NQ: usize, const NC: usize, const NU: usize>(
     if !(actuation_condition <= config.max_condition) {
         return Err(Error::new(
             ErrorKind::SingularActuation {
-                condition: actuation_condition,
-                limit: config.max_condition,
+                condition: actuation_condition.into(),
+                limit: config.max_condition.into(),
             },
             t,
         ));
     }
-    let mut tau = SVector::<f64, NU>::zeros();
+    let mut tau = SVector::<T, NU>::zeros();
     b_svd.solve(&r_free, needed, &mut tau);
-    let mut lambda = SVector::<f64, NC>::zeros();
+    let mut lambda = SVector::<T, NC>::zeros();
     p_svd.solve(&(r - b * tau), rank_c, &mut lambda);
     finish_forces(
         phi_q,
@@ -383,24 +386,24 @@ fn forces_svd<const NQ: usize, const NC: usize, const NU: usize>(
     )
 }
 
-fn svd<const R: usize, const C: usize>(
-    a: &SMatrix<f64, R, C>,
+fn svd<T: Scalar, const R: usize, const C: usize>(
+    a: &SMatrix<T, R, C>,
     max_sweeps: u32,
-    t: f64,
-) -> Result<Svd<R, C>, Error> {
+    t: T,
+) -> Result<Svd<R, C, T>, Error> {
     Svd::new(a, max_sweeps)
         .map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))
 }
 
 /// What [`InverseDynamics::free_inverse`] found besides the inverse.
 #[derive(Clone, Copy)]
-struct FreeInverse {
+struct FreeInverse<T: Scalar> {
     /// `|J_f|_F |J_f^-1|_F`.
-    condition: f64,
+    condition: T,
     /// `|J_f|_F^2`.
-    jf_norm2: f64,
+    jf_norm2: T,
     /// `|J_f^-1|_F^2`.
-    inv_norm2: f64,
+    inv_norm2: T,
 }
 
 /// Which inverse of `J_f` the chord steps use.
@@ -423,22 +426,28 @@ const CHORD_CONTRACTION: f64 = 0.25;
 /// position solution as the Newton starting point of the next call, and on
 /// the fast path the inverse of the free-coordinate Jacobian there.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InverseDynamics<const NQ: usize, const NC: usize, const NU: usize, const NP: usize> {
+pub struct InverseDynamics<
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+    const NP: usize,
+    T: Scalar = f64,
+> {
     /// Solver settings.
-    pub config: InverseConfig,
+    pub config: InverseConfig<T>,
     prescribed: [usize; NP],
     /// The free coordinates in increasing order (the first `NQ - NP` entries).
     free: [usize; NQ],
-    guess: SVector<f64, NQ>,
+    guess: SVector<T, NQ>,
     /// `J_f^-1` at `guess` (fast path), if known.
-    jacobian_inverse: Option<SMatrix<f64, NC, NC>>,
+    jacobian_inverse: Option<SMatrix<T, NC, NC>>,
     /// Time, velocities and accelerations of the solution `guess`, for the
     /// second-order predictor of the next starting point.
-    motion: Option<(f64, SVector<f64, NQ>, SVector<f64, NQ>)>,
+    motion: Option<(T, SVector<T, NQ>, SVector<T, NQ>)>,
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
-    InverseDynamics<NQ, NC, NU, NP>
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
+    InverseDynamics<NQ, NC, NU, NP, T>
 {
     /// Creates the solver for the coordinates `prescribed` (indices into `q`),
     /// starting the first position solve from `initial_guess`.
@@ -450,8 +459,8 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     /// with [`ErrorKind::NonFiniteState`] if the guess is not finite.
     pub fn new(
         prescribed: [usize; NP],
-        initial_guess: SVector<f64, NQ>,
-        config: InverseConfig,
+        initial_guess: SVector<T, NQ>,
+        config: InverseConfig<T>,
     ) -> Result<Self, Error> {
         crate::error::check_indices("prescribed coordinate", &prescribed, NQ, true)?;
         if NP > NQ || NC < NQ - NP {
@@ -459,7 +468,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 ErrorKind::InvalidConfiguration {
                     reason: "fewer constraints than free coordinates: the motion is not determined",
                 },
-                0.0,
+                T::zero(),
             ));
         }
         if let Some(index) = first_non_finite(&initial_guess) {
@@ -468,7 +477,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                     quantity: Quantity::Position,
                     index,
                 },
-                0.0,
+                T::zero(),
             ));
         }
         let mut free = [0usize; NQ];
@@ -495,12 +504,12 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     }
 
     /// The current Newton starting point (the last solution).
-    pub fn guess(&self) -> &SVector<f64, NQ> {
+    pub fn guess(&self) -> &SVector<T, NQ> {
         &self.guess
     }
 
     /// Replaces the Newton starting point (e.g. to select an assembly mode).
-    pub fn set_guess(&mut self, q: SVector<f64, NQ>) {
+    pub fn set_guess(&mut self, q: SVector<T, NQ>) {
         self.guess = q;
         self.jacobian_inverse = None;
         self.motion = None;
@@ -512,10 +521,10 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     }
 
     /// `Phi_q` with the prescribed columns zeroed.
-    fn free_jacobian(&self, phi_q: &SMatrix<f64, NC, NQ>) -> SMatrix<f64, NC, NQ> {
+    fn free_jacobian(&self, phi_q: &SMatrix<T, NC, NQ>) -> SMatrix<T, NC, NQ> {
         let mut j = *phi_q;
         for &i in self.prescribed.iter() {
-            j.column_mut(i).fill(0.0);
+            j.column_mut(i).fill(T::zero());
         }
         j
     }
@@ -525,10 +534,10 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     /// bound is within `limit` (call only when [`Self::square`]).
     fn free_inverse(
         &self,
-        phi_q: &SMatrix<f64, NC, NQ>,
-        limit: f64,
-        inv: &mut SMatrix<f64, NC, NC>,
-    ) -> Option<FreeInverse> {
+        phi_q: &SMatrix<T, NC, NQ>,
+        limit: T,
+        inv: &mut SMatrix<T, NC, NC>,
+    ) -> Option<FreeInverse<T>> {
         // Column copies through the slices (nalgebra's column views copy
         // element by element).
         let (from, to) = (phi_q.as_slice(), inv.as_mut_slice());
@@ -542,9 +551,9 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         }
         let inv_norm2 = norm_squared(inv);
         let condition = if NC == 0 {
-            1.0
+            T::one()
         } else {
-            sqrt(jf_norm2 * inv_norm2)
+            Scalar::square_root(jf_norm2 * inv_norm2)
         };
         (condition <= limit).then_some(FreeInverse {
             condition,
@@ -561,18 +570,18 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     /// consistent `v` and `a`); otherwise (jumps, quasi-static use with zero
     /// `v` and `a`, first call) the last solution itself. The prescribed
     /// coordinates are set to `p`.
-    fn start(&self, t: f64, p: &SVector<f64, NP>) -> SVector<f64, NQ> {
+    fn start(&self, t: T, p: &SVector<T, NP>) -> SVector<T, NQ> {
         let mut q = self.guess;
         if let Some((t0, qd, qdd)) = &self.motion {
-            let dt = t - t0;
-            let (mut err_predicted, mut err_held) = (0.0f64, 0.0f64);
+            let dt = t - *t0;
+            let (mut err_predicted, mut err_held) = (T::zero(), T::zero());
             for (k, &i) in self.prescribed.iter().enumerate() {
-                let predicted = q[i] + dt * (qd[i] + 0.5 * dt * qdd[i]);
+                let predicted = q[i] + dt * (qd[i] + T::of(0.5) * dt * qdd[i]);
                 err_predicted = err_predicted.max((p[k] - predicted).abs());
                 err_held = err_held.max((p[k] - q[i]).abs());
             }
-            if 4.0 * err_predicted <= err_held {
-                let moved = q + (qd + qdd * (0.5 * dt)) * dt;
+            if T::of(4.0) * err_predicted <= err_held {
+                let moved = q + (qd + qdd * (T::of(0.5) * dt)) * dt;
                 if all_finite(&moved) {
                     q = moved;
                 }
@@ -585,8 +594,8 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     }
 
     /// Vector with the prescribed entries set to `x` and zeros elsewhere.
-    fn scatter(&self, x: &SVector<f64, NP>) -> SVector<f64, NQ> {
-        let mut v = SVector::<f64, NQ>::zeros();
+    fn scatter(&self, x: &SVector<T, NP>) -> SVector<T, NQ> {
+        let mut v = SVector::<T, NQ>::zeros();
         for (k, &i) in self.prescribed.iter().enumerate() {
             v[i] = x[k];
         }
@@ -594,7 +603,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     }
 
     /// `y` with its free entries set to `x_f` (call only when [`Self::square`]).
-    fn scatter_free(&self, x_f: &SVector<f64, NC>, y: &mut SVector<f64, NQ>) {
+    fn scatter_free(&self, x_f: &SVector<T, NC>, y: &mut SVector<T, NQ>) {
         for k in 0..NC {
             y[self.free[k]] = x_f[k];
         }
@@ -613,14 +622,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     pub fn solve<M>(
         &mut self,
         model: &M,
-        t: f64,
-        p: &SVector<f64, NP>,
-        v: &SVector<f64, NP>,
-        a: &SVector<f64, NP>,
-        out: &mut InverseSolution<NQ, NC, NU>,
-    ) -> Result<InverseReport, Error>
+        t: T,
+        p: &SVector<T, NP>,
+        v: &SVector<T, NP>,
+        a: &SVector<T, NP>,
+        out: &mut InverseSolution<NQ, NC, NU, T>,
+    ) -> Result<InverseReport<T>, Error>
     where
-        M: Model<NQ, NC, NU>,
+        M: Model<NQ, NC, NU, T>,
     {
         if !t.is_finite() {
             return Err(Error::new(
@@ -654,12 +663,12 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         // Iterates after the first are evaluated with their Jacobian (one
         // program for both): the last one's is the Jacobian at the solution.
         // `jacobians[current]` is at `q` when `have_jacobian`.
-        let mut jacobians = [SMatrix::<f64, NC, NQ>::zeros(); 2];
+        let mut jacobians = [SMatrix::<T, NC, NQ>::zeros(); 2];
         let mut current = 0;
         let mut have_jacobian = false;
         // The inverse for chord steps: the previous call's (at the guess), or
         // one computed at an iterate into `local`.
-        let mut local = SMatrix::<f64, NC, NC>::zeros();
+        let mut local = SMatrix::<T, NC, NC>::zeros();
         let mut chord = match (square, &self.jacobian_inverse) {
             (true, Some(_)) => Chord::Cached,
             _ => Chord::None,
@@ -672,13 +681,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 return Err(Error::new(
                     ErrorKind::NewtonNotConverged {
                         iterations,
-                        residual: res,
-                        tolerance: cfg.position_tolerance,
+                        residual: res.into(),
+                        tolerance: cfg.position_tolerance.into(),
                     },
                     t,
                 ));
             }
-            let mut dq = SVector::<f64, NQ>::zeros();
+            let mut dq = SVector::<T, NQ>::zeros();
             // A full Newton step (Jacobian at this iterate), always accepted.
             let fresh = chord == Chord::None;
             if fresh {
@@ -706,14 +715,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 Chord::None => None,
             };
             if let Some(inv) = inv {
-                let mut step = SVector::<f64, NC>::zeros();
+                let mut step = SVector::<T, NC>::zeros();
                 mul_vec_acc(inv, (-phi).as_slice(), step.as_mut_slice());
                 self.scatter_free(&step, &mut dq);
             }
             let q_new = q + dq;
             eval::check_result(&q_new, Quantity::Position, t)?;
             iterations += 1;
-            let mut phi_new = SVector::<f64, NC>::zeros();
+            let mut phi_new = SVector::<T, NC>::zeros();
             eval::constraints_and_jacobian(
                 model,
                 &q_new,
@@ -722,7 +731,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 &mut jacobians[1 - current],
             )?;
             let res_new = inf_norm(&phi_new);
-            if !fresh && !(res_new <= CHORD_CONTRACTION * res) {
+            if !fresh && !(res_new <= T::of(CHORD_CONTRACTION) * res) {
                 // The old inverse no longer contracts well: refresh it, and
                 // keep this step only if it reduced the residual.
                 chord = Chord::None;
@@ -754,38 +763,38 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         let gamma;
         let jacobian_condition;
         // X = J_f^-1 J_p on the fast path.
-        let mut x = SMatrix::<f64, NC, NP>::zeros();
-        let mut jp_norm2 = 0.0;
+        let mut x = SMatrix::<T, NC, NP>::zeros();
+        let mut jp_norm2 = T::zero();
         if let Some(f) = fast {
             jacobian_condition = f.condition;
             // X = J_f^-1 J_p column by column, and w = Phi_t + J_p v, so that
             // qd_f = -J_f^-1 w and qdd_f = J_f^-1 (gamma - J_p a).
             let mut w = phi_t;
-            let mut u = SVector::<f64, NC>::zeros();
+            let mut u = SVector::<T, NC>::zeros();
             for (k, &i) in self.prescribed.iter().enumerate() {
                 let jp = &phi_q.as_slice()[i * NC..(i + 1) * NC];
-                jp_norm2 += jp.iter().map(|e| e * e).sum::<f64>();
+                jp_norm2 += jp.iter().map(|e| *e * *e).sum::<T>();
                 mul_vec_acc(inv, jp, &mut x.as_mut_slice()[k * NC..(k + 1) * NC]);
                 for ((w, u), e) in w.iter_mut().zip(u.iter_mut()).zip(jp) {
-                    *w += e * v[k];
-                    *u -= e * a[k];
+                    *w += *e * v[k];
+                    *u -= *e * a[k];
                 }
             }
-            let mut qd_f = SVector::<f64, NC>::zeros();
+            let mut qd_f = SVector::<T, NC>::zeros();
             mul_vec_acc(inv, w.as_slice(), qd_f.as_mut_slice());
             self.scatter_free(&-qd_f, &mut qd);
             gamma = eval::constraint_rhs(model, &q, &qd, t)?;
-            let mut qdd_f = SVector::<f64, NC>::zeros();
+            let mut qdd_f = SVector::<T, NC>::zeros();
             mul_vec_acc(inv, (u + gamma).as_slice(), qdd_f.as_mut_slice());
             self.scatter_free(&qdd_f, &mut qdd);
         } else {
             let jsvd = svd(&self.free_jacobian(phi_q).transpose(), cfg.max_sweeps, t)?;
             jacobian_condition = check_condition(&jsvd, nf, cfg.max_condition, t)?;
-            let mut qd_f = SVector::<f64, NQ>::zeros();
+            let mut qd_f = SVector::<T, NQ>::zeros();
             jsvd.solve_transpose(&(-phi_t - phi_q * qd), nf, &mut qd_f);
             qd += qd_f;
             gamma = eval::constraint_rhs(model, &q, &qd, t)?;
-            let mut qdd_f = SVector::<f64, NQ>::zeros();
+            let mut qdd_f = SVector::<T, NQ>::zeros();
             jsvd.solve_transpose(&(gamma - phi_q * qdd), nf, &mut qdd_f);
             qdd += qdd_f;
             for (k, &i) in self.prescribed.iter().enumerate() {
@@ -797,7 +806,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         eval::check_result(&qdd, Quantity::Acceleration, t)?;
         // 3. Forces.
         let b = eval::actuator_map(model, t)?;
-        let mut r = SVector::<f64, NQ>::zeros();
+        let mut r = SVector::<T, NQ>::zeros();
         eval::inverse_dynamics_into(model, &q, &qd, &qdd, t, &mut r)?;
         let fast_forces = match fast {
             Some(f) => self.forces_eliminated(
@@ -849,20 +858,20 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
     #[allow(clippy::too_many_arguments)]
     fn forces_eliminated(
         &self,
-        cfg: &InverseConfig,
-        inv: &SMatrix<f64, NC, NC>,
-        x: &SMatrix<f64, NC, NP>,
-        phi_q_inv_norm2: f64,
-        phi_q: &SMatrix<f64, NC, NQ>,
-        b: &SMatrix<f64, NQ, NU>,
-        r: &SVector<f64, NQ>,
-        t: f64,
-    ) -> Result<Option<ForceSolution<NC, NU>>, Error> {
+        cfg: &InverseConfig<T>,
+        inv: &SMatrix<T, NC, NC>,
+        x: &SMatrix<T, NC, NP>,
+        phi_q_inv_norm2: T,
+        phi_q: &SMatrix<T, NC, NQ>,
+        b: &SMatrix<T, NQ, NU>,
+        r: &SVector<T, NQ>,
+        t: T,
+    ) -> Result<Option<ForceSolution<T, NC, NU>>, Error> {
         if NU != NP {
             return Ok(None);
         }
-        let mut b_f = SMatrix::<f64, NC, NU>::zeros();
-        let mut r_f = SVector::<f64, NC>::zeros();
+        let mut b_f = SMatrix::<T, NC, NU>::zeros();
+        let mut r_f = SVector::<T, NC>::zeros();
         for k in 0..NC {
             let i = self.free[k];
             r_f[k] = r[i];
@@ -870,7 +879,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
                 b_f[(k, j)] = b[(i, j)];
             }
         }
-        let mut xt_b = SMatrix::<f64, NP, NU>::zeros();
+        let mut xt_b = SMatrix::<T, NP, NU>::zeros();
         for (b_col, out) in b_f
             .as_slice()
             .chunks_exact(NC.max(1))
@@ -878,11 +887,11 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         {
             tr_mul_vec_acc(x, b_col, out);
         }
-        let mut xt_r = SVector::<f64, NP>::zeros();
+        let mut xt_r = SVector::<T, NP>::zeros();
         tr_mul_vec_acc(x, r_f.as_slice(), xt_r.as_mut_slice());
         // G = B_p - X^T B_f and g = r_p - X^T r_f (NP x NP since NU == NP).
-        let mut g = SMatrix::<f64, NP, NP>::zeros();
-        let mut rhs = SVector::<f64, NP>::zeros();
+        let mut g = SMatrix::<T, NP, NP>::zeros();
+        let mut rhs = SVector::<T, NP>::zeros();
         for (k, &i) in self.prescribed.iter().enumerate() {
             rhs[k] = r[i] - xt_r[k];
             for j in 0..NP {
@@ -893,27 +902,27 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
         if !invert_in_place(&mut g_inv) {
             return Ok(None);
         }
-        let full_rank = sqrt(phi_q_inv_norm2) * cfg.rank_tolerance < 1.0;
+        let full_rank = Scalar::square_root(phi_q_inv_norm2) * cfg.rank_tolerance < T::one();
         let actuation_condition = if NP == 0 {
-            1.0
+            T::one()
         } else {
-            sqrt(
+            Scalar::square_root(
                 norm_squared(&g).min(norm_squared(b))
                     * norm_squared(&g_inv)
-                    * (1.0 + norm_squared(x)),
+                    * (T::one() + norm_squared(x)),
             )
         };
         if !full_rank || !(actuation_condition <= cfg.max_condition) {
             return Ok(None);
         }
         let tau_p = g_inv * rhs;
-        let mut tau = SVector::<f64, NU>::zeros();
+        let mut tau = SVector::<T, NU>::zeros();
         for j in 0..NU {
             tau[j] = tau_p[j];
         }
         let mut f = r_f;
         mul_vec_acc(&b_f, (-tau).as_slice(), f.as_mut_slice());
-        let mut lambda = SVector::<f64, NC>::zeros();
+        let mut lambda = SVector::<T, NC>::zeros();
         tr_mul_vec_acc(inv, f.as_slice(), lambda.as_mut_slice());
         finish_forces(
             phi_q,
@@ -931,29 +940,32 @@ impl<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
 }
 
 /// `max |a x + c|`.
-fn residual_norm<const R: usize, const C: usize>(
-    a: &SMatrix<f64, R, C>,
-    x: &SVector<f64, C>,
-    c: &SVector<f64, R>,
-) -> f64 {
+fn residual_norm<T: Scalar, const R: usize, const C: usize>(
+    a: &SMatrix<T, R, C>,
+    x: &SVector<T, C>,
+    c: &SVector<T, R>,
+) -> T {
     let mut y = *c;
     mul_vec_acc(a, x.as_slice(), y.as_mut_slice());
     inf_norm(&y)
 }
 
 /// Checks that the leading `needed` singular values are well conditioned.
-fn check_condition<const R: usize, const C: usize>(
-    svd: &Svd<R, C>,
+fn check_condition<T: Scalar, const R: usize, const C: usize>(
+    svd: &Svd<R, C, T>,
     needed: usize,
-    limit: f64,
-    t: f64,
-) -> Result<f64, Error> {
+    limit: T,
+    t: T,
+) -> Result<T, Error> {
     let condition = svd.condition_of_leading(needed);
     if condition <= limit {
         Ok(condition)
     } else {
         Err(Error::new(
-            ErrorKind::SingularConstraintJacobian { condition, limit },
+            ErrorKind::SingularConstraintJacobian {
+                condition: condition.into(),
+                limit: limit.into(),
+            },
             t,
         ))
     }

@@ -1,7 +1,8 @@
 //! flexdyn runtime: solvers for the equations of motion that `flexdyn-codegen`
 //! generates. `#![no_std]`, allocation-free, panic-free on bad numbers.
 //!
-//! * [`Model`]: the interface generated code implements.
+//! * [`Model`]: the interface generated code implements, in `f64` or `f32`
+//!   (every solver is generic over the [`Scalar`] type, `f64` by default).
 //! * [`accelerations`]: constrained forward dynamics (KKT system by a Schur
 //!   complement on the stack, Baumgarte stabilisation).
 //! * [`project`]: coordinate projection onto the constraint manifold.
@@ -37,6 +38,7 @@ mod linalg;
 pub mod math;
 mod model;
 mod projection;
+mod scalar;
 mod state;
 
 pub use dynamics::{accelerations, Accelerations, Baumgarte, DynamicsConfig};
@@ -53,4 +55,5 @@ pub use inverse::{
 pub use model::{FiniteDifferenceJacobians, Model};
 pub use nalgebra;
 pub use projection::{project, ProjectionConfig, ProjectionReport};
+pub use scalar::Scalar;
 pub use state::{constraint_drift, total_energy, Drift, State};

@@ -4,16 +4,16 @@
 //! is reported as a value with the numbers that show it, loops have static
 //! bounds, and generic code needs no extra dimension trait bounds.
 
-use crate::math::sqrt;
+use crate::scalar::Scalar;
 use nalgebra::{SMatrix, SVector};
 
 /// Largest absolute entry; NaN if any entry is NaN.
-pub(crate) fn max_abs<const R: usize, const C: usize>(a: &SMatrix<f64, R, C>) -> f64 {
-    let mut m = 0.0f64;
+pub(crate) fn max_abs<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<T, R, C>) -> T {
+    let mut m = T::zero();
     for x in a.as_slice() {
         let ax = x.abs();
-        if ax.is_nan() {
-            return f64::NAN;
+        if !(ax >= T::zero()) {
+            return T::NAN;
         }
         if ax > m {
             m = ax;
@@ -26,31 +26,31 @@ pub(crate) fn max_abs<const R: usize, const C: usize>(a: &SMatrix<f64, R, C>) ->
 /// otherwise; eight independent accumulators over the contiguous storage
 /// vectorise, where a short-circuiting scan over nalgebra's generic iterator
 /// cost more than evaluating some of the generated terms.)
-pub(crate) fn all_finite<const R: usize, const C: usize>(a: &SMatrix<f64, R, C>) -> bool {
-    let mut acc = [0.0f64; 8];
+pub(crate) fn all_finite<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<T, R, C>) -> bool {
+    let mut acc = [T::zero(); 8];
     let mut chunks = a.as_slice().chunks_exact(8);
     for c in &mut chunks {
         for (s, x) in acc.iter_mut().zip(c) {
-            *s += x * 0.0;
+            *s += *x * T::zero();
         }
     }
     for (s, x) in acc.iter_mut().zip(chunks.remainder()) {
-        *s += x * 0.0;
+        *s += *x * T::zero();
     }
-    acc.iter().all(|s| *s == 0.0)
+    acc.iter().all(|s| *s == T::zero())
 }
 
 /// Squared Frobenius norm (four independent accumulators).
-pub(crate) fn norm_squared<const R: usize, const C: usize>(a: &SMatrix<f64, R, C>) -> f64 {
-    let mut acc = [0.0f64; 4];
+pub(crate) fn norm_squared<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<T, R, C>) -> T {
+    let mut acc = [T::zero(); 4];
     let mut chunks = a.as_slice().chunks_exact(4);
     for c in &mut chunks {
         for (s, x) in acc.iter_mut().zip(c) {
-            *s += x * x;
+            *s += *x * *x;
         }
     }
     for (s, x) in acc.iter_mut().zip(chunks.remainder()) {
-        *s += x * x;
+        *s += *x * *x;
     }
     (acc[0] + acc[1]) + (acc[2] + acc[3])
 }
@@ -58,32 +58,32 @@ pub(crate) fn norm_squared<const R: usize, const C: usize>(a: &SMatrix<f64, R, C
 /// `out += a x` for a slice `x` of length `C` and `out` of length `R`, as a
 /// sum of scaled columns (contiguous, vectorisable; nalgebra's generic
 /// products cost more at these sizes).
-pub(crate) fn mul_vec_acc<const R: usize, const C: usize>(
-    a: &SMatrix<f64, R, C>,
-    x: &[f64],
-    out: &mut [f64],
+pub(crate) fn mul_vec_acc<T: Scalar, const R: usize, const C: usize>(
+    a: &SMatrix<T, R, C>,
+    x: &[T],
+    out: &mut [T],
 ) {
     for (col, xk) in a.as_slice().chunks_exact(R.max(1)).zip(x) {
         for (o, e) in out.iter_mut().zip(col) {
-            *o += e * xk;
+            *o += *e * *xk;
         }
     }
 }
 
 /// `out += a^T x` for a slice `x` of length `R` and `out` of length `C`:
 /// one dot product per (contiguous) column.
-pub(crate) fn tr_mul_vec_acc<const R: usize, const C: usize>(
-    a: &SMatrix<f64, R, C>,
-    x: &[f64],
-    out: &mut [f64],
+pub(crate) fn tr_mul_vec_acc<T: Scalar, const R: usize, const C: usize>(
+    a: &SMatrix<T, R, C>,
+    x: &[T],
+    out: &mut [T],
 ) {
     for (col, o) in a.as_slice().chunks_exact(R.max(1)).zip(out.iter_mut()) {
-        *o += col.iter().zip(x).map(|(e, xi)| e * xi).sum::<f64>();
+        *o += col.iter().zip(x).map(|(e, xi)| *e * *xi).sum::<T>();
     }
 }
 
 /// Index of the first non-finite entry (column-major for matrices).
-pub(crate) fn first_non_finite<const R: usize>(a: &SVector<f64, R>) -> Option<usize> {
+pub(crate) fn first_non_finite<T: Scalar, const R: usize>(a: &SVector<T, R>) -> Option<usize> {
     a.as_slice().iter().position(|x| !x.is_finite())
 }
 
@@ -93,17 +93,19 @@ pub(crate) fn first_non_finite<const R: usize>(a: &SVector<f64, R>) -> Option<us
 ///
 /// Fails with `(pivot index, pivot value)` when a pivot is not positive, or
 /// is below `eps * A_jj` (numerically singular), or is not finite.
-pub(crate) fn cholesky<const N: usize>(a: &mut SMatrix<f64, N, N>) -> Result<(), (usize, f64)> {
+pub(crate) fn cholesky<T: Scalar, const N: usize>(
+    a: &mut SMatrix<T, N, N>,
+) -> Result<(), (usize, T)> {
     for j in 0..N {
         let ajj = a[(j, j)];
         let mut d = ajj;
         for k in 0..j {
             d -= a[(j, k)] * a[(j, k)];
         }
-        if !d.is_finite() || d <= f64::EPSILON * ajj.abs() || d <= 0.0 {
+        if !d.is_finite() || d <= T::EPSILON * ajj.abs() || d <= T::zero() {
             return Err((j, d));
         }
-        let l = sqrt(d);
+        let l = Scalar::square_root(d);
         a[(j, j)] = l;
         for i in (j + 1)..N {
             let mut s = a[(i, j)];
@@ -113,16 +115,16 @@ pub(crate) fn cholesky<const N: usize>(a: &mut SMatrix<f64, N, N>) -> Result<(),
             a[(i, j)] = s / l;
         }
         for i in 0..j {
-            a[(i, j)] = 0.0;
+            a[(i, j)] = T::zero();
         }
     }
     Ok(())
 }
 
 /// Solves `L x = b` in place (forward substitution) for every column of `b`.
-pub(crate) fn solve_lower<const N: usize, const K: usize>(
-    l: &SMatrix<f64, N, N>,
-    b: &mut SMatrix<f64, N, K>,
+pub(crate) fn solve_lower<T: Scalar, const N: usize, const K: usize>(
+    l: &SMatrix<T, N, N>,
+    b: &mut SMatrix<T, N, K>,
 ) {
     for c in 0..K {
         for i in 0..N {
@@ -136,9 +138,9 @@ pub(crate) fn solve_lower<const N: usize, const K: usize>(
 }
 
 /// Solves `L^T x = b` in place (backward substitution) for every column of `b`.
-pub(crate) fn solve_lower_transpose<const N: usize, const K: usize>(
-    l: &SMatrix<f64, N, N>,
-    b: &mut SMatrix<f64, N, K>,
+pub(crate) fn solve_lower_transpose<T: Scalar, const N: usize, const K: usize>(
+    l: &SMatrix<T, N, N>,
+    b: &mut SMatrix<T, N, K>,
 ) {
     for c in 0..K {
         for i in (0..N).rev() {
@@ -154,28 +156,28 @@ pub(crate) fn solve_lower_transpose<const N: usize, const K: usize>(
 /// Symmetric positive semi-definite solver: Jacobi equilibration followed by a
 /// diagonally pivoted Cholesky factorisation, which reveals (near) rank
 /// deficiency through its pivots.
-pub(crate) struct SpdSolver<const N: usize> {
-    l: SMatrix<f64, N, N>,
+pub(crate) struct SpdSolver<const N: usize, T: Scalar = f64> {
+    l: SMatrix<T, N, N>,
     perm: [usize; N],
-    scale: SVector<f64, N>,
+    scale: SVector<T, N>,
 }
 
-impl<const N: usize> SpdSolver<N> {
+impl<T: Scalar, const N: usize> SpdSolver<N, T> {
     /// Factors `a` (symmetric, both triangles read). Returns the solver and a
     /// condition estimate of the equilibrated matrix (ratio of the largest to
     /// the smallest pivot; a lower bound of the 2-norm condition number).
     /// `Err(estimate)` when a pivot vanishes or the estimate exceeds `limit`
     /// (the estimate is `INFINITY` for an exactly singular matrix).
-    pub(crate) fn factor(a: &SMatrix<f64, N, N>, limit: f64) -> Result<(Self, f64), f64> {
-        let mut scale = SVector::<f64, N>::zeros();
+    pub(crate) fn factor(a: &SMatrix<T, N, N>, limit: T) -> Result<(Self, T), T> {
+        let mut scale = SVector::<T, N>::zeros();
         for i in 0..N {
             let d = a[(i, i)];
-            if !(d > 0.0) || !d.is_finite() {
-                return Err(f64::INFINITY);
+            if !(d > T::zero()) || !d.is_finite() {
+                return Err(T::INFINITY);
             }
-            scale[i] = 1.0 / sqrt(d);
+            scale[i] = T::one() / Scalar::square_root(d);
         }
-        let mut w = SMatrix::<f64, N, N>::zeros();
+        let mut w = SMatrix::<T, N, N>::zeros();
         for j in 0..N {
             for i in 0..N {
                 w[(i, j)] = scale[i] * a[(i, j)] * scale[j];
@@ -185,9 +187,9 @@ impl<const N: usize> SpdSolver<N> {
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i;
         }
-        let mut l = SMatrix::<f64, N, N>::zeros();
-        let mut dmax = 0.0f64;
-        let mut dmin = f64::INFINITY;
+        let mut l = SMatrix::<T, N, N>::zeros();
+        let mut dmax = T::zero();
+        let mut dmin = T::INFINITY;
         for j in 0..N {
             // Choose the largest remaining diagonal.
             let mut p = j;
@@ -206,11 +208,11 @@ impl<const N: usize> SpdSolver<N> {
             if j == 0 {
                 dmax = d;
             }
-            if !(d > 0.0) || !d.is_finite() || d <= 4.0 * f64::EPSILON * dmax {
-                return Err(f64::INFINITY);
+            if !(d > T::zero()) || !d.is_finite() || d <= T::of(4.0) * T::EPSILON * dmax {
+                return Err(T::INFINITY);
             }
             dmin = dmin.min(d);
-            let ljj = sqrt(d);
+            let ljj = Scalar::square_root(d);
             l[(j, j)] = ljj;
             for i in (j + 1)..N {
                 l[(i, j)] = w[(i, j)] / ljj;
@@ -221,7 +223,7 @@ impl<const N: usize> SpdSolver<N> {
                 }
             }
         }
-        let estimate = if N == 0 { 1.0 } else { dmax / dmin };
+        let estimate = if N == 0 { T::one() } else { dmax / dmin };
         if !(estimate <= limit) {
             return Err(estimate);
         }
@@ -229,9 +231,9 @@ impl<const N: usize> SpdSolver<N> {
     }
 
     /// Solves `A x = b` in place.
-    pub(crate) fn solve(&self, b: &mut SVector<f64, N>) {
+    pub(crate) fn solve(&self, b: &mut SVector<T, N>) {
         // (D A D) y = D b, x = D y, with P (D A D) P^T = L L^T.
-        let mut y = SVector::<f64, N>::zeros();
+        let mut y = SVector::<T, N>::zeros();
         for i in 0..N {
             let pi = self.perm[i];
             y[i] = self.scale[pi] * b[pi];
@@ -246,26 +248,26 @@ impl<const N: usize> SpdSolver<N> {
 }
 
 /// LU factorisation with partial pivoting, `P A = L U`.
-pub(crate) struct Lu<const N: usize> {
-    lu: SMatrix<f64, N, N>,
+pub(crate) struct Lu<const N: usize, T: Scalar = f64> {
+    lu: SMatrix<T, N, N>,
     perm: [usize; N],
 }
 
-impl<const N: usize> Lu<N> {
+impl<T: Scalar, const N: usize> Lu<N, T> {
     /// Factors `a`. Returns the factorisation and a condition estimate
     /// (largest entry of `A` over the smallest pivot magnitude); `Err(estimate)`
     /// when a pivot is zero / not finite or the estimate exceeds `limit`.
-    pub(crate) fn factor(a: &SMatrix<f64, N, N>, limit: f64) -> Result<(Self, f64), f64> {
+    pub(crate) fn factor(a: &SMatrix<T, N, N>, limit: T) -> Result<(Self, T), T> {
         let norm = max_abs(a);
         if !norm.is_finite() {
-            return Err(f64::INFINITY);
+            return Err(T::INFINITY);
         }
         let mut lu = *a;
         let mut perm = [0usize; N];
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i;
         }
-        let mut pmin = f64::INFINITY;
+        let mut pmin = T::INFINITY;
         for j in 0..N {
             let mut p = j;
             for i in (j + 1)..N {
@@ -278,19 +280,20 @@ impl<const N: usize> Lu<N> {
                 perm.swap(j, p);
             }
             let piv = lu[(j, j)];
-            if piv == 0.0 || !piv.is_finite() {
-                return Err(f64::INFINITY);
+            if piv == T::zero() || !piv.is_finite() {
+                return Err(T::INFINITY);
             }
             pmin = pmin.min(piv.abs());
             for i in (j + 1)..N {
                 let f = lu[(i, j)] / piv;
                 lu[(i, j)] = f;
                 for k in (j + 1)..N {
-                    lu[(i, k)] -= f * lu[(j, k)];
+                    let x = lu[(j, k)];
+                    lu[(i, k)] -= f * x;
                 }
             }
         }
-        let estimate = if N == 0 { 1.0 } else { norm / pmin };
+        let estimate = if N == 0 { T::one() } else { norm / pmin };
         if !(estimate <= limit) {
             return Err(estimate);
         }
@@ -298,8 +301,8 @@ impl<const N: usize> Lu<N> {
     }
 
     /// Solves `A x = b` in place.
-    pub(crate) fn solve(&self, b: &mut SVector<f64, N>) {
-        let mut y = SVector::<f64, N>::zeros();
+    pub(crate) fn solve(&self, b: &mut SVector<T, N>) {
+        let mut y = SVector::<T, N>::zeros();
         for i in 0..N {
             y[i] = b[self.perm[i]];
         }
@@ -336,7 +339,7 @@ impl<const N: usize> Lu<N> {
 /// robot's inverse-dynamics call went from 1.78 to 1.60 us). Anything
 /// else, and a block whose determinant is zero or not finite (e.g. by
 /// underflow), goes to [`gauss_jordan`].
-pub(crate) fn invert_in_place<const N: usize>(m: &mut SMatrix<f64, N, N>) -> bool {
+pub(crate) fn invert_in_place<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
     if let Some(blocks) = SmallBlocks::of(m) {
         let a = *m;
         if blocks.invert(&a, m) {
@@ -358,7 +361,7 @@ struct SmallBlocks<const N: usize> {
 }
 
 impl<const N: usize> SmallBlocks<N> {
-    fn of(a: &SMatrix<f64, N, N>) -> Option<Self> {
+    fn of<T: Scalar>(a: &SMatrix<T, N, N>) -> Option<Self> {
         let mut blocks = [(0u64, 0u64); N];
         if N <= 3 {
             // One block, whatever the pattern (the closed form is general).
@@ -379,7 +382,7 @@ impl<const N: usize> SmallBlocks<N> {
         for (j, col) in a.as_slice().chunks_exact(N).enumerate() {
             let mut rows = 0u64;
             for (i, x) in col.iter().enumerate() {
-                rows |= u64::from(*x != 0.0) << i;
+                rows |= u64::from(*x != T::zero()) << i;
             }
             let mut cols = 1u64 << j;
             let mut k = 0;
@@ -407,9 +410,9 @@ impl<const N: usize> SmallBlocks<N> {
 
     /// Writes the inverse of `a` to `inv`; `false` when a block's
     /// determinant is zero or not finite, or the inverse is not finite.
-    fn invert(&self, a: &SMatrix<f64, N, N>, inv: &mut SMatrix<f64, N, N>) -> bool {
+    fn invert<T: Scalar>(&self, a: &SMatrix<T, N, N>, inv: &mut SMatrix<T, N, N>) -> bool {
         // (Through the slice: nalgebra's `fill` is an element-wise loop.)
-        inv.as_mut_slice().fill(0.0);
+        inv.as_mut_slice().fill(T::zero());
         for &(rows, cols) in &self.blocks[..self.count] {
             let (mut r, mut c) = ([0usize; 3], [0usize; 3]);
             let size = bit_indices(rows, &mut r);
@@ -418,17 +421,17 @@ impl<const N: usize> SmallBlocks<N> {
             let b = |i: usize, j: usize| a[(r[i], c[j])];
             let ok = match size {
                 1 => {
-                    inv[(c[0], r[0])] = 1.0 / b(0, 0);
+                    inv[(c[0], r[0])] = T::one() / b(0, 0);
                     true
                 }
                 2 => {
                     let det = b(0, 0) * b(1, 1) - b(0, 1) * b(1, 0);
-                    let s = 1.0 / det;
+                    let s = T::one() / det;
                     inv[(c[0], r[0])] = b(1, 1) * s;
                     inv[(c[0], r[1])] = -b(0, 1) * s;
                     inv[(c[1], r[0])] = -b(1, 0) * s;
                     inv[(c[1], r[1])] = b(0, 0) * s;
-                    det != 0.0 && s.is_finite()
+                    det != T::zero() && s.is_finite()
                 }
                 _ => {
                     // Cofactors of the first row, the determinant, then the
@@ -437,7 +440,7 @@ impl<const N: usize> SmallBlocks<N> {
                     let c01 = b(1, 2) * b(2, 0) - b(1, 0) * b(2, 2);
                     let c02 = b(1, 0) * b(2, 1) - b(1, 1) * b(2, 0);
                     let det = b(0, 0) * c00 + b(0, 1) * c01 + b(0, 2) * c02;
-                    let s = 1.0 / det;
+                    let s = T::one() / det;
                     inv[(c[0], r[0])] = c00 * s;
                     inv[(c[1], r[0])] = c01 * s;
                     inv[(c[2], r[0])] = c02 * s;
@@ -447,7 +450,7 @@ impl<const N: usize> SmallBlocks<N> {
                     inv[(c[0], r[2])] = (b(0, 1) * b(1, 2) - b(0, 2) * b(1, 1)) * s;
                     inv[(c[1], r[2])] = (b(0, 2) * b(1, 0) - b(0, 0) * b(1, 2)) * s;
                     inv[(c[2], r[2])] = (b(0, 0) * b(1, 1) - b(0, 1) * b(1, 0)) * s;
-                    det != 0.0 && s.is_finite()
+                    det != T::zero() && s.is_finite()
                 }
             };
             if !ok {
@@ -478,7 +481,7 @@ fn bit_indices(mut mask: u64, out: &mut [usize; 3]) -> usize {
 /// cost less, with results identical to the dense elimination. Returns
 /// `false` (leaving `m` unspecified) when a pivot is zero or not finite, or
 /// the inverse has a non-finite entry.
-fn gauss_jordan<const N: usize>(m: &mut SMatrix<f64, N, N>) -> bool {
+fn gauss_jordan<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
     let mut pivots = [0usize; N];
     for k in 0..N {
         let mut p = k;
@@ -490,35 +493,35 @@ fn gauss_jordan<const N: usize>(m: &mut SMatrix<f64, N, N>) -> bool {
                 p = i;
             }
         }
-        if !(best > 0.0) || !best.is_finite() {
+        if !(best > T::zero()) || !best.is_finite() {
             return false;
         }
         pivots[k] = p;
         if p != k {
             m.swap_rows(k, p);
         }
-        let inv_pivot = 1.0 / m[(k, k)];
+        let inv_pivot = T::one() / m[(k, k)];
         // Multipliers (column k without the pivot row); column k becomes the
         // k-th unit vector, which the elimination turns into the k-th column
         // of the inverse in progress.
-        let mut f = [0.0f64; N];
+        let mut f = [T::zero(); N];
         // Rows with a non-zero multiplier.
         let mut rows = [0usize; N];
         let mut n_rows = 0;
         for (i, fi) in f.iter_mut().enumerate() {
             let x = m[(i, k)];
-            if i != k && x != 0.0 {
+            if i != k && x != T::zero() {
                 *fi = x;
                 rows[n_rows] = i;
                 n_rows += 1;
             }
         }
-        m.column_mut(k).fill(0.0);
-        m[(k, k)] = 1.0;
+        m.column_mut(k).fill(T::zero());
+        m[(k, k)] = T::one();
         let sparse = 4 * n_rows <= N;
         for col in m.as_mut_slice().chunks_exact_mut(N) {
             let ck = col[k];
-            if ck != 0.0 {
+            if ck != T::zero() {
                 let c = ck * inv_pivot;
                 if sparse {
                     for &i in &rows[..n_rows] {
@@ -526,7 +529,7 @@ fn gauss_jordan<const N: usize>(m: &mut SMatrix<f64, N, N>) -> bool {
                     }
                 } else {
                     for (x, fi) in col.iter_mut().zip(f.iter()) {
-                        *x -= fi * c;
+                        *x -= *fi * c;
                     }
                 }
                 col[k] = c;
@@ -546,31 +549,31 @@ fn gauss_jordan<const N: usize>(m: &mut SMatrix<f64, N, N>) -> bool {
 /// Thin singular value decomposition `A = U S V^T` of an `R x C` matrix by
 /// one-sided (Hestenes) Jacobi rotations. Works for any shape; when `C > R`
 /// at least `C - R` singular values are zero.
-pub(crate) struct Svd<const R: usize, const C: usize> {
+pub(crate) struct Svd<const R: usize, const C: usize, T: Scalar = f64> {
     /// Columns `sigma_j u_j` (i.e. `A V`).
-    us: SMatrix<f64, R, C>,
+    us: SMatrix<T, R, C>,
     /// Right singular vectors as columns.
-    v: SMatrix<f64, C, C>,
+    v: SMatrix<T, C, C>,
     /// Singular values (unsorted, aligned with the columns).
-    sigma: SVector<f64, C>,
+    sigma: SVector<T, C>,
     /// Indices of `sigma` in decreasing order.
     order: [usize; C],
 }
 
-impl<const R: usize, const C: usize> Svd<R, C> {
+impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
     /// Decomposes `a`; `Err(sweeps)` if the rotations have not converged
     /// (all column pairs orthogonal to working precision) within `max_sweeps`.
     /// `a` must be finite.
-    pub(crate) fn new(a: &SMatrix<f64, R, C>, max_sweeps: u32) -> Result<Self, u32> {
+    pub(crate) fn new(a: &SMatrix<T, R, C>, max_sweeps: u32) -> Result<Self, u32> {
         let mut w = *a;
-        let mut v = SMatrix::<f64, C, C>::identity();
+        let mut v = SMatrix::<T, C, C>::identity();
         // Columns below `eps |A|_F` are numerically zero (their singular
         // values are below it): rotating them against the others only
         // shuffles rounding errors and never meets the orthogonality test, so
         // pairs with such a column are skipped (exactly dependent columns,
         // e.g. repeated constraints, would otherwise never converge).
         let negligible = {
-            let e = f64::EPSILON * a.norm();
+            let e = T::EPSILON * a.norm();
             e * e
         };
         let mut converged = C < 2;
@@ -580,30 +583,35 @@ impl<const R: usize, const C: usize> Svd<R, C> {
             let mut rotated = false;
             for p in 0..C {
                 for q in (p + 1)..C {
-                    let mut alpha = 0.0;
-                    let mut beta = 0.0;
-                    let mut gamma = 0.0;
+                    let mut alpha = T::zero();
+                    let mut beta = T::zero();
+                    let mut gamma = T::zero();
                     for i in 0..R {
                         alpha += w[(i, p)] * w[(i, p)];
                         beta += w[(i, q)] * w[(i, q)];
                         gamma += w[(i, p)] * w[(i, q)];
                     }
-                    if gamma == 0.0
-                        || gamma.abs() <= f64::EPSILON * sqrt(alpha) * sqrt(beta)
+                    if gamma == T::zero()
+                        || gamma.abs()
+                            <= T::EPSILON * Scalar::square_root(alpha) * Scalar::square_root(beta)
                         || alpha <= negligible
                         || beta <= negligible
                     {
                         continue;
                     }
                     rotated = true;
-                    let zeta = (beta - alpha) / (2.0 * gamma);
-                    let t = if zeta.abs() > 1e100 {
-                        0.5 / zeta
+                    let zeta = (beta - alpha) / (T::of(2.0) * gamma);
+                    let t = if zeta.abs() > T::of(1e100) {
+                        T::of(0.5) / zeta
                     } else {
-                        let sgn = if zeta >= 0.0 { 1.0 } else { -1.0 };
-                        sgn / (zeta.abs() + sqrt(1.0 + zeta * zeta))
+                        let sgn = if zeta >= T::zero() {
+                            T::one()
+                        } else {
+                            -T::one()
+                        };
+                        sgn / (zeta.abs() + Scalar::square_root(T::one() + zeta * zeta))
                     };
-                    let c = 1.0 / sqrt(1.0 + t * t);
+                    let c = T::one() / Scalar::square_root(T::one() + t * t);
                     let s = c * t;
                     for i in 0..R {
                         let wp = w[(i, p)];
@@ -626,7 +634,7 @@ impl<const R: usize, const C: usize> Svd<R, C> {
         if !converged {
             return Err(sweep);
         }
-        let mut sigma = SVector::<f64, C>::zeros();
+        let mut sigma = SVector::<T, C>::zeros();
         for j in 0..C {
             sigma[j] = w.column(j).norm();
         }
@@ -651,29 +659,29 @@ impl<const R: usize, const C: usize> Svd<R, C> {
     }
 
     /// Largest singular value (0 for an empty matrix).
-    pub(crate) fn sigma_max(&self) -> f64 {
+    pub(crate) fn sigma_max(&self) -> T {
         if C == 0 {
-            0.0
+            T::zero()
         } else {
             self.sigma[self.order[0]]
         }
     }
 
     /// The `k`-th largest singular value (0-based); 0 if out of range.
-    pub(crate) fn sigma_sorted(&self, k: usize) -> f64 {
+    pub(crate) fn sigma_sorted(&self, k: usize) -> T {
         if k < C {
             self.sigma[self.order[k]]
         } else {
-            0.0
+            T::zero()
         }
     }
 
     /// Number of singular values above `rel_tol * sigma_max`.
-    pub(crate) fn rank(&self, rel_tol: f64) -> usize {
+    pub(crate) fn rank(&self, rel_tol: T) -> usize {
         let thr = rel_tol * self.sigma_max();
         let mut r = 0;
         for k in 0..C {
-            if self.sigma[self.order[k]] > thr && self.sigma[self.order[k]] > 0.0 {
+            if self.sigma[self.order[k]] > thr && self.sigma[self.order[k]] > T::zero() {
                 r += 1;
             }
         }
@@ -682,26 +690,26 @@ impl<const R: usize, const C: usize> Svd<R, C> {
 
     /// Condition of the leading `k` singular values, `sigma_1 / sigma_k`
     /// (`INFINITY` if `sigma_k` is zero, 1 for `k == 0`).
-    pub(crate) fn condition_of_leading(&self, k: usize) -> f64 {
+    pub(crate) fn condition_of_leading(&self, k: usize) -> T {
         if k == 0 {
-            return 1.0;
+            return T::one();
         }
         let sk = self.sigma_sorted(k - 1);
-        if sk > 0.0 {
+        if sk > T::zero() {
             self.sigma_max() / sk
         } else {
-            f64::INFINITY
+            T::INFINITY
         }
     }
 
     /// Least-squares minimum-norm solution of `A x = b` using the leading
     /// `rank` singular triplets.
-    pub(crate) fn solve(&self, b: &SVector<f64, R>, rank: usize, x: &mut SVector<f64, C>) {
-        x.fill(0.0);
+    pub(crate) fn solve(&self, b: &SVector<T, R>, rank: usize, x: &mut SVector<T, C>) {
+        x.fill(T::zero());
         for k in 0..rank.min(C) {
             let j = self.order[k];
             let s2 = self.sigma[j] * self.sigma[j];
-            if s2 > 0.0 {
+            if s2 > T::zero() {
                 let coef = self.us.column(j).dot(b) / s2;
                 *x += self.v.column(j) * coef;
             }
@@ -710,17 +718,12 @@ impl<const R: usize, const C: usize> Svd<R, C> {
 
     /// Least-squares minimum-norm solution of `A^T y = c` using the leading
     /// `rank` singular triplets.
-    pub(crate) fn solve_transpose(
-        &self,
-        c: &SVector<f64, C>,
-        rank: usize,
-        y: &mut SVector<f64, R>,
-    ) {
-        y.fill(0.0);
+    pub(crate) fn solve_transpose(&self, c: &SVector<T, C>, rank: usize, y: &mut SVector<T, R>) {
+        y.fill(T::zero());
         for k in 0..rank.min(C) {
             let j = self.order[k];
             let s2 = self.sigma[j] * self.sigma[j];
-            if s2 > 0.0 {
+            if s2 > T::zero() {
                 let coef = self.v.column(j).dot(c) / s2;
                 *y += self.us.column(j) * coef;
             }
@@ -730,11 +733,11 @@ impl<const R: usize, const C: usize> Svd<R, C> {
     /// Removes from `x` its component in the span of the leading `rank` left
     /// singular vectors (i.e. projects onto the orthogonal complement of the
     /// range of `A`).
-    pub(crate) fn remove_range(&self, x: &mut SVector<f64, R>, rank: usize) {
+    pub(crate) fn remove_range(&self, x: &mut SVector<T, R>, rank: usize) {
         for k in 0..rank.min(C) {
             let j = self.order[k];
             let s2 = self.sigma[j] * self.sigma[j];
-            if s2 > 0.0 {
+            if s2 > T::zero() {
                 let coef = self.us.column(j).dot(x) / s2;
                 *x -= self.us.column(j) * coef;
             }

@@ -13,11 +13,13 @@
 //! caller-provided fixed-size storage, allocates nothing and never panics;
 //! non-finite inputs propagate as non-finite outputs for the solver to detect.
 
+use crate::scalar::Scalar;
 use nalgebra::{SMatrix, SVector};
 
 /// Equations of motion of one scene: `NQ` generalized coordinates, `NC`
-/// holonomic constraints and `NU` actuator inputs.
-pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
+/// holonomic constraints and `NU` actuator inputs, computed in `T`
+/// (`f64` unless named; see [`Scalar`]).
+pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f64> {
     /// The scene's name.
     const NAME: &'static str;
     /// Names of the generalized coordinates, in order.
@@ -26,46 +28,41 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     const ACTUATORS: [&'static str; NU];
 
     /// Mass matrix `M(q, t)` (symmetric, positive definite).
-    fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>);
+    fn mass_matrix(&self, q: &SVector<T, NQ>, t: T, m: &mut SMatrix<T, NQ, NQ>);
 
     /// Bias forces `h(q, qd, t)`: Coriolis/centrifugal terms plus the gradient
     /// of the potential energy plus damping forces.
-    fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>);
+    fn bias(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T, h: &mut SVector<T, NQ>);
 
     /// Constraint residuals `Phi(q, t)`.
-    fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>);
+    fn constraints(&self, q: &SVector<T, NQ>, t: T, phi: &mut SVector<T, NC>);
 
     /// Constraint Jacobian `Phi_q(q, t)`.
-    fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>);
+    fn constraint_jacobian(&self, q: &SVector<T, NQ>, t: T, phi_q: &mut SMatrix<T, NC, NQ>);
 
     /// Explicit time derivative of the constraints, `Phi_t(q, t)`; the velocity
     /// constraint is `Phi_q qd + Phi_t = 0`.
-    fn constraint_time_derivative(
-        &self,
-        q: &SVector<f64, NQ>,
-        t: f64,
-        phi_t: &mut SVector<f64, NC>,
-    );
+    fn constraint_time_derivative(&self, q: &SVector<T, NQ>, t: T, phi_t: &mut SVector<T, NC>);
 
     /// Acceleration right-hand side `gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt`,
     /// so that `Phi_q qdd = gamma` on the constraint manifold.
     fn constraint_rhs(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        gamma: &mut SVector<f64, NC>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        gamma: &mut SVector<T, NC>,
     );
 
     /// Actuator map `B`: actuator `j` contributes `B[:, j] * tau[j]` to the
     /// generalized forces.
-    fn actuator_map(&self, b: &mut SMatrix<f64, NQ, NU>);
+    fn actuator_map(&self, b: &mut SMatrix<T, NQ, NU>);
 
     /// Kinetic energy `T(q, qd, t)`.
-    fn kinetic_energy(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> f64;
+    fn kinetic_energy(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T) -> T;
 
     /// Potential energy `V(q, t)` (gravity and elastic).
-    fn potential_energy(&self, q: &SVector<f64, NQ>, t: f64) -> f64;
+    fn potential_energy(&self, q: &SVector<T, NQ>, t: T) -> T;
 
     /// Optional analytic Jacobians of the bias forces: writes `h_q = dh/dq`
     /// and `h_qd = dh/dqd` (each `NQ x NQ`, entry `(i, j) = d h_i / d x_j`) and
@@ -75,11 +72,11 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     /// their Newton iteration matrix.
     fn bias_jacobians(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        h_q: &mut SMatrix<f64, NQ, NQ>,
-        h_qd: &mut SMatrix<f64, NQ, NQ>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        h_q: &mut SMatrix<T, NQ, NQ>,
+        h_qd: &mut SMatrix<T, NQ, NQ>,
     ) -> bool {
         let _ = (q, qd, t, h_q, h_qd);
         false
@@ -90,7 +87,7 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
 
     /// Set a runtime parameter by name; `false` when the model has no such
     /// parameter (nothing changes then).
-    fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+    fn set_parameter(&mut self, name: &str, value: T) -> bool {
         let _ = (name, value);
         false
     }
@@ -100,17 +97,17 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     /// energy. Returns `false` (writing nothing) when not generated.
     fn coriolis_forces(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        out: &mut SVector<f64, NQ>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        out: &mut SVector<T, NQ>,
     ) -> bool {
         let _ = (q, qd, t, out);
         false
     }
 
     /// Optional output (`forces`): gravity and elastic forces `dV/dq`.
-    fn potential_forces(&self, q: &SVector<f64, NQ>, t: f64, out: &mut SVector<f64, NQ>) -> bool {
+    fn potential_forces(&self, q: &SVector<T, NQ>, t: T, out: &mut SVector<T, NQ>) -> bool {
         let _ = (q, t, out);
         false
     }
@@ -118,10 +115,10 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     /// Optional output (`forces`): damping forces `dD/dqd`.
     fn damping_forces(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        out: &mut SVector<f64, NQ>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        out: &mut SVector<T, NQ>,
     ) -> bool {
         let _ = (q, qd, t, out);
         false
@@ -132,10 +129,10 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     /// `dM/dt - 2 C` skew-symmetric.
     fn coriolis_matrix(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        out: &mut SMatrix<f64, NQ, NQ>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        out: &mut SMatrix<T, NQ, NQ>,
     ) -> bool {
         let _ = (q, qd, t, out);
         false
@@ -148,10 +145,10 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     /// methods.
     fn constraints_and_jacobian(
         &self,
-        q: &SVector<f64, NQ>,
-        t: f64,
-        phi: &mut SVector<f64, NC>,
-        phi_q: &mut SMatrix<f64, NC, NQ>,
+        q: &SVector<T, NQ>,
+        t: T,
+        phi: &mut SVector<T, NC>,
+        phi_q: &mut SMatrix<T, NC, NQ>,
     ) {
         self.constraints(q, t, phi);
         self.constraint_jacobian(q, t, phi_q);
@@ -164,13 +161,13 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     #[allow(clippy::too_many_arguments)]
     fn dynamics_terms(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        m: &mut SMatrix<f64, NQ, NQ>,
-        h: &mut SVector<f64, NQ>,
-        phi_q: &mut SMatrix<f64, NC, NQ>,
-        gamma: &mut SVector<f64, NC>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        m: &mut SMatrix<T, NQ, NQ>,
+        h: &mut SVector<T, NQ>,
+        phi_q: &mut SMatrix<T, NC, NQ>,
+        gamma: &mut SVector<T, NC>,
     ) {
         self.mass_matrix(q, t, m);
         self.bias(q, qd, t, h);
@@ -185,16 +182,16 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
     /// forms `M` and `h` and multiplies.
     fn inverse_dynamics(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        qdd: &SVector<f64, NQ>,
-        t: f64,
-        tau: &mut SVector<f64, NQ>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        qdd: &SVector<T, NQ>,
+        t: T,
+        tau: &mut SVector<T, NQ>,
     ) {
-        let mut m = SMatrix::<f64, NQ, NQ>::zeros();
+        let mut m = SMatrix::<T, NQ, NQ>::zeros();
         self.mass_matrix(q, t, &mut m);
         self.bias(q, qd, t, tau);
-        tau.gemv(1.0, &m, qdd, 1.0);
+        tau.gemv(T::one(), &m, qdd, T::one());
     }
 }
 
@@ -208,71 +205,74 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize> {
 #[macro_export]
 macro_rules! forward_model {
     ($inner:tt: $M:ty, $NQ:tt, $NC:tt, $NU:tt) => {
-        const NAME: &'static str = <$M as $crate::Model<$NQ, $NC, $NU>>::NAME;
-        const COORDINATES: [&'static str; $NQ] = <$M as $crate::Model<$NQ, $NC, $NU>>::COORDINATES;
-        const ACTUATORS: [&'static str; $NU] = <$M as $crate::Model<$NQ, $NC, $NU>>::ACTUATORS;
+        $crate::forward_model!($inner: $M, $NQ, $NC, $NU, f64);
+    };
+    ($inner:tt: $M:ty, $NQ:tt, $NC:tt, $NU:tt, $T:ty) => {
+        const NAME: &'static str = <$M as $crate::Model<$NQ, $NC, $NU, $T>>::NAME;
+        const COORDINATES: [&'static str; $NQ] = <$M as $crate::Model<$NQ, $NC, $NU, $T>>::COORDINATES;
+        const ACTUATORS: [&'static str; $NU] = <$M as $crate::Model<$NQ, $NC, $NU, $T>>::ACTUATORS;
         fn mass_matrix(
             &self,
-            q: &$crate::nalgebra::SVector<f64, $NQ>,
-            t: f64,
-            m: &mut $crate::nalgebra::SMatrix<f64, $NQ, $NQ>,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            m: &mut $crate::nalgebra::SMatrix<$T, $NQ, $NQ>,
         ) {
             self.$inner.mass_matrix(q, t, m)
         }
         fn constraints(
             &self,
-            q: &$crate::nalgebra::SVector<f64, $NQ>,
-            t: f64,
-            phi: &mut $crate::nalgebra::SVector<f64, $NC>,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            phi: &mut $crate::nalgebra::SVector<$T, $NC>,
         ) {
             self.$inner.constraints(q, t, phi)
         }
         fn constraint_jacobian(
             &self,
-            q: &$crate::nalgebra::SVector<f64, $NQ>,
-            t: f64,
-            phi_q: &mut $crate::nalgebra::SMatrix<f64, $NC, $NQ>,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            phi_q: &mut $crate::nalgebra::SMatrix<$T, $NC, $NQ>,
         ) {
             self.$inner.constraint_jacobian(q, t, phi_q)
         }
         fn constraints_and_jacobian(
             &self,
-            q: &$crate::nalgebra::SVector<f64, $NQ>,
-            t: f64,
-            phi: &mut $crate::nalgebra::SVector<f64, $NC>,
-            phi_q: &mut $crate::nalgebra::SMatrix<f64, $NC, $NQ>,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            phi: &mut $crate::nalgebra::SVector<$T, $NC>,
+            phi_q: &mut $crate::nalgebra::SMatrix<$T, $NC, $NQ>,
         ) {
             self.$inner.constraints_and_jacobian(q, t, phi, phi_q)
         }
         fn constraint_time_derivative(
             &self,
-            q: &$crate::nalgebra::SVector<f64, $NQ>,
-            t: f64,
-            phi_t: &mut $crate::nalgebra::SVector<f64, $NC>,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            phi_t: &mut $crate::nalgebra::SVector<$T, $NC>,
         ) {
             self.$inner.constraint_time_derivative(q, t, phi_t)
         }
         fn constraint_rhs(
             &self,
-            q: &$crate::nalgebra::SVector<f64, $NQ>,
-            qd: &$crate::nalgebra::SVector<f64, $NQ>,
-            t: f64,
-            gamma: &mut $crate::nalgebra::SVector<f64, $NC>,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            qd: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            gamma: &mut $crate::nalgebra::SVector<$T, $NC>,
         ) {
             self.$inner.constraint_rhs(q, qd, t, gamma)
         }
-        fn actuator_map(&self, b: &mut $crate::nalgebra::SMatrix<f64, $NQ, $NU>) {
+        fn actuator_map(&self, b: &mut $crate::nalgebra::SMatrix<$T, $NQ, $NU>) {
             self.$inner.actuator_map(b)
         }
         fn kinetic_energy(
             &self,
-            q: &$crate::nalgebra::SVector<f64, $NQ>,
-            qd: &$crate::nalgebra::SVector<f64, $NQ>,
-            t: f64,
-        ) -> f64 {
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            qd: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+        ) -> $T {
             self.$inner.kinetic_energy(q, qd, t)
         }
-        fn potential_energy(&self, q: &$crate::nalgebra::SVector<f64, $NQ>, t: f64) -> f64 {
+        fn potential_energy(&self, q: &$crate::nalgebra::SVector<$T, $NQ>, t: $T) -> $T {
             self.$inner.potential_energy(q, t)
         }
     };
@@ -286,38 +286,38 @@ macro_rules! forward_model {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct FiniteDifferenceJacobians<M>(pub M);
 
-impl<M, const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
+impl<M, const NQ: usize, const NC: usize, const NU: usize, T: Scalar> Model<NQ, NC, NU, T>
     for FiniteDifferenceJacobians<M>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
-    crate::forward_model!(0: M, NQ, NC, NU);
-    fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
+    crate::forward_model!(0: M, NQ, NC, NU, T);
+    fn bias(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T, h: &mut SVector<T, NQ>) {
         self.0.bias(q, qd, t, h)
     }
     const PARAMETERS: &'static [&'static str] = M::PARAMETERS;
-    fn set_parameter(&mut self, name: &str, value: f64) -> bool {
+    fn set_parameter(&mut self, name: &str, value: T) -> bool {
         self.0.set_parameter(name, value)
     }
     fn dynamics_terms(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        m: &mut SMatrix<f64, NQ, NQ>,
-        h: &mut SVector<f64, NQ>,
-        phi_q: &mut SMatrix<f64, NC, NQ>,
-        gamma: &mut SVector<f64, NC>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        m: &mut SMatrix<T, NQ, NQ>,
+        h: &mut SVector<T, NQ>,
+        phi_q: &mut SMatrix<T, NC, NQ>,
+        gamma: &mut SVector<T, NC>,
     ) {
         self.0.dynamics_terms(q, qd, t, m, h, phi_q, gamma)
     }
     fn inverse_dynamics(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        qdd: &SVector<f64, NQ>,
-        t: f64,
-        tau: &mut SVector<f64, NQ>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        qdd: &SVector<T, NQ>,
+        t: T,
+        tau: &mut SVector<T, NQ>,
     ) {
         self.0.inverse_dynamics(q, qd, qdd, t, tau)
     }

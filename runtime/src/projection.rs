@@ -10,44 +10,45 @@ use crate::dynamics::Kkt;
 use crate::error::{Error, ErrorKind, Quantity, Stage};
 use crate::eval;
 use crate::model::Model;
+use crate::scalar::Scalar;
 use crate::state::{inf_norm, Drift, State};
 use nalgebra::SVector;
 
 /// Configuration of [`project`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ProjectionConfig {
+pub struct ProjectionConfig<T: Scalar = f64> {
     /// Target `max |Phi|` after projection (model units).
-    pub position_tolerance: f64,
+    pub position_tolerance: T,
     /// Velocity residual `max |Phi_q qd + Phi_t|` above which velocities are projected.
-    pub velocity_tolerance: f64,
+    pub velocity_tolerance: T,
     /// Cap on Newton iterations for the position projection.
     pub max_iterations: u32,
     /// Largest accepted condition estimate of `Phi_q M^-1 Phi_q^T`.
-    pub max_condition: f64,
+    pub max_condition: T,
 }
 
-impl Default for ProjectionConfig {
+impl<T: Scalar> Default for ProjectionConfig<T> {
     fn default() -> Self {
         ProjectionConfig {
-            position_tolerance: 1e-12,
-            velocity_tolerance: 1e-12,
+            position_tolerance: T::POSITION_TOLERANCE,
+            velocity_tolerance: T::POSITION_TOLERANCE,
             max_iterations: 8,
-            max_condition: 1e12,
+            max_condition: T::KKT_MAX_CONDITION,
         }
     }
 }
 
 /// What a projection did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ProjectionReport {
+pub struct ProjectionReport<T: Scalar = f64> {
     /// Newton iterations of the position projection (0 if already within tolerance).
     pub iterations: u32,
     /// True if the velocities were projected.
     pub velocity_projected: bool,
     /// Drift before projection.
-    pub before: Drift,
+    pub before: Drift<T>,
     /// Drift after projection.
-    pub after: Drift,
+    pub after: Drift<T>,
 }
 
 /// Projects `state.q` and `state.qd` onto the constraint manifold at
@@ -59,15 +60,15 @@ pub struct ProjectionReport {
 /// `position_tolerance`). Every error names the projection and its tolerance
 /// in [`Error::stage`] ([`Stage::PositionProjection`] or
 /// [`Stage::VelocityProjection`]).
-pub fn project<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn project<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    state: &mut State<NQ>,
-    config: &ProjectionConfig,
-) -> Result<ProjectionReport, Error>
+    state: &mut State<NQ, T>,
+    config: &ProjectionConfig<T>,
+) -> Result<ProjectionReport<T>, Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
-    project_with(model, state, config, 0.0, false)
+    project_with(model, state, config, T::zero(), false)
 }
 
 /// [`project`], optionally (`velocity_from_position_dt > 0`) adding the
@@ -75,64 +76,93 @@ where
 /// velocity projection (SHAKE-style consistency for schemes with
 /// `q_{n+1} = q_n + dt qd_{n+1}`); `after_step` marks the errors' stage as
 /// run by an integrator after its step.
-pub(crate) fn project_with<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn project_with<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    state: &mut State<NQ>,
-    config: &ProjectionConfig,
-    velocity_from_position_dt: f64,
+    state: &mut State<NQ, T>,
+    config: &ProjectionConfig<T>,
+    velocity_from_position_dt: T,
     after_step: bool,
-) -> Result<ProjectionReport, Error>
+) -> Result<ProjectionReport<T>, Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     if NC == 0 {
         return Ok(ProjectionReport::default());
     }
     state.check_finite()?;
+    project_finite(model, state, config, velocity_from_position_dt, after_step)
+}
+
+/// [`project_with`] on a finite state: the solves, with their matrices on
+/// the stack (hundreds of KiB for the padded models of the root crate).
+///
+/// Kept out of line so that no cheap early return precedes the large frame.
+/// With such a return (the finiteness check above) LLVM's x86-64 backend
+/// may shrink-wrap the prologue, moving it after that check; the prologue's
+/// inline stack probe loop uses `r11` as its scratch register without
+/// checking that it is free there, and when the register allocator had
+/// kept a value in `r11` across the check (here the address of
+/// `state.qd`), the probe overwrote it: the velocity projection then read
+/// `qd` from probed stack memory. Seen with rustc 1.95 on the padded
+/// (64, 24, 8) model: a velocity drift of 0.68 before projection instead
+/// of 1e-6, torques off by 1.7e-5 N m, vanishing with `-C codegen-units=1`
+/// or any change of the inlining (the same class of bug as LLVM's RISC-V
+/// issue 198699). Here the frame is set up on entry, before any branch.
+#[inline(never)]
+fn project_finite<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+    model: &M,
+    state: &mut State<NQ, T>,
+    config: &ProjectionConfig<T>,
+    velocity_from_position_dt: T,
+    after_step: bool,
+) -> Result<ProjectionReport<T>, Error>
+where
+    M: Model<NQ, NC, NU, T>,
+{
     let positions = project_positions(model, state, config).map_err(|e| {
         e.in_stage(Stage::PositionProjection {
-            tolerance: config.position_tolerance,
+            tolerance: config.position_tolerance.into(),
             after_step,
         })
     })?;
     project_velocities(model, state, config, velocity_from_position_dt, positions).map_err(|e| {
         e.in_stage(Stage::VelocityProjection {
-            tolerance: config.velocity_tolerance,
+            tolerance: config.velocity_tolerance.into(),
             after_step,
         })
     })
 }
 
 /// Result of the position part of [`project_with`].
-struct Positions<const NQ: usize, const NC: usize> {
+struct Positions<const NQ: usize, const NC: usize, T: Scalar> {
     /// Projected positions.
-    q: SVector<f64, NQ>,
+    q: SVector<T, NQ>,
     /// Constraint residuals there.
-    phi: SVector<f64, NC>,
+    phi: SVector<T, NC>,
     /// Newton iterations.
     iterations: u32,
     /// Drift before (the velocity part still 0).
-    before: Drift,
+    before: Drift<T>,
 }
 
 /// The position part of [`project_with`].
-fn project_positions<M, const NQ: usize, const NC: usize, const NU: usize>(
+fn project_positions<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    state: &State<NQ>,
-    config: &ProjectionConfig,
-) -> Result<Positions<NQ, NC>, Error>
+    state: &State<NQ, T>,
+    config: &ProjectionConfig<T>,
+) -> Result<Positions<NQ, NC, T>, Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     let t = state.t;
     let mut q = state.q;
     let m0 = eval::mass(model, &q, t)?;
-    let zero_f = SVector::<f64, NQ>::zeros();
+    let zero_f = SVector::<T, NQ>::zeros();
     let mut iterations = 0u32;
     let mut phi = eval::constraints(model, &q, t)?;
     let before = Drift {
         position: inf_norm(&phi),
-        velocity: 0.0,
+        velocity: T::zero(),
     };
     loop {
         let res = inf_norm(&phi);
@@ -143,8 +173,8 @@ where
             return Err(Error::new(
                 ErrorKind::NewtonNotConverged {
                     iterations,
-                    residual: res,
-                    tolerance: config.position_tolerance,
+                    residual: res.into(),
+                    tolerance: config.position_tolerance.into(),
                 },
                 t,
             ));
@@ -167,15 +197,15 @@ where
 
 /// The velocity part of [`project_with`], at the projected positions `q`;
 /// writes `state` only on success.
-fn project_velocities<M, const NQ: usize, const NC: usize, const NU: usize>(
+fn project_velocities<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    state: &mut State<NQ>,
-    config: &ProjectionConfig,
-    velocity_from_position_dt: f64,
-    positions: Positions<NQ, NC>,
-) -> Result<ProjectionReport, Error>
+    state: &mut State<NQ, T>,
+    config: &ProjectionConfig<T>,
+    velocity_from_position_dt: T,
+    positions: Positions<NQ, NC, T>,
+) -> Result<ProjectionReport<T>, Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     let Positions {
         q,
@@ -184,7 +214,7 @@ where
         mut before,
     } = positions;
     let t = state.t;
-    let zero_f = SVector::<f64, NQ>::zeros();
+    let zero_f = SVector::<T, NQ>::zeros();
     let phi_q = eval::constraint_jacobian(model, &q, t)?;
     let phi_t = eval::constraint_time_derivative(model, &q, t)?;
     let mut qd = state.qd;
@@ -193,7 +223,7 @@ where
         let phi_t0 = eval::constraint_time_derivative(model, &state.q, t)?;
         before.velocity = inf_norm(&(phi_q0 * state.qd + phi_t0));
     }
-    if velocity_from_position_dt > 0.0 {
+    if velocity_from_position_dt > T::zero() {
         qd += (q - state.q) / velocity_from_position_dt;
     }
     let vres = phi_q * qd + phi_t;

@@ -3,28 +3,29 @@
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::linalg::first_non_finite;
 use crate::model::Model;
+use crate::scalar::Scalar;
 use nalgebra::{SMatrix, SVector};
 
 /// State of a simulation: generalized coordinates, velocities and time.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct State<const NQ: usize> {
+pub struct State<const NQ: usize, T: Scalar = f64> {
     /// Generalized coordinates `q`.
-    pub q: SVector<f64, NQ>,
+    pub q: SVector<T, NQ>,
     /// Generalized velocities `qd`.
-    pub qd: SVector<f64, NQ>,
+    pub qd: SVector<T, NQ>,
     /// Time `t`.
-    pub t: f64,
+    pub t: T,
 }
 
-impl<const NQ: usize> State<NQ> {
+impl<T: Scalar, const NQ: usize> State<NQ, T> {
     /// Creates a state.
-    pub fn new(q: SVector<f64, NQ>, qd: SVector<f64, NQ>, t: f64) -> Self {
+    pub fn new(q: SVector<T, NQ>, qd: SVector<T, NQ>, t: T) -> Self {
         State { q, qd, t }
     }
 
     /// Checks that `q`, `qd` and `t` are finite.
     pub fn check_finite(&self) -> Result<(), Error> {
-        if !self.t.is_finite() {
+        if !self.t.finite() {
             return Err(Error::new(
                 ErrorKind::NonFiniteState {
                     quantity: Quantity::Time,
@@ -57,45 +58,45 @@ impl<const NQ: usize> State<NQ> {
     /// True if the two states are bit-for-bit identical (used to validate
     /// integrator memory).
     pub(crate) fn same_bits(&self, other: &Self) -> bool {
-        self.t.to_bits() == other.t.to_bits()
+        bits(self.t) == bits(other.t)
             && self
                 .q
                 .iter()
                 .zip(other.q.iter())
-                .all(|(a, b)| a.to_bits() == b.to_bits())
+                .all(|(a, b)| bits(*a) == bits(*b))
             && self
                 .qd
                 .iter()
                 .zip(other.qd.iter())
-                .all(|(a, b)| a.to_bits() == b.to_bits())
+                .all(|(a, b)| bits(*a) == bits(*b))
     }
 }
 
 /// Constraint drift of a state: infinity norms of the position residual
 /// `Phi(q, t)` and of the velocity residual `Phi_q qd + Phi_t`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Drift {
+pub struct Drift<T: Scalar = f64> {
     /// `max_i |Phi_i(q, t)|`.
-    pub position: f64,
+    pub position: T,
     /// `max_i |(Phi_q qd + Phi_t)_i|`.
-    pub velocity: f64,
+    pub velocity: T,
 }
 
 /// Measures the constraint drift of `state`. Non-finite model outputs give a
 /// non-finite drift (no error: this is a diagnostic).
-pub fn constraint_drift<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn constraint_drift<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    state: &State<NQ>,
-) -> Drift
+    state: &State<NQ, T>,
+) -> Drift<T>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     if NC == 0 {
         return Drift::default();
     }
-    let mut phi = SVector::<f64, NC>::zeros();
-    let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
-    let mut phi_t = SVector::<f64, NC>::zeros();
+    let mut phi = SVector::<T, NC>::zeros();
+    let mut phi_q = SMatrix::<T, NC, NQ>::zeros();
+    let mut phi_t = SVector::<T, NC>::zeros();
     model.constraints(&state.q, state.t, &mut phi);
     model.constraint_jacobian(&state.q, state.t, &mut phi_q);
     model.constraint_time_derivative(&state.q, state.t, &mut phi_t);
@@ -107,17 +108,23 @@ where
 }
 
 /// Total mechanical energy `T + V` of `state`.
-pub fn total_energy<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn total_energy<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    state: &State<NQ>,
-) -> f64
+    state: &State<NQ, T>,
+) -> T
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     model.kinetic_energy(&state.q, &state.qd, state.t) + model.potential_energy(&state.q, state.t)
 }
 
 /// Infinity norm of a vector (NaN if any entry is NaN; 0 for an empty vector).
-pub(crate) fn inf_norm<const N: usize>(v: &SVector<f64, N>) -> f64 {
+pub(crate) fn inf_norm<T: Scalar, const N: usize>(v: &SVector<T, N>) -> T {
     crate::linalg::max_abs(v)
+}
+
+/// The bits of `x` widened to `f64` (exact, so equal bits mean equal values).
+fn bits<T: Scalar>(x: T) -> u64 {
+    let x: f64 = x.into();
+    x.to_bits()
 }

@@ -111,10 +111,10 @@ pub enum Precision {
     /// `f64`: the module implements the runtime's `Model` trait.
     #[default]
     F64,
-    /// `f32` (for microcontrollers with a single-precision FPU): the module's
-    /// functions are inherent methods of the model struct with the same
-    /// signatures in `f32`, calling the runtime's `math::f32`; the runtime's
-    /// solvers, which are `f64`, do not take such a model.
+    /// `f32` (for microcontrollers with a single-precision FPU): the module
+    /// implements `Model<NQ, NC, NU, f32>` (the same functions in `f32`,
+    /// calling the runtime's `math::f32`), which the runtime's solvers take
+    /// as they take an `f64` model.
     F32,
 }
 

@@ -244,6 +244,8 @@ pub struct Bench {
     pub t: f64,
     /// Its actuator torques.
     pub tau: Vec<f64>,
+    /// The actuator torques of the last f32 inverse-dynamics call.
+    pub tau_f32: Vec<f32>,
 }
 
 /// Runs `elf` on QEMU's mps2-an386 (Cortex-M4F) with semihosting and
@@ -296,6 +298,7 @@ pub fn parse_bench(stdout: &str) -> Result<Bench, String> {
         counts: Vec::new(),
         t: f64::NAN,
         tau: Vec::new(),
+        tau_f32: Vec::new(),
     };
     let mut done = false;
     for l in stdout.lines().map(str::trim).filter(|l| !l.is_empty()) {
@@ -308,6 +311,11 @@ pub fn parse_bench(stdout: &str) -> Result<Bench, String> {
             }),
             ["t", bits] => bench.t = hex_f64(bits).ok_or_else(|| bad(l))?,
             ["tau", _, bits] => bench.tau.push(hex_f64(bits).ok_or_else(|| bad(l))?),
+            ["tau_f32", _, bits] => bench.tau_f32.push(
+                u32::from_str_radix(bits, 16)
+                    .map(f32::from_bits)
+                    .map_err(|_| bad(l))?,
+            ),
             ["done"] => done = true,
             _ => return Err(bad(l)),
         }

@@ -8,6 +8,7 @@ use crate::eval;
 use crate::input::Input;
 use crate::linalg::all_finite;
 use crate::model::Model;
+use crate::scalar::Scalar;
 use crate::state::State;
 use nalgebra::SVector;
 
@@ -41,31 +42,33 @@ const A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
 /// that would let the iteration contract. Errors of the model evaluations
 /// inside the iteration name the sweep ([`crate::Stage::StageIteration`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GaussLegendre4 {
+pub struct GaussLegendre4<T: Scalar = f64> {
     /// Shared settings.
-    pub settings: StepSettings,
+    pub settings: StepSettings<T>,
     /// Cap on fixed-point sweeps per step.
     pub max_iterations: u32,
-    /// Relative tolerance of the stage iteration.
-    pub rtol: f64,
-    /// Absolute tolerance of the stage iteration.
-    pub atol: f64,
+    /// Relative tolerance of the stage iteration (default `1e-13`, at
+    /// least `100 eps`: `1.2e-5` in f32).
+    pub rtol: T,
+    /// Absolute tolerance of the stage iteration (default `1e-15`, at
+    /// least `eps`: `1.2e-7` in f32).
+    pub atol: T,
 }
 
-impl Default for GaussLegendre4 {
+impl<T: Scalar> Default for GaussLegendre4<T> {
     fn default() -> Self {
         GaussLegendre4 {
             settings: StepSettings::default(),
             max_iterations: 50,
-            rtol: 1e-13,
-            atol: 1e-15,
+            rtol: T::of(1e-13).max(T::EPSILON * T::of(100.0)),
+            atol: T::of(1e-15).max(T::EPSILON),
         }
     }
 }
 
-impl GaussLegendre4 {
+impl<T: Scalar> GaussLegendre4<T> {
     /// Gauss–Legendre with the given settings and default iteration control.
-    pub fn new(settings: StepSettings) -> Self {
+    pub fn new(settings: StepSettings<T>) -> Self {
         GaussLegendre4 {
             settings,
             ..Self::default()
@@ -73,33 +76,41 @@ impl GaussLegendre4 {
     }
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for GaussLegendre4 {
-    fn settings_mut(&mut self) -> &mut StepSettings {
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
+    for GaussLegendre4<T>
+{
+    fn settings_mut(&mut self) -> &mut StepSettings<T> {
         &mut self.settings
     }
 
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut State<NQ, T>,
         input: &I,
-        dt: f64,
-    ) -> Result<StepReport, Error>
+        dt: T,
+    ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Model<NQ, NC, NU, T>,
+        I: Input<NU, T> + ?Sized,
     {
         begin_step(state, dt, self.settings.max_step)?;
         let (t, h) = (state.t, dt);
         let dyn_cfg = &self.settings.dynamics;
-        let in_sweep =
-            |sweep: u32| move |e: Error| e.in_stage(Stage::StageIteration { dt: h, sweep });
-        let failed = |sweeps: u32, increment: f64, diverged: bool| {
+        let in_sweep = |sweep: u32| {
+            move |e: Error| {
+                e.in_stage(Stage::StageIteration {
+                    dt: h.into(),
+                    sweep,
+                })
+            }
+        };
+        let failed = |sweeps: u32, increment: T, diverged: bool| {
             let e = Error::new(
                 ErrorKind::StageIterationFailed {
-                    dt: h,
+                    dt: h.into(),
                     sweeps,
-                    increment,
+                    increment: increment.into(),
                     diverged,
                     rate: None,
                 },
@@ -111,27 +122,27 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
         let mut acc = [a0, a0];
         let mut vel = [state.qd; 2];
         let mut iterations = 0u32;
-        let mut err = f64::INFINITY;
+        let mut err = T::INFINITY;
         // Sweeps in a row whose increment grew: two mean divergence.
         let mut growing = 0u32;
         while iterations < self.max_iterations {
             iterations += 1;
             for i in 0..2 {
-                vel[i] = state.qd + (acc[0] * A[i][0] + acc[1] * A[i][1]) * h;
+                vel[i] = state.qd + (acc[0] * T::of(A[i][0]) + acc[1] * T::of(A[i][1])) * h;
             }
-            let mut new = [SVector::<f64, NQ>::zeros(); 2];
+            let mut new = [SVector::<T, NQ>::zeros(); 2];
             for i in 0..2 {
-                let qi = state.q + (vel[0] * A[i][0] + vel[1] * A[i][1]) * h;
+                let qi = state.q + (vel[0] * T::of(A[i][0]) + vel[1] * T::of(A[i][1])) * h;
                 // A diverging iteration reaches non-finite stage values
                 // first; no model call sees them.
                 if !all_finite(&qi) || !all_finite(&vel[i]) {
-                    return Err(failed(iterations, f64::INFINITY, true));
+                    return Err(failed(iterations, T::INFINITY, true));
                 }
-                new[i] = qdd_at(model, dyn_cfg, &qi, &vel[i], t + C[i] * h, input)
+                new[i] = qdd_at(model, dyn_cfg, &qi, &vel[i], t + T::of(C[i]) * h, input)
                     .map_err(in_sweep(iterations))?;
             }
             let previous = err;
-            err = 0.0;
+            err = T::zero();
             for i in 0..2 {
                 let d = new[i] - acc[i];
                 for k in 0..NQ {
@@ -141,7 +152,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
                 }
             }
             acc = new;
-            if err <= 1.0 {
+            if err <= T::one() {
                 break;
             }
             growing = if err > previous { growing + 1 } else { 0 };
@@ -149,14 +160,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
                 return Err(failed(iterations, err, true));
             }
         }
-        if !(err <= 1.0) {
+        if !(err <= T::one()) {
             return Err(failed(iterations, err, false));
         }
         for i in 0..2 {
-            vel[i] = state.qd + (acc[0] * A[i][0] + acc[1] * A[i][1]) * h;
+            vel[i] = state.qd + (acc[0] * T::of(A[i][0]) + acc[1] * T::of(A[i][1])) * h;
         }
-        let q = state.q + (vel[0] + vel[1]) * (0.5 * h);
-        let qd = state.qd + (acc[0] + acc[1]) * (0.5 * h);
+        let q = state.q + (vel[0] + vel[1]) * (T::of(0.5) * h);
+        let qd = state.qd + (acc[0] + acc[1]) * (T::of(0.5) * h);
         eval::check_result(&q, Quantity::Position, t)?;
         eval::check_result(&qd, Quantity::Velocity, t)?;
         let mut next = State { q, qd, t: t + h };
@@ -166,7 +177,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
             t: next.t,
             dt,
             iterations,
-            stability_estimate: 0.0,
+            stability_estimate: T::zero(),
             projection,
             drift,
         })

@@ -39,35 +39,35 @@ use crate::dynamics::{accelerations, DynamicsConfig};
 use crate::error::{Error, ErrorKind};
 use crate::eval;
 use crate::input::Input;
-use crate::math::sqrt;
 use crate::model::Model;
 use crate::projection::{project_with, ProjectionConfig, ProjectionReport};
+use crate::scalar::Scalar;
 use crate::state::{constraint_drift, Drift, State};
 use nalgebra::SVector;
 
 /// Settings shared by all integrators.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StepSettings {
+pub struct StepSettings<T: Scalar = f64> {
     /// Constrained acceleration solve (Baumgarte gains, conditioning limit).
-    pub dynamics: DynamicsConfig,
+    pub dynamics: DynamicsConfig<T>,
     /// Coordinate projection after every step, if set.
-    pub projection: Option<ProjectionConfig>,
+    pub projection: Option<ProjectionConfig<T>>,
     /// Largest accepted step size; larger steps fail with
     /// [`ErrorKind::StepTooLarge`]. Default: no limit.
-    pub max_step: f64,
+    pub max_step: T,
 }
 
-impl Default for StepSettings {
+impl<T: Scalar> Default for StepSettings<T> {
     fn default() -> Self {
         StepSettings {
             dynamics: DynamicsConfig::default(),
             projection: None,
-            max_step: f64::INFINITY,
+            max_step: T::INFINITY,
         }
     }
 }
 
-impl StepSettings {
+impl<T: Scalar> StepSettings<T> {
     /// Default settings with coordinate projection after every step.
     pub fn with_projection() -> Self {
         StepSettings {
@@ -79,11 +79,11 @@ impl StepSettings {
 
 /// What one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct StepReport {
+pub struct StepReport<T: Scalar = f64> {
     /// Time after the step.
-    pub t: f64,
+    pub t: T,
     /// Step size taken.
-    pub dt: f64,
+    pub dt: T,
     /// Iteration count: Newton iterations ([`GeneralizedAlpha`]), stage
     /// fixed-point sweeps ([`GaussLegendre4`]), accepted substeps
     /// ([`AdaptiveRk4`] used as an [`Integrator`]); 0 for the fixed-step
@@ -92,62 +92,62 @@ pub struct StepReport {
     /// Explicit schemes ([`Rk4`], [`AdaptiveRk4`], [`SemiImplicitEuler`]
     /// with its check on): estimate of `dt * rho(J)` (spectral radius of
     /// the linearised dynamics) from the RK stages; 0 where not measured.
-    pub stability_estimate: f64,
+    pub stability_estimate: T,
     /// The projection performed after the step, if any.
-    pub projection: Option<ProjectionReport>,
+    pub projection: Option<ProjectionReport<T>>,
     /// Constraint drift of the state after the step (after projection).
-    pub drift: Drift,
+    pub drift: Drift<T>,
 }
 
 /// A time integrator: advances `state` by `dt` under the input `input`.
-pub trait Integrator<const NQ: usize, const NC: usize, const NU: usize> {
+pub trait Integrator<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f64> {
     /// Advances `state` by `dt`. On error the state (and any integrator
     /// memory) is left as it was before the call.
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut State<NQ, T>,
         input: &I,
-        dt: f64,
-    ) -> Result<StepReport, Error>
+        dt: T,
+    ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized;
+        M: Model<NQ, NC, NU, T>,
+        I: Input<NU, T> + ?Sized;
 
     /// The integrator's step settings (e.g. for [`crate::control::servo_run`]
     /// to take its trial step without the coordinate projection).
-    fn settings_mut(&mut self) -> &mut StepSettings;
+    fn settings_mut(&mut self) -> &mut StepSettings<T>;
 }
 
 /// Summary of [`run`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct RunSummary {
+pub struct RunSummary<T: Scalar = f64> {
     /// Steps taken.
     pub steps: usize,
     /// Largest position and velocity drift seen after any step.
-    pub max_drift: Drift,
+    pub max_drift: Drift<T>,
     /// Largest Newton iteration count of any step.
     pub max_iterations: u32,
 }
 
 /// Takes `steps` steps of size `dt`, calling `observe` after each. Stops at the
 /// first error (the state is then the one before the failed step).
-pub fn run<G, M, I, F, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn run<G, M, I, F, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     integrator: &mut G,
     model: &M,
-    state: &mut State<NQ>,
+    state: &mut State<NQ, T>,
     input: &I,
-    dt: f64,
+    dt: T,
     steps: usize,
     mut observe: F,
-) -> Result<RunSummary, Error>
+) -> Result<RunSummary<T>, Error>
 where
-    G: Integrator<NQ, NC, NU>,
-    M: Model<NQ, NC, NU>,
-    I: Input<NU> + ?Sized,
-    F: FnMut(&State<NQ>, &StepReport),
+    G: Integrator<NQ, NC, NU, T>,
+    M: Model<NQ, NC, NU, T>,
+    I: Input<NU, T> + ?Sized,
+    F: FnMut(&State<NQ, T>, &StepReport<T>),
 {
-    let mut summary = RunSummary::default();
+    let mut summary = RunSummary::<T>::default();
     for _ in 0..steps {
         let report = integrator.step(model, state, input, dt)?;
         summary.steps += 1;
@@ -160,21 +160,24 @@ where
 }
 
 /// Validates the state and the step size at the start of a step.
-pub(crate) fn begin_step<const NQ: usize>(
-    state: &State<NQ>,
-    dt: f64,
-    max_step: f64,
+pub(crate) fn begin_step<T: Scalar, const NQ: usize>(
+    state: &State<NQ, T>,
+    dt: T,
+    max_step: T,
 ) -> Result<(), Error> {
     state.check_finite()?;
-    if !(dt > 0.0) || !dt.is_finite() || !(state.t + dt).is_finite() {
-        return Err(Error::new(ErrorKind::InvalidStepSize { dt }, state.t));
+    if !(dt > T::zero()) || !dt.is_finite() || !(state.t + dt).is_finite() {
+        return Err(Error::new(
+            ErrorKind::InvalidStepSize { dt: dt.into() },
+            state.t,
+        ));
     }
     if dt > max_step {
         return Err(Error::new(
             ErrorKind::StepTooLarge {
-                dt,
-                value: dt,
-                limit: max_step,
+                dt: dt.into(),
+                value: dt.into(),
+                limit: max_step.into(),
                 rate: None,
             },
             state.t,
@@ -184,17 +187,17 @@ pub(crate) fn begin_step<const NQ: usize>(
 }
 
 /// Accelerations at `(q, qd, t)` with the input sampled at `t`.
-pub(crate) fn qdd_at<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn qdd_at<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    config: &DynamicsConfig,
-    q: &SVector<f64, NQ>,
-    qd: &SVector<f64, NQ>,
-    t: f64,
+    config: &DynamicsConfig<T>,
+    q: &SVector<T, NQ>,
+    qd: &SVector<T, NQ>,
+    t: T,
     input: &I,
-) -> Result<SVector<f64, NQ>, Error>
+) -> Result<SVector<T, NQ>, Error>
 where
-    M: Model<NQ, NC, NU>,
-    I: Input<NU> + ?Sized,
+    M: Model<NQ, NC, NU, T>,
+    I: Input<NU, T> + ?Sized,
 {
     let tau = input.at(t);
     eval::check_input(&tau, t)?;
@@ -202,27 +205,27 @@ where
 }
 
 /// Post-step work: optional projection, then the drift measurement.
-pub(crate) fn finish_step<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn finish_step<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    next: &mut State<NQ>,
-    settings: &StepSettings,
-) -> Result<(Option<ProjectionReport>, Drift), Error>
+    next: &mut State<NQ, T>,
+    settings: &StepSettings<T>,
+) -> Result<(Option<ProjectionReport<T>>, Drift<T>), Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
-    finish_step_with(model, next, settings, 0.0)
+    finish_step_with(model, next, settings, T::zero())
 }
 
 /// [`finish_step`] with the SHAKE-style velocity update of
 /// [`crate::projection::project_with`].
-pub(crate) fn finish_step_with<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn finish_step_with<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    next: &mut State<NQ>,
-    settings: &StepSettings,
-    velocity_from_position_dt: f64,
-) -> Result<(Option<ProjectionReport>, Drift), Error>
+    next: &mut State<NQ, T>,
+    settings: &StepSettings<T>,
+    velocity_from_position_dt: T,
+) -> Result<(Option<ProjectionReport<T>>, Drift<T>), Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     let projection = match &settings.projection {
         Some(cfg) if NC > 0 => Some(project_with(
@@ -252,29 +255,30 @@ const RATE_ITERATIONS: usize = 24;
 /// so bounded work. Used only on the refusal paths of [`Rk4`], [`SemiImplicitEuler`] and
 /// [`GaussLegendre4`]; `None` when an
 /// evaluation fails.
-pub(crate) fn spectral_radius<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn spectral_radius<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    dynamics: &DynamicsConfig,
-    s: &State<NQ>,
+    dynamics: &DynamicsConfig<T>,
+    s: &State<NQ, T>,
     input: &I,
-) -> Option<f64>
+) -> Option<T>
 where
-    M: Model<NQ, NC, NU>,
-    I: Input<NU> + ?Sized,
+    M: Model<NQ, NC, NU, T>,
+    I: Input<NU, T> + ?Sized,
 {
     let a0 = qdd_at(model, dynamics, &s.q, &s.qd, s.t, input).ok()?;
-    let eps = 1e-7 * (1.0 + s.q.amax() + s.qd.amax());
-    let norm =
-        |x: &SVector<f64, NQ>, y: &SVector<f64, NQ>| sqrt(x.norm_squared() + y.norm_squared());
+    let eps = T::of(1e-7) * (T::one() + s.q.amax() + s.qd.amax());
+    let norm = |x: &SVector<T, NQ>, y: &SVector<T, NQ>| {
+        Scalar::square_root(x.norm_squared() + y.norm_squared())
+    };
     // J (dq, dv) = (dv, A dq + B dv) with A = dqdd/dq, B = dqdd/dqd, each
     // product by a one-sided difference whose step moves q or qd by eps
     // whatever the size of dq or dv (the model is linearised, not probed far
     // away, and a small part is not lost to rounding next to a large one).
-    let apply = |dq: &SVector<f64, NQ>, dv: &SVector<f64, NQ>| {
-        let mut jv = SVector::<f64, NQ>::zeros();
+    let apply = |dq: &SVector<T, NQ>, dv: &SVector<T, NQ>| {
+        let mut jv = SVector::<T, NQ>::zeros();
         for (x, along_q) in [(dq, true), (dv, false)] {
-            let n = sqrt(x.norm_squared());
-            if n > 0.0 {
+            let n = Scalar::square_root(x.norm_squared());
+            if n > T::zero() {
                 let h = eps / n;
                 let (q, qd) = if along_q {
                     (s.q + x * h, s.qd)
@@ -287,12 +291,12 @@ where
         Some((*dv, jv))
     };
     // A start with a component along every coordinate and velocity.
-    let mut dq = SVector::<f64, NQ>::from_fn(|i, _| 1.0 + 0.37 * i as f64);
-    let mut dv = SVector::<f64, NQ>::from_fn(|i, _| 1.0 - 0.23 * i as f64);
-    let mut rho2 = 0.0;
+    let mut dq = SVector::<T, NQ>::from_fn(|i, _| T::one() + T::of(0.37) * T::of(i as f64));
+    let mut dv = SVector::<T, NQ>::from_fn(|i, _| T::one() - T::of(0.23) * T::of(i as f64));
+    let mut rho2 = T::zero();
     for _ in 0..RATE_ITERATIONS {
         let n = norm(&dq, &dv);
-        if !(n > 0.0 && n.is_finite()) {
+        if !(n > T::zero() && n.is_finite()) {
             return None;
         }
         (dq, dv) = (dq / n, dv / n);
@@ -300,7 +304,7 @@ where
         (dq, dv) = apply(&xq, &xv)?;
         rho2 = norm(&dq, &dv);
     }
-    let rho = sqrt(rho2);
+    let rho = Scalar::square_root(rho2);
     rho.is_finite().then_some(rho)
 }
 
@@ -309,16 +313,23 @@ where
 /// fastest mode of the model linearised at `s` ([`spectral_radius`]): the
 /// stages see only the modes the state excites (and, far beyond the limit,
 /// their estimate is no longer accurate). Other errors pass unchanged.
-pub(crate) fn name_fastest_mode<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn name_fastest_mode<
+    M,
+    I,
+    T: Scalar,
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+>(
     mut e: Error,
     model: &M,
-    dynamics: &DynamicsConfig,
-    s: &State<NQ>,
+    dynamics: &DynamicsConfig<T>,
+    s: &State<NQ, T>,
     input: &I,
 ) -> Error
 where
-    M: Model<NQ, NC, NU>,
-    I: Input<NU> + ?Sized,
+    M: Model<NQ, NC, NU, T>,
+    I: Input<NU, T> + ?Sized,
 {
     let rate = match &mut e.kind {
         ErrorKind::StepTooLarge { rate: Some(r), .. } => r,
@@ -327,13 +338,13 @@ where
             rate,
             ..
         } => {
-            *rate = spectral_radius(model, dynamics, s, input);
+            *rate = spectral_radius(model, dynamics, s, input).map(Into::into);
             return e;
         }
         _ => return e,
     };
     if let Some(rho) = spectral_radius(model, dynamics, s, input) {
-        *rate = rho;
+        *rate = rho.into();
     }
     e
 }

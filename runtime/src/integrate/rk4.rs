@@ -7,8 +7,8 @@ use crate::dynamics::DynamicsConfig;
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
 use crate::input::Input;
-use crate::math::sqrt;
 use crate::model::Model;
+use crate::scalar::Scalar;
 use crate::state::State;
 use nalgebra::SVector;
 
@@ -29,25 +29,25 @@ use nalgebra::SVector;
 /// the iteration fails), and its message names it (rad/s and Hz) with the
 /// largest step that could be stable, `limit / rate`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Rk4 {
+pub struct Rk4<T: Scalar = f64> {
     /// Shared settings.
-    pub settings: StepSettings,
+    pub settings: StepSettings<T>,
     /// Largest accepted estimate of `dt * rho(J)`; `f64::INFINITY` disables the check.
-    pub stability_limit: f64,
+    pub stability_limit: T,
 }
 
-impl Default for Rk4 {
+impl<T: Scalar> Default for Rk4<T> {
     fn default() -> Self {
         Rk4 {
             settings: StepSettings::default(),
-            stability_limit: 2.8,
+            stability_limit: T::of(2.8),
         }
     }
 }
 
-impl Rk4 {
+impl<T: Scalar> Rk4<T> {
     /// RK4 with the given settings and the default stability limit.
-    pub fn new(settings: StepSettings) -> Self {
+    pub fn new(settings: StepSettings<T>) -> Self {
         Rk4 {
             settings,
             ..Self::default()
@@ -59,29 +59,29 @@ impl Rk4 {
 /// first being `(s.qd, a0)`), and the estimate of `h * rho(J)` from them:
 /// `k3 - k2 = (h/2)^2 J^2 k1 + O(h^3)`, so `(h rho)^2 ~ 4 |k3 - k2| / |k1|`
 /// (exact for a linear oscillator or a linear damper).
-pub(crate) struct HalfStages<const NQ: usize> {
-    pub k2q: SVector<f64, NQ>,
-    pub k2v: SVector<f64, NQ>,
-    pub k3q: SVector<f64, NQ>,
-    pub k3v: SVector<f64, NQ>,
-    pub estimate: f64,
+pub(crate) struct HalfStages<const NQ: usize, T: Scalar = f64> {
+    pub k2q: SVector<T, NQ>,
+    pub k2v: SVector<T, NQ>,
+    pub k3q: SVector<T, NQ>,
+    pub k3v: SVector<T, NQ>,
+    pub estimate: T,
 }
 
 /// Computes [`HalfStages`] (two accelerations).
-pub(crate) fn half_stages<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn half_stages<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    dynamics: &DynamicsConfig,
-    s: &State<NQ>,
-    a0: &SVector<f64, NQ>,
+    dynamics: &DynamicsConfig<T>,
+    s: &State<NQ, T>,
+    a0: &SVector<T, NQ>,
     input: &I,
-    h: f64,
-) -> Result<HalfStages<NQ>, Error>
+    h: T,
+) -> Result<HalfStages<NQ, T>, Error>
 where
-    M: Model<NQ, NC, NU>,
-    I: Input<NU> + ?Sized,
+    M: Model<NQ, NC, NU, T>,
+    I: Input<NU, T> + ?Sized,
 {
     let t = s.t;
-    let half = 0.5 * h;
+    let half = T::of(0.5) * h;
     let (k1q, k1v) = (s.qd, *a0);
     let q2 = s.q + k1q * half;
     let v2 = s.qd + k1v * half;
@@ -93,10 +93,10 @@ where
     let k3v = qdd_at(model, dynamics, &q3, &v3, t + half, input)?;
     let den = k1q.norm_squared() + k1v.norm_squared();
     let num = (k3q - k2q).norm_squared() + (k3v - k2v).norm_squared();
-    let estimate = if den > 0.0 {
-        2.0 * sqrt(sqrt(num / den))
+    let estimate = if den > T::zero() {
+        T::of(2.0) * Scalar::square_root(Scalar::square_root(num / den))
     } else {
-        0.0
+        T::zero()
     };
     Ok(HalfStages {
         k2q,
@@ -109,17 +109,17 @@ where
 
 /// One RK4 step from `s` without projection; returns the new state and the
 /// stability estimate. Checks the stability estimate against `limit`.
-pub(crate) fn rk4_raw<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn rk4_raw<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    dynamics: &DynamicsConfig,
-    s: &State<NQ>,
+    dynamics: &DynamicsConfig<T>,
+    s: &State<NQ, T>,
     input: &I,
-    h: f64,
-    limit: f64,
-) -> Result<(State<NQ>, f64), Error>
+    h: T,
+    limit: T,
+) -> Result<(State<NQ, T>, T), Error>
 where
-    M: Model<NQ, NC, NU>,
-    I: Input<NU> + ?Sized,
+    M: Model<NQ, NC, NU, T>,
+    I: Input<NU, T> + ?Sized,
 {
     let t = s.t;
     let k1v = qdd_at(model, dynamics, &s.q, &s.qd, t, input)?;
@@ -133,10 +133,10 @@ where
     if estimate > limit {
         return Err(Error::new(
             ErrorKind::StepTooLarge {
-                dt: h,
-                value: estimate,
-                limit,
-                rate: Some(estimate / h),
+                dt: h.into(),
+                value: estimate.into(),
+                limit: limit.into(),
+                rate: Some((estimate / h).into()),
             },
             t,
         ));
@@ -146,29 +146,31 @@ where
     let v4 = s.qd + k3v * h;
     let k4q = v4;
     let k4v = qdd_at(model, dynamics, &q4, &v4, t + h, input)?;
-    let sixth = h / 6.0;
-    let q = s.q + (k1q + (k2q + k3q) * 2.0 + k4q) * sixth;
-    let qd = s.qd + (k1v + (k2v + k3v) * 2.0 + k4v) * sixth;
+    let sixth = h / T::of(6.0);
+    let q = s.q + (k1q + (k2q + k3q) * T::of(2.0) + k4q) * sixth;
+    let qd = s.qd + (k1v + (k2v + k3v) * T::of(2.0) + k4v) * sixth;
     eval::check_result(&q, Quantity::Position, t)?;
     eval::check_result(&qd, Quantity::Velocity, t)?;
     Ok((State { q, qd, t: t + h }, estimate))
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for Rk4 {
-    fn settings_mut(&mut self) -> &mut StepSettings {
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
+    for Rk4<T>
+{
+    fn settings_mut(&mut self) -> &mut StepSettings<T> {
         &mut self.settings
     }
 
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut State<NQ, T>,
         input: &I,
-        dt: f64,
-    ) -> Result<StepReport, Error>
+        dt: T,
+    ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Model<NQ, NC, NU, T>,
+        I: Input<NU, T> + ?Sized,
     {
         begin_step(state, dt, self.settings.max_step)?;
         let dynamics = &self.settings.dynamics;

@@ -1,8 +1,9 @@
 //! Instructions and stack of the rigid robot's generated terms, of one
 //! flexible scene's fused terms and of the runtime's inverse-dynamics call
-//! at 1 kHz along the paper's circle, on an emulated Cortex-M4F. Prints
-//! `count NAME INSTRUCTIONS STACK_BYTES` lines, the torques of the last call
-//! as `tau I BITS` (hex of the f64) and `done`.
+//! at 1 kHz along the paper's circle, in f64 and in f32, on an emulated
+//! Cortex-M4F. Prints `count NAME INSTRUCTIONS STACK_BYTES` lines, the
+//! torques of the last call as `tau I BITS` (hex of the f64) and
+//! `tau_f32 I BITS` (hex of the f32), and `done`.
 
 #![no_std]
 #![no_main]
@@ -72,8 +73,50 @@ macro_rules! measure_terms {
     }};
 }
 
+/// Measures the rigid robot's inverse-dynamics run (`motion`) in `T`,
+/// reported as `$name.mean` and `$name.max`; the solution of its last call.
+fn measure_inverse<T: motion::Real, M: Model<12, 9, 3, T>>(
+    name: &str,
+    model: &M,
+    zero: Cost,
+) -> motion::Solution<T> {
+    let Some(mut solver) = motion::warm_solver(model) else {
+        exit(false)
+    };
+    let mut sol = motion::Solution::default();
+    let (mut total, mut worst) = (Cost::default(), Cost::default());
+    for k in 1..=motion::CALLS {
+        let mut ok = false;
+        let c = measure(zero, &mut || {
+            ok = motion::call(model, &mut solver, k, &mut sol)
+        });
+        if !ok {
+            line(format_args!("{name} failed at call {k}"));
+            exit(false)
+        }
+        total.instructions += c.instructions;
+        worst.instructions = worst.instructions.max(c.instructions);
+        worst.stack = worst.stack.max(c.stack);
+    }
+    let mean = Cost {
+        instructions: total.instructions / motion::CALLS,
+        stack: worst.stack,
+    };
+    report_part(name, ".mean", mean);
+    report_part(name, ".max", worst);
+    sol
+}
+
 fn report(name: &str, c: Cost) {
-    line(format_args!("count {name} {} {}", c.instructions, c.stack));
+    report_part(name, "", c);
+}
+
+/// Reports measurement `{name}{part}`.
+fn report_part(name: &str, part: &str, c: Cost) {
+    line(format_args!(
+        "count {name}{part} {} {}",
+        c.instructions, c.stack
+    ));
 }
 
 #[no_mangle]
@@ -109,35 +152,18 @@ fn main() -> ! {
         false
     );
 
-    let Some(mut solver) = motion::warm_solver(&model) else {
-        exit(false)
-    };
-    let mut sol = motion::Solution::default();
-    let (mut total, mut worst) = (Cost::default(), Cost::default());
-    for k in 1..=motion::CALLS {
-        let mut ok = false;
-        let c = measure(zero, &mut || {
-            ok = motion::call(&model, &mut solver, k, &mut sol)
-        });
-        if !ok {
-            line(format_args!("inverse dynamics failed at call {k}"));
-            exit(false)
-        }
-        total.instructions += c.instructions;
-        worst.instructions = worst.instructions.max(c.instructions);
-        worst.stack = worst.stack.max(c.stack);
-    }
-    report(
-        "inverse_dynamics.mean",
-        Cost {
-            instructions: total.instructions / motion::CALLS,
-            stack: worst.stack,
-        },
+    let t = measure_inverse("inverse_dynamics", &model, zero);
+    let t32 = measure_inverse(
+        "inverse_dynamics_f32",
+        &models::f32::parallel_robot_rigid::ParallelRobotRigid,
+        zero,
     );
-    report("inverse_dynamics.max", worst);
-    line(format_args!("t {:016x}", sol.t.to_bits()));
-    for (i, tau) in sol.tau.iter().enumerate() {
+    line(format_args!("t {:016x}", t.t.to_bits()));
+    for (i, tau) in t.tau.iter().enumerate() {
         line(format_args!("tau {i} {:016x}", tau.to_bits()));
+    }
+    for (i, tau) in t32.tau.iter().enumerate() {
+        line(format_args!("tau_f32 {i} {:08x}", tau.to_bits()));
     }
     line(format_args!("done"));
     exit(true)

@@ -15,7 +15,7 @@
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
-// Precision f32: inherent methods of the model struct (the runtime's `Model` trait is f64).
+// Precision f32: implements the runtime's `Model<.., f32>`.
 
 use flexdyn_runtime::math::f32 as math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -39,9 +39,9 @@ pub struct ParallelRobotRigid;
     clippy::too_many_arguments,
     unused_parens
 )]
-impl ParallelRobotRigid {
-    pub const NAME: &'static str = "parallel_robot_rigid";
-    pub const COORDINATES: [&'static str; 12] = [
+impl flexdyn_runtime::Model<12, 9, 3, f32> for ParallelRobotRigid {
+    const NAME: &'static str = "parallel_robot_rigid";
+    const COORDINATES: [&'static str; 12] = [
         "th11",
         "th12",
         "th13",
@@ -55,15 +55,10 @@ impl ParallelRobotRigid {
         "py",
         "pz",
     ];
-    pub const ACTUATORS: [&'static str; 3] = ["tau_1", "tau_2", "tau_3"];
+    const ACTUATORS: [&'static str; 3] = ["tau_1", "tau_2", "tau_3"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    pub fn mass_matrix(
-        &self,
-        q: &SVector<f32, 12>,
-        _t: f32,
-        m: &mut SMatrix<f32, 12, 12>,
-    ) {
+    fn mass_matrix(&self, q: &SVector<f32, 12>, _t: f32, m: &mut SMatrix<f32, 12, 12>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
         let (v4, v5) = math::sin_cos(q[3]);
@@ -123,7 +118,7 @@ impl ParallelRobotRigid {
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
-    pub fn bias(
+    fn bias(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -268,7 +263,7 @@ impl ParallelRobotRigid {
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
-    pub fn constraints(&self, q: &SVector<f32, 12>, _t: f32, phi: &mut SVector<f32, 9>) {
+    fn constraints(&self, q: &SVector<f32, 12>, _t: f32, phi: &mut SVector<f32, 9>) {
         let (v0, v1) = math::sin_cos(q[0]);
         let (v2, v3) = math::sin_cos(q[1]);
         let (v4, v5) = math::sin_cos(q[3]);
@@ -292,7 +287,7 @@ impl ParallelRobotRigid {
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
     #[inline]
-    pub fn constraint_jacobian(
+    fn constraint_jacobian(
         &self,
         q: &SVector<f32, 12>,
         _t: f32,
@@ -345,7 +340,7 @@ impl ParallelRobotRigid {
     }
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
-    pub fn constraint_time_derivative(
+    fn constraint_time_derivative(
         &self,
         _q: &SVector<f32, 12>,
         _t: f32,
@@ -363,7 +358,7 @@ impl ParallelRobotRigid {
     }
     ///Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.
     #[inline]
-    pub fn constraint_rhs(
+    fn constraint_rhs(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -418,7 +413,7 @@ impl ParallelRobotRigid {
     }
     ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
     #[inline]
-    pub fn constraints_and_jacobian(
+    fn constraints_and_jacobian(
         &self,
         q: &SVector<f32, 12>,
         _t: f32,
@@ -487,7 +482,7 @@ impl ParallelRobotRigid {
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]
-    pub fn dynamics_terms(
+    fn dynamics_terms(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -751,7 +746,7 @@ impl ParallelRobotRigid {
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
-    pub fn inverse_dynamics(
+    fn inverse_dynamics(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -926,7 +921,7 @@ impl ParallelRobotRigid {
         tau[11] = 2.6 * qdd[11] + 25.506;
     }
     #[inline]
-    pub fn actuator_map(&self, b: &mut SMatrix<f32, 12, 3>) {
+    fn actuator_map(&self, b: &mut SMatrix<f32, 12, 3>) {
         *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
         b[(3, 1)] = 1.0;
@@ -934,7 +929,7 @@ impl ParallelRobotRigid {
     }
     ///Kinetic energy `T`.
     #[inline]
-    pub fn kinetic_energy(
+    fn kinetic_energy(
         &self,
         q: &SVector<f32, 12>,
         qd: &SVector<f32, 12>,
@@ -990,7 +985,7 @@ impl ParallelRobotRigid {
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
-    pub fn potential_energy(&self, q: &SVector<f32, 12>, _t: f32) -> f32 {
+    fn potential_energy(&self, q: &SVector<f32, 12>, _t: f32) -> f32 {
         let v0 = math::sin(q[0]);
         let v1 = math::sin(q[1]);
         let v2 = math::sin(q[3]);

@@ -15,7 +15,7 @@
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
-// Precision f32: inherent methods of the model struct (the runtime's `Model` trait is f64).
+// Precision f32: implements the runtime's `Model<.., f32>`.
 
 use flexdyn_runtime::math::f32 as math;
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
@@ -47,19 +47,19 @@ impl Default for SpinUpBeam {
     clippy::too_many_arguments,
     unused_parens
 )]
-impl SpinUpBeam {
-    pub const NAME: &'static str = "spin_up_beam";
-    pub const COORDINATES: [&'static str; 5] = [
+impl flexdyn_runtime::Model<5, 1, 1, f32> for SpinUpBeam {
+    const NAME: &'static str = "spin_up_beam";
+    const COORDINATES: [&'static str; 5] = [
         "theta",
         "beam_eta1",
         "beam_eta2",
         "beam_eta3",
         "beam_eta4",
     ];
-    pub const ACTUATORS: [&'static str; 1] = ["hub_torque"];
+    const ACTUATORS: [&'static str; 1] = ["hub_torque"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
-    pub fn mass_matrix(&self, q: &SVector<f32, 5>, _t: f32, m: &mut SMatrix<f32, 5, 5>) {
+    fn mass_matrix(&self, q: &SVector<f32, 5>, _t: f32, m: &mut SMatrix<f32, 5, 5>) {
         *m = SMatrix::zeros();
         m[(0, 0)] = 2400.0 - 0.19333638 * q[1] * q[1] - 5.4782233 * q[3] * q[3]
             - 1.1933364 * q[2] * q[2] - 6.4782233 * q[4] * q[4] - 1.3717085 * q[1] * q[3]
@@ -75,7 +75,7 @@ impl SpinUpBeam {
     }
     ///Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.
     #[inline]
-    pub fn bias(
+    fn bias(
         &self,
         q: &SVector<f32, 5>,
         qd: &SVector<f32, 5>,
@@ -102,14 +102,14 @@ impl SpinUpBeam {
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
-    pub fn constraints(&self, q: &SVector<f32, 5>, t: f32, phi: &mut SVector<f32, 1>) {
+    fn constraints(&self, q: &SVector<f32, 5>, t: f32, phi: &mut SVector<f32, 1>) {
         let v0 = math::cos(0.41887903 * t);
         phi[0] = q[0] - 0.4 * self.phase * (0.5 * t * t + 5.6993165 * v0 - 5.6993165)
             - (1.0 - self.phase) * (6.0 * t - 45.0);
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
     #[inline]
-    pub fn constraint_jacobian(
+    fn constraint_jacobian(
         &self,
         _q: &SVector<f32, 5>,
         _t: f32,
@@ -120,7 +120,7 @@ impl SpinUpBeam {
     }
     ///Explicit time derivative of the constraints `Phi_t(q, t)`.
     #[inline]
-    pub fn constraint_time_derivative(
+    fn constraint_time_derivative(
         &self,
         _q: &SVector<f32, 5>,
         t: f32,
@@ -131,7 +131,7 @@ impl SpinUpBeam {
     }
     ///Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.
     #[inline]
-    pub fn constraint_rhs(
+    fn constraint_rhs(
         &self,
         _q: &SVector<f32, 5>,
         _qd: &SVector<f32, 5>,
@@ -143,7 +143,7 @@ impl SpinUpBeam {
     }
     ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
     #[inline]
-    pub fn constraints_and_jacobian(
+    fn constraints_and_jacobian(
         &self,
         q: &SVector<f32, 5>,
         t: f32,
@@ -158,7 +158,7 @@ impl SpinUpBeam {
     }
     ///`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).
     #[inline]
-    pub fn dynamics_terms(
+    fn dynamics_terms(
         &self,
         q: &SVector<f32, 5>,
         qd: &SVector<f32, 5>,
@@ -204,7 +204,7 @@ impl SpinUpBeam {
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
-    pub fn inverse_dynamics(
+    fn inverse_dynamics(
         &self,
         q: &SVector<f32, 5>,
         qd: &SVector<f32, 5>,
@@ -239,18 +239,13 @@ impl SpinUpBeam {
         tau[4] = 566.47614 * q[4] + 6.4782233 * v2 + 0.68585426 * v3 + 1.0 * qdd[4];
     }
     #[inline]
-    pub fn actuator_map(&self, b: &mut SMatrix<f32, 5, 1>) {
+    fn actuator_map(&self, b: &mut SMatrix<f32, 5, 1>) {
         *b = SMatrix::zeros();
         b[(0, 0)] = 1.0;
     }
     ///Kinetic energy `T`.
     #[inline]
-    pub fn kinetic_energy(
-        &self,
-        q: &SVector<f32, 5>,
-        qd: &SVector<f32, 5>,
-        _t: f32,
-    ) -> f32 {
+    fn kinetic_energy(&self, q: &SVector<f32, 5>, qd: &SVector<f32, 5>, _t: f32) -> f32 {
         let v0 = q[1] * q[1];
         let v1 = q[3] * q[3];
         1000.0 * qd[0] * qd[0] + 0.5 * qd[0] * qd[0] * (1.0 * v0 + 1.0 * v1 + 400.0)
@@ -263,12 +258,12 @@ impl SpinUpBeam {
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
-    pub fn potential_energy(&self, q: &SVector<f32, 5>, _t: f32) -> f32 {
+    fn potential_energy(&self, q: &SVector<f32, 5>, _t: f32) -> f32 {
         7.211391 * q[1] * q[1] + 283.23807 * q[3] * q[3] + 7.211391 * q[2] * q[2]
             + 283.23807 * q[4] * q[4]
     }
-    pub const PARAMETERS: &'static [&'static str] = &["phase"];
-    pub fn set_parameter(&mut self, name: &str, value: f32) -> bool {
+    const PARAMETERS: &'static [&'static str] = &["phase"];
+    fn set_parameter(&mut self, name: &str, value: f32) -> bool {
         match name {
             "phase" => self.phase = value,
             _ => return false,
