@@ -84,14 +84,22 @@ impl Samples {
     }
 }
 
-/// The summands of a node: the terms of a sum (its constant is kept), or the
-/// node itself.
+/// The summands of a node: the terms of a sum, partial sums among them
+/// opened in turn (the constants added up and kept), or the node itself.
 fn summands(g: &Graph, e: Id) -> (Vec<(Id, f64)>, f64) {
-    match g.node(e) {
-        Node::Sum(ts, k) => (ts.iter().map(|&(t, c)| (t, c.get())).collect(), k.get()),
-        Node::Const(k) => (Vec::new(), k.get()),
-        _ => (vec![(e, 1.0)], 0.0),
+    let (mut terms, mut constant) = (Vec::new(), 0.0);
+    let mut open = vec![(e, 1.0)];
+    while let Some((id, c)) = open.pop() {
+        match g.node(id) {
+            Node::Sum(ts, k) => {
+                constant += c * k.get();
+                open.extend(ts.iter().map(|&(t, ct)| (t, c * ct.get())));
+            }
+            Node::Const(k) => constant += c * k.get(),
+            _ => terms.push((id, c)),
+        }
     }
+    (terms, constant)
 }
 
 /// Drop the smallest summands of each entry while their summed largest
