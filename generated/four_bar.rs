@@ -47,8 +47,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
     fn mass_matrix(&self, q: &SVector<f64, 3>, _t: f64, m: &mut SMatrix<f64, 3, 3>) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
         *m = SMatrix::zeros();
         m[(0, 0)] = 1.3333333333333333;
         m[(0, 2)] = 0.5 * v0 * v2 + 0.5 * v1 * v3;
@@ -65,9 +64,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         _t: f64,
         h: &mut SVector<f64, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
+        let [(v0, v1), (v3, v4)] = math::sin_cos_array([q[0], q[2]]);
         let v2 = math::cos(q[1]);
-        let (v3, v4) = math::sin_cos(q[2]);
         let v7 = qd[0] * qd[0];
         let v8 = qd[2] * qd[2];
         let v5 = -v1 * v7 - v4 * v8;
@@ -81,9 +79,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
     fn constraints(&self, q: &SVector<f64, 3>, _t: f64, phi: &mut SVector<f64, 2>) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3), (v4, v5)] = math::sin_cos_array([q[0], q[1], q[2]]);
         phi[0] = v1 + v5 - 1.0 - v3;
         phi[1] = v0 + v4 - v2;
     }
@@ -95,9 +91,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         _t: f64,
         phi_q: &mut SMatrix<f64, 2, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3), (v4, v5)] = math::sin_cos_array([q[0], q[1], q[2]]);
         phi_q[(0, 0)] = -v0;
         phi_q[(0, 1)] = v2;
         phi_q[(0, 2)] = -v4;
@@ -125,9 +119,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         _t: f64,
         gamma: &mut SVector<f64, 2>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3), (v4, v5)] = math::sin_cos_array([q[0], q[1], q[2]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[2] * qd[2];
         let v8 = qd[1] * qd[1];
@@ -143,9 +135,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         phi: &mut SVector<f64, 2>,
         phi_q: &mut SMatrix<f64, 2, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3), (v4, v5)] = math::sin_cos_array([q[0], q[1], q[2]]);
         phi[0] = v1 + v5 - 1.0 - v3;
         phi[1] = v0 + v4 - v2;
         phi_q[(0, 0)] = -v0;
@@ -167,9 +157,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         phi_q: &mut SMatrix<f64, 2, 3>,
         gamma: &mut SVector<f64, 2>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3), (v4, v5)] = math::sin_cos_array([q[0], q[1], q[2]]);
         let v12 = qd[0] * qd[0];
         let v6 = v1 * v12;
         let v7 = v0 * v12;
@@ -208,9 +196,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         _t: f64,
         tau: &mut SVector<f64, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
+        let [(v0, v1), (v3, v4)] = math::sin_cos_array([q[0], q[2]]);
         let v2 = math::cos(q[1]);
-        let (v3, v4) = math::sin_cos(q[2]);
         let v7 = qd[0] * qd[0];
         let v8 = qd[2] * qd[2];
         let v5 = -v1 * v7 - v4 * v8 - v0 * qdd[0] - v3 * qdd[2];
@@ -231,8 +218,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
     ///Kinetic energy `T`.
     #[inline]
     fn kinetic_energy(&self, q: &SVector<f64, 3>, qd: &SVector<f64, 3>, _t: f64) -> f64 {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
         let v4 = -v0 * qd[0] - v2 * qd[2];
         let v5 = v1 * qd[0] + v3 * qd[2];
         0.3333333333333333 * qd[0] * qd[0] + 0.16666666666666666 * qd[1] * qd[1]
@@ -256,8 +242,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         _t: f64,
         out: &mut SVector<f64, 3>,
     ) -> bool {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[2] * qd[2];
         let v4 = -v1 * v6 - v3 * v7;

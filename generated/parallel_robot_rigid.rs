@@ -57,15 +57,18 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
     fn mass_matrix(&self, q: &SVector<f64, 12>, _t: f64, m: &mut SMatrix<f64, 12, 12>) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[3]);
-        let (v6, v7) = math::sin_cos(q[4]);
-        let (v8, v9) = math::sin_cos(q[6]);
-        let (v10, v11) = math::sin_cos(q[7]);
-        let (v12, v13) = math::sin_cos(q[2]);
-        let (v14, v15) = math::sin_cos(q[5]);
-        let (v16, v17) = math::sin_cos(q[8]);
+        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
+        (v14, v15), (v16, v17)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         let v18 = -0.1 * v2 - 0.8 * v2 * v13;
         let v19 = 0.1 * v3 + 0.8 * v3 * v13;
         let v20 = -0.1 * v6 - 0.8 * v6 * v15;
@@ -125,41 +128,44 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         _t: f64,
         h: &mut SVector<f64, 12>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
+        let [(v0, v1), (v4, v5), (v10, v11), (v14, v15), (v20, v21), (v24, v25),
+        (v30, v31), (v34, v35), (v38, v39)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         let v2 = v0 * qd[0];
         let v3 = v1 * qd[0];
-        let (v4, v5) = math::sin_cos(q[1]);
         let v6 = v4 * qd[1];
         let v7 = v5 * qd[1];
         let v8 = -0.4 * v2 - 0.1 * v6;
         let v9 = 0.4 * v3 + 0.1 * v7;
-        let (v10, v11) = math::sin_cos(q[3]);
         let v12 = v10 * qd[3];
         let v13 = v11 * qd[3];
-        let (v14, v15) = math::sin_cos(q[4]);
         let v16 = v14 * qd[4];
         let v17 = v15 * qd[4];
         let v18 = -0.4 * v12 - 0.1 * v16;
         let v19 = 0.4 * v13 + 0.1 * v17;
-        let (v20, v21) = math::sin_cos(q[6]);
         let v22 = v20 * qd[6];
         let v23 = v21 * qd[6];
-        let (v24, v25) = math::sin_cos(q[7]);
         let v26 = v24 * qd[7];
         let v27 = v25 * qd[7];
         let v28 = -0.4 * v22 - 0.1 * v26;
         let v29 = 0.4 * v23 + 0.1 * v27;
-        let (v30, v31) = math::sin_cos(q[2]);
         let v78 = v5 * v30;
         let v32 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v78;
         let v79 = v4 * v30;
         let v33 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v79;
-        let (v34, v35) = math::sin_cos(q[5]);
         let v80 = v15 * v34;
         let v36 = v18 - 0.8 * v35 * v16 - 0.8 * qd[5] * v80;
         let v81 = v14 * v34;
         let v37 = 0.8 * v35 * v17 + v19 - 0.8 * qd[5] * v81;
-        let (v38, v39) = math::sin_cos(q[8]);
         let v82 = v25 * v38;
         let v40 = v28 - 0.8 * v39 * v26 - 0.8 * qd[8] * v82;
         let v83 = v24 * v38;
@@ -270,15 +276,18 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
     fn constraints(&self, q: &SVector<f64, 12>, _t: f64, phi: &mut SVector<f64, 9>) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[3]);
-        let (v6, v7) = math::sin_cos(q[4]);
-        let (v8, v9) = math::sin_cos(q[6]);
-        let (v10, v11) = math::sin_cos(q[7]);
-        let (v12, v13) = math::sin_cos(q[2]);
-        let (v14, v15) = math::sin_cos(q[5]);
-        let (v16, v17) = math::sin_cos(q[8]);
+        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
+        (v14, v15), (v16, v17)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         phi[0] = 0.4 * v1 + 0.1 * v3 + 0.8 * v3 * v13 + 0.30000000000000004 - q[9];
         phi[1] = 0.8 * v12 - q[10];
         phi[2] = 0.4 * v0 + 0.1 * v2 + 0.8 * v2 * v13 - q[11];
@@ -299,15 +308,18 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         _t: f64,
         phi_q: &mut SMatrix<f64, 9, 12>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[3]);
-        let (v6, v7) = math::sin_cos(q[4]);
-        let (v8, v9) = math::sin_cos(q[6]);
-        let (v10, v11) = math::sin_cos(q[7]);
-        let (v12, v13) = math::sin_cos(q[2]);
-        let (v14, v15) = math::sin_cos(q[5]);
-        let (v16, v17) = math::sin_cos(q[8]);
+        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
+        (v14, v15), (v16, v17)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         *phi_q = SMatrix::zeros();
         phi_q[(0, 0)] = -0.4 * v0;
         phi_q[(0, 1)] = -0.1 * v2 - 0.8 * v2 * v13;
@@ -371,15 +383,18 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         _t: f64,
         gamma: &mut SVector<f64, 9>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[3]);
-        let (v6, v7) = math::sin_cos(q[4]);
-        let (v8, v9) = math::sin_cos(q[6]);
-        let (v10, v11) = math::sin_cos(q[7]);
-        let (v12, v13) = math::sin_cos(q[2]);
-        let (v14, v15) = math::sin_cos(q[5]);
-        let (v16, v17) = math::sin_cos(q[8]);
+        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
+        (v14, v15), (v16, v17)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         let v18 = qd[0] * qd[0];
         let v19 = qd[1] * qd[1];
         let v20 = v3 * v13;
@@ -426,19 +441,22 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi: &mut SVector<f64, 9>,
         phi_q: &mut SMatrix<f64, 9, 12>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
-        let (v4, v5) = math::sin_cos(q[3]);
-        let (v6, v7) = math::sin_cos(q[4]);
-        let (v8, v9) = math::sin_cos(q[6]);
-        let (v10, v11) = math::sin_cos(q[7]);
-        let (v12, v13) = math::sin_cos(q[2]);
+        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
+        (v16, v17), (v20, v21)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         let v14 = v3 * v13;
         let v15 = v2 * v13;
-        let (v16, v17) = math::sin_cos(q[5]);
         let v18 = v7 * v17;
         let v19 = v6 * v17;
-        let (v20, v21) = math::sin_cos(q[8]);
         let v22 = v11 * v21;
         let v23 = v10 * v21;
         *phi_q = SMatrix::zeros();
@@ -500,41 +518,44 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q: &mut SMatrix<f64, 9, 12>,
         gamma: &mut SVector<f64, 9>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
+        let [(v0, v1), (v4, v5), (v10, v11), (v14, v15), (v20, v21), (v24, v25),
+        (v30, v31), (v34, v35), (v38, v39)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         let v2 = v0 * qd[0];
         let v3 = v1 * qd[0];
-        let (v4, v5) = math::sin_cos(q[1]);
         let v6 = v4 * qd[1];
         let v7 = v5 * qd[1];
         let v8 = -0.4 * v2 - 0.1 * v6;
         let v9 = 0.4 * v3 + 0.1 * v7;
-        let (v10, v11) = math::sin_cos(q[3]);
         let v12 = v10 * qd[3];
         let v13 = v11 * qd[3];
-        let (v14, v15) = math::sin_cos(q[4]);
         let v16 = v14 * qd[4];
         let v17 = v15 * qd[4];
         let v18 = -0.4 * v12 - 0.1 * v16;
         let v19 = 0.4 * v13 + 0.1 * v17;
-        let (v20, v21) = math::sin_cos(q[6]);
         let v22 = v20 * qd[6];
         let v23 = v21 * qd[6];
-        let (v24, v25) = math::sin_cos(q[7]);
         let v26 = v24 * qd[7];
         let v27 = v25 * qd[7];
         let v28 = -0.4 * v22 - 0.1 * v26;
         let v29 = 0.4 * v23 + 0.1 * v27;
-        let (v30, v31) = math::sin_cos(q[2]);
         let v99 = v5 * v30;
         let v32 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v99;
         let v100 = v4 * v30;
         let v33 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v100;
-        let (v34, v35) = math::sin_cos(q[5]);
         let v101 = v15 * v34;
         let v36 = v18 - 0.8 * v35 * v16 - 0.8 * qd[5] * v101;
         let v102 = v14 * v34;
         let v37 = 0.8 * v35 * v17 + v19 - 0.8 * qd[5] * v102;
-        let (v38, v39) = math::sin_cos(q[8]);
         let v103 = v25 * v38;
         let v40 = v28 - 0.8 * v39 * v26 - 0.8 * qd[8] * v103;
         let v104 = v24 * v38;
@@ -769,41 +790,44 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         _t: f64,
         tau: &mut SVector<f64, 12>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
+        let [(v0, v1), (v4, v5), (v10, v11), (v14, v15), (v20, v21), (v24, v25),
+        (v30, v31), (v34, v35), (v38, v39)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         let v2 = v0 * qd[0];
         let v3 = v1 * qd[0];
-        let (v4, v5) = math::sin_cos(q[1]);
         let v6 = v4 * qd[1];
         let v7 = v5 * qd[1];
         let v8 = -0.4 * v2 - 0.1 * v6;
         let v9 = 0.4 * v3 + 0.1 * v7;
-        let (v10, v11) = math::sin_cos(q[3]);
         let v12 = v10 * qd[3];
         let v13 = v11 * qd[3];
-        let (v14, v15) = math::sin_cos(q[4]);
         let v16 = v14 * qd[4];
         let v17 = v15 * qd[4];
         let v18 = -0.4 * v12 - 0.1 * v16;
         let v19 = 0.4 * v13 + 0.1 * v17;
-        let (v20, v21) = math::sin_cos(q[6]);
         let v22 = v20 * qd[6];
         let v23 = v21 * qd[6];
-        let (v24, v25) = math::sin_cos(q[7]);
         let v26 = v24 * qd[7];
         let v27 = v25 * qd[7];
         let v28 = -0.4 * v22 - 0.1 * v26;
         let v29 = 0.4 * v23 + 0.1 * v27;
-        let (v30, v31) = math::sin_cos(q[2]);
         let v90 = v5 * v30;
         let v32 = v8 - 0.8 * v31 * v6 - 0.8 * qd[2] * v90;
         let v91 = v4 * v30;
         let v33 = 0.8 * v31 * v7 + v9 - 0.8 * qd[2] * v91;
-        let (v34, v35) = math::sin_cos(q[5]);
         let v92 = v15 * v34;
         let v36 = v18 - 0.8 * v35 * v16 - 0.8 * qd[5] * v92;
         let v93 = v14 * v34;
         let v37 = 0.8 * v35 * v17 + v19 - 0.8 * qd[5] * v93;
-        let (v38, v39) = math::sin_cos(q[8]);
         let v94 = v25 * v38;
         let v40 = v28 - 0.8 * v39 * v26 - 0.8 * qd[8] * v94;
         let v95 = v24 * v38;
@@ -965,39 +989,42 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         qd: &SVector<f64, 12>,
         _t: f64,
     ) -> f64 {
-        let (v0, v1) = math::sin_cos(q[0]);
+        let [(v0, v1), (v4, v5), (v10, v11), (v14, v15), (v20, v21), (v24, v25),
+        (v30, v31), (v34, v35), (v38, v39)] = math::sin_cos_array([
+            q[0],
+            q[1],
+            q[3],
+            q[4],
+            q[6],
+            q[7],
+            q[2],
+            q[5],
+            q[8],
+        ]);
         let v2 = v0 * qd[0];
         let v3 = v1 * qd[0];
-        let (v4, v5) = math::sin_cos(q[1]);
         let v6 = v4 * qd[1];
         let v7 = v5 * qd[1];
         let v8 = -0.4 * v2 - 0.1 * v6;
         let v9 = 0.4 * v3 + 0.1 * v7;
-        let (v10, v11) = math::sin_cos(q[3]);
         let v12 = v10 * qd[3];
         let v13 = v11 * qd[3];
-        let (v14, v15) = math::sin_cos(q[4]);
         let v16 = v14 * qd[4];
         let v17 = v15 * qd[4];
         let v18 = -0.4 * v12 - 0.1 * v16;
         let v19 = 0.4 * v13 + 0.1 * v17;
-        let (v20, v21) = math::sin_cos(q[6]);
         let v22 = v20 * qd[6];
         let v23 = v21 * qd[6];
-        let (v24, v25) = math::sin_cos(q[7]);
         let v26 = v24 * qd[7];
         let v27 = v25 * qd[7];
         let v28 = -0.4 * v22 - 0.1 * v26;
         let v29 = 0.4 * v23 + 0.1 * v27;
-        let (v30, v31) = math::sin_cos(q[2]);
         let v42 = qd[2] * v30;
         let v32 = v8 - 0.8 * v31 * v6 - 0.8 * v5 * v42;
         let v33 = 0.8 * v31 * v7 + v9 - 0.8 * v4 * v42;
-        let (v34, v35) = math::sin_cos(q[5]);
         let v43 = qd[5] * v34;
         let v36 = v18 - 0.8 * v35 * v16 - 0.8 * v15 * v43;
         let v37 = 0.8 * v35 * v17 + v19 - 0.8 * v14 * v43;
-        let (v38, v39) = math::sin_cos(q[8]);
         let v44 = qd[8] * v38;
         let v40 = v28 - 0.8 * v39 * v26 - 0.8 * v25 * v44;
         let v41 = 0.8 * v39 * v27 + v29 - 0.8 * v24 * v44;

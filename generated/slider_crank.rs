@@ -48,8 +48,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
     fn mass_matrix(&self, q: &SVector<f64, 3>, _t: f64, m: &mut SMatrix<f64, 3, 3>) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         *m = SMatrix::zeros();
         m[(0, 0)] = 0.009666666666666669;
         m[(0, 1)] = 0.012000000000000002 * v0 * v2 - 0.012000000000000002 * v1 * v3;
@@ -66,8 +65,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         _t: f64,
         h: &mut SVector<f64, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
         let v4 = -0.1 * v1 * v6 - 0.3 * v3 * v7;
@@ -81,8 +79,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
     fn constraints(&self, q: &SVector<f64, 3>, _t: f64, phi: &mut SVector<f64, 2>) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         phi[0] = 0.1 * v1 + 0.3 * v3 - q[2];
         phi[1] = 0.1 * v0 - 0.3 * v2;
     }
@@ -94,8 +91,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         _t: f64,
         phi_q: &mut SMatrix<f64, 2, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         *phi_q = SMatrix::zeros();
         phi_q[(0, 0)] = -0.1 * v0;
         phi_q[(0, 1)] = -0.3 * v2;
@@ -123,8 +119,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         _t: f64,
         gamma: &mut SVector<f64, 2>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v4 = qd[0] * qd[0];
         let v5 = qd[1] * qd[1];
         gamma[0] = 0.1 * v1 * v4 + 0.3 * v3 * v5;
@@ -139,8 +134,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         phi: &mut SVector<f64, 2>,
         phi_q: &mut SMatrix<f64, 2, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         *phi_q = SMatrix::zeros();
         phi[0] = 0.1 * v1 + 0.3 * v3 - q[2];
         phi[1] = 0.1 * v0 - 0.3 * v2;
@@ -162,8 +156,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         phi_q: &mut SMatrix<f64, 2, 3>,
         gamma: &mut SVector<f64, 2>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v10 = qd[0] * qd[0];
         let v4 = v1 * v10;
         let v5 = v0 * v10;
@@ -202,8 +195,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         _t: f64,
         tau: &mut SVector<f64, 3>,
     ) {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
         let v4 = -0.1 * v1 * v6 - 0.3 * v3 * v7 - 0.1 * v0 * qdd[0] - 0.3 * v2 * qdd[1];
@@ -224,8 +216,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     ///Kinetic energy `T`.
     #[inline]
     fn kinetic_energy(&self, q: &SVector<f64, 3>, qd: &SVector<f64, 3>, _t: f64) -> f64 {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v4 = -0.1 * v0 * qd[0] - 0.3 * v2 * qd[1];
         let v5 = 0.1 * v1 * qd[0] - 0.3 * v3 * qd[1];
         0.002166666666666667 * qd[0] * qd[0] + 0.013333333333333336 * v1 * qd[0] * v5
@@ -248,8 +239,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         _t: f64,
         out: &mut SVector<f64, 3>,
     ) -> bool {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
         let v4 = -0.1 * v1 * v6 - 0.3 * v3 * v7;
@@ -299,8 +289,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         h_q: &mut SMatrix<f64, 3, 3>,
         h_qd: &mut SMatrix<f64, 3, 3>,
     ) -> bool {
-        let (v0, v1) = math::sin_cos(q[0]);
-        let (v2, v3) = math::sin_cos(q[1]);
+        let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v8 = qd[0] * qd[0];
         let v9 = qd[1] * qd[1];
         let v4 = -0.1 * v1 * v8 - 0.3 * v3 * v9;

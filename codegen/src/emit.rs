@@ -274,7 +274,8 @@ impl Emitter<'_> {
         out
     }
 
-    /// The statements of a program: one `let` each, or, in programs longer
+    /// The statements of a program (the sines and cosines of angles that
+    /// read inputs only first, see below): one `let` each, or, in programs longer
     /// than [`FLAT_STATEMENTS`], variables declared up front in groups of
     /// [`DECLARATION_GROUP`] (`let [v0, v1, ...]: [f64; 64];`) and then
     /// assigned. Every `let` opens a lexical
@@ -301,7 +302,25 @@ impl Emitter<'_> {
             }
         }
         let bind = if flat { quote!(let) } else { quote!() };
-        for s in &p.stmts {
+        // In f64, the sines and cosines of the angles that read inputs only
+        // come first, all from one `math::sin_cos_array` call (bitwise
+        // `sin_cos` lane by lane, two lanes per SIMD instruction).
+        let batched = |s: &Stmt| {
+            self.model.precision == Precision::F64
+                && matches!(s, Stmt::SinCos { arg, .. } if !arg.reads_variables())
+        };
+        let (mut pairs, mut args) = (Vec::new(), Vec::new());
+        for s in p.stmts.iter().filter(|s| batched(s)) {
+            if let Stmt::SinCos { sin, cos, arg } = s {
+                let (s, c) = (format_ident!("v{}", sin), format_ident!("v{}", cos));
+                pairs.push(quote!((#s, #c)));
+                args.push(self.code(arg, SUM));
+            }
+        }
+        if !pairs.is_empty() {
+            out.extend(quote!(#bind [#(#pairs),*] = math::sin_cos_array([#(#args),*]);));
+        }
+        for s in p.stmts.iter().filter(|s| !batched(s)) {
             out.extend(match s {
                 Stmt::Let { var, value } => {
                     let v = format_ident!("v{}", var);

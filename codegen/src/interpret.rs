@@ -22,7 +22,9 @@
 //!   program's constants, zero always positive;
 //! * `sin_cos`, `sin`, ..., `atan2` are the functions of
 //!   `flexdyn_runtime::math` that generated code calls, in the same build
-//!   (so the same library, `std` or `libm`).
+//!   (so the same library, `std` or `libm`); where generated code computes
+//!   several sines and cosines in one `sin_cos_array` call, that is bitwise
+//!   `sin_cos` lane by lane.
 //!
 //! Operations on two literals are folded while lowering: the compiler folds
 //! them in the emitted code, with the same IEEE result.

@@ -751,9 +751,10 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
         }
         let phi_q = &jacobians[current];
         let phi_t = eval::constraint_time_derivative(model, &q, t)?;
-        let mut inv = local;
+        // The inverse at the solution overwrites the iterates' (no copy).
+        let inv = &mut local;
         let fast = if square {
-            self.free_inverse(phi_q, cfg.max_condition, &mut inv)
+            self.free_inverse(phi_q, cfg.max_condition, inv)
         } else {
             None
         };
@@ -773,18 +774,18 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
             for (k, &i) in self.prescribed.iter().enumerate() {
                 let jp = &phi_q.as_slice()[i * NC..(i + 1) * NC];
                 jp_norm2 += jp.iter().map(|e| *e * *e).sum::<T>();
-                mul_vec_acc(&inv, jp, &mut x.as_mut_slice()[k * NC..(k + 1) * NC]);
+                mul_vec_acc(inv, jp, &mut x.as_mut_slice()[k * NC..(k + 1) * NC]);
                 for ((w, u), e) in w.iter_mut().zip(u.iter_mut()).zip(jp) {
                     *w += *e * v[k];
                     *u -= *e * a[k];
                 }
             }
             let mut qd_f = SVector::<T, NC>::zeros();
-            mul_vec_acc(&inv, w.as_slice(), qd_f.as_mut_slice());
+            mul_vec_acc(inv, w.as_slice(), qd_f.as_mut_slice());
             self.scatter_free(&-qd_f, &mut qd);
             gamma = eval::constraint_rhs(model, &q, &qd, t)?;
             let mut qdd_f = SVector::<T, NC>::zeros();
-            mul_vec_acc(&inv, (u + gamma).as_slice(), qdd_f.as_mut_slice());
+            mul_vec_acc(inv, (u + gamma).as_slice(), qdd_f.as_mut_slice());
             self.scatter_free(&qdd_f, &mut qdd);
         } else {
             let jsvd = svd(&self.free_jacobian(phi_q).transpose(), cfg.max_sweeps, t)?;
@@ -810,7 +811,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
         let fast_forces = match fast {
             Some(f) => self.forces_eliminated(
                 &cfg,
-                &inv,
+                inv,
                 &x,
                 (f.jf_norm2 + jp_norm2) * f.inv_norm2,
                 phi_q,
@@ -839,7 +840,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
             forces: force_report,
         };
         self.guess = q;
-        self.jacobian_inverse = fast.map(|_| inv);
+        self.jacobian_inverse = fast.map(|_| *inv);
         self.motion = Some((t, qd, qdd));
         *out = InverseSolution {
             t,

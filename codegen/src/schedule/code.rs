@@ -75,6 +75,20 @@ pub enum Code {
     Atan2(Box<Code>, Box<Code>),
 }
 
+impl Code {
+    /// Whether it reads a local variable (else inputs and literals only).
+    pub fn reads_variables(&self) -> bool {
+        match self {
+            Code::Var(_) => true,
+            Code::Sym(_) | Code::Lit(_) => false,
+            Code::Sum { terms, .. } => terms.iter().any(|(_, t)| t.reads_variables()),
+            Code::Prod { num, den } => num.iter().chain(den).any(Code::reads_variables),
+            Code::Call(_, a) => a.reads_variables(),
+            Code::Atan2(y, x) => y.reads_variables() || x.reads_variables(),
+        }
+    }
+}
+
 /// A statement of the emitted program.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Stmt {
