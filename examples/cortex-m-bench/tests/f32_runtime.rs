@@ -90,8 +90,8 @@ fn quasi_static<T: Scalar, M: Model<12, 9, 3, T>>(
 }
 
 /// The height of the drive to the workspace edge, `(x, 0, HEIGHT)`: the
-/// circle's.
-const HEIGHT: f64 = 0.7;
+/// circle's, as f32 represents it (f32 and f64 solve the same problem).
+const HEIGHT: f64 = 0.7f32 as f64;
 
 /// The edge of the rigid robot's workspace along `(x, 0, z)`, `x > 0.1`:
 /// the largest `x` (to 1e-15 m) where the f64 solve succeeds, marching out
@@ -211,14 +211,11 @@ fn rigid_robot_f32_refuses_where_the_jacobian_condition_exceeds_its_limit() {
     // every 5 mm, where it exceeds 1e4). f32 starts from the f64 solution
     // there, so that it evaluates J_f at that pose rather than accepting an
     // earlier one (see above).
-    let z_edge = f64::from(0.69f32);
+    let z_edge = 0.69f32 as f64;
     let (edge, q_edge) = workspace_edge(z_edge);
     let x_edge = f64::from(f32_at_most(edge));
     let q0 = SVector::from(motion::Q0);
-    for (x, z, guess, beyond_f32) in [
-        (0.1f64, f64::from(0.7f32), q0, false),
-        (x_edge, z_edge, q_edge, true),
-    ] {
+    for (x, z, guess, beyond_f32) in [(0.1, HEIGHT, q0, false), (x_edge, z_edge, q_edge, true)] {
         let (o64, r64) = quasi_static_f64_svd(x, z, guess)
             .unwrap_or_else(|e| panic!("f64 fails at x = {x}, z = {z}: {e}"));
         let cond64 = r64.jacobian_condition;
