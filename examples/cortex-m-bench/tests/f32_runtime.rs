@@ -8,6 +8,10 @@
 //!   workspace (positions that f32 represents exactly, up to the last f32
 //!   value below the edge): the f32 torque error grows with the condition of
 //!   the Jacobian of the free coordinates and stays within `10 cond eps`;
+//! * f32 refuses where that condition exceeds its limit (1e4) and f64 does
+//!   not (1e8): `SingularConstraintJacobian` with f32's own estimate of the
+//!   condition (against f64's exact one) and the limit, while both solve at
+//!   a well-conditioned pose;
 //! * RK4 and Gauss–Legendre on the flexible spin-up beam (rheonomic hub
 //!   drive, four elastic modes): the f32 trajectory against the f64 one.
 //!
@@ -16,8 +20,8 @@
 
 use flexdyn_runtime::nalgebra::SVector;
 use flexdyn_runtime::{
-    GaussLegendre4, Integrator, InverseConfig, InverseDynamics, InverseReport, InverseSolution,
-    Model, Rk4, Scalar, State,
+    ErrorKind, GaussLegendre4, Integrator, InverseConfig, InverseDynamics, InverseReport,
+    InverseSolution, Model, Rk4, Scalar, State,
 };
 
 #[path = "../firmware/src/models.rs"]
@@ -71,24 +75,29 @@ fn rigid_robot_inverse_dynamics_in_f32_follows_f64_along_the_circle() {
 }
 
 /// Quasi-static inverse dynamics of the rigid robot at platform position
-/// `(x, 0, 0.7)`, warm-started by `solver`.
+/// `(x, 0, z)`, warm-started by `solver`.
 fn quasi_static<T: Scalar, M: Model<12, 9, 3, T>>(
     model: &M,
     solver: &mut InverseDynamics<12, 9, 3, 3, T>,
     x: f64,
+    z: f64,
 ) -> Result<(InverseSolution<12, 9, 3, T>, InverseReport<T>), flexdyn_runtime::Error> {
-    let p = SVector::from([x, 0.0, 0.7].map(T::of));
+    let p = SVector::from([x, 0.0, z].map(T::of));
     let zero = SVector::zeros();
     let mut out = InverseSolution::default();
     let report = solver.solve(model, T::zero(), &p, &zero, &zero, &mut out)?;
     Ok((out, report))
 }
 
-/// The edge of the rigid robot's workspace along `(x, 0, 0.7)`, `x > 0.1`:
+/// The height of the drive to the workspace edge, `(x, 0, HEIGHT)`: the
+/// circle's, as f32 represents it (f32 and f64 solve the same problem).
+const HEIGHT: f64 = 0.7f32 as f64;
+
+/// The edge of the rigid robot's workspace along `(x, 0, z)`, `x > 0.1`:
 /// the largest `x` (to 1e-15 m) where the f64 solve succeeds, marching out
 /// by 2 mm from the circle's first pose and then bisecting, warm-started
-/// from the last solved position.
-fn workspace_edge() -> f64 {
+/// from the last solved position. Returns the edge and the pose there.
+fn workspace_edge(z: f64) -> (f64, SVector<f64, 12>) {
     let mut solver = InverseDynamics::new(
         [9, 10, 11],
         SVector::from(motion::Q0),
@@ -98,7 +107,7 @@ fn workspace_edge() -> f64 {
     let mut last = SVector::from(motion::Q0);
     let mut solves = |x: f64| {
         solver.set_guess(last);
-        let ok = quasi_static(&Rigid64, &mut solver, x).map(|(o, _)| last = o.q);
+        let ok = quasi_static(&Rigid64, &mut solver, x, z).map(|(o, _)| last = o.q);
         ok.is_ok()
     };
     let mut x_ok = 0.1;
@@ -115,7 +124,7 @@ fn workspace_edge() -> f64 {
             x_bad = mid;
         }
     }
-    x_ok
+    (x_ok, last)
 }
 
 #[test]
@@ -123,11 +132,8 @@ fn rigid_robot_near_the_workspace_edge_f32_loses_digits_within_its_bound() {
     // Positions that f32 represents exactly (both solve the same problem):
     // every 2 mm from the circle's first pose outwards, then the 100 f32
     // values below the edge.
-    let edge = workspace_edge();
-    let mut top = edge as f32;
-    if f64::from(top) > edge {
-        top = f32::from_bits(top.to_bits() - 1);
-    }
+    let (edge, _) = workspace_edge(HEIGHT);
+    let top = f32_at_most(edge);
     let mut xs: Vec<f64> = (1..)
         .map(|k| f64::from((0.1 + 0.002 * f64::from(k)) as f32))
         .take_while(|x| *x < f64::from(top) - 1e-4)
@@ -145,9 +151,9 @@ fn rigid_robot_near_the_workspace_edge_f32_loses_digits_within_its_bound() {
     // (x, f64 Jacobian condition, f32 torque error relative to the peak)
     let mut samples = Vec::new();
     for &x in &xs {
-        let (o64, r64) = quasi_static(&Rigid64, &mut s64, x)
+        let (o64, r64) = quasi_static(&Rigid64, &mut s64, x, HEIGHT)
             .unwrap_or_else(|e| panic!("f64 fails at x = {x} inside the edge {edge}: {e}"));
-        let (o32, _) = quasi_static(&Rigid32, &mut s32, x)
+        let (o32, _) = quasi_static(&Rigid32, &mut s32, x, HEIGHT)
             .unwrap_or_else(|e| panic!("f32 inverse dynamics fails at x = {x}: {e}"));
         let peak = o64.tau.amax().max(1.0);
         samples.push((
@@ -166,6 +172,99 @@ fn rigid_robot_near_the_workspace_edge_f32_loses_digits_within_its_bound() {
             err <= 10.0 * cond * f64::from(f32::EPSILON),
             "x = {x}: error {err:e}, condition {cond:e}"
         );
+    }
+}
+
+/// The largest `f32` value at most `x`.
+fn f32_at_most(x: f64) -> f32 {
+    let y = x as f32;
+    if f64::from(y) > x {
+        f32::from_bits(y.to_bits() - 1)
+    } else {
+        y
+    }
+}
+
+/// The rigid robot's quasi-static f64 solution at `(x, 0, z)` on the SVD
+/// path (its condition is the exact 2-norm one), from `guess`.
+fn quasi_static_f64_svd(
+    x: f64,
+    z: f64,
+    guess: SVector<f64, 12>,
+) -> Result<(InverseSolution<12, 9, 3>, InverseReport), flexdyn_runtime::Error> {
+    let config = InverseConfig {
+        fast_path: false,
+        ..InverseConfig::default()
+    };
+    let mut solver = InverseDynamics::new([9, 10, 11], guess, config).unwrap();
+    quasi_static(&Rigid64, &mut solver, x, z)
+}
+
+#[test]
+fn rigid_robot_f32_refuses_where_the_jacobian_condition_exceeds_its_limit() {
+    let (limit32, limit64) = (f64::from(f32::MAX_CONDITION), f64::MAX_CONDITION);
+    // (x, z, guess, whether J_f's condition there exceeds f32's limit), at
+    // positions that f32 represents exactly: the circle's first pose, and
+    // the last f32 value below the workspace edge along (x, 0, 0.69) (the
+    // condition there depends on how close the edge lies to an f32 value;
+    // along (x, 0, 0.7) it is 8,000, 0.69 is the first height below 0.7,
+    // every 5 mm, where it exceeds 1e4). f32 starts from the f64 solution
+    // there, so that it evaluates J_f at that pose rather than accepting an
+    // earlier one (see above).
+    let z_edge = 0.69f32 as f64;
+    let (edge, q_edge) = workspace_edge(z_edge);
+    let x_edge = f64::from(f32_at_most(edge));
+    let q0 = SVector::from(motion::Q0);
+    for (x, z, guess, beyond_f32) in [(0.1, HEIGHT, q0, false), (x_edge, z_edge, q_edge, true)] {
+        let (o64, r64) = quasi_static_f64_svd(x, z, guess)
+            .unwrap_or_else(|e| panic!("f64 fails at x = {x}, z = {z}: {e}"));
+        let cond64 = r64.jacobian_condition;
+        let mut s32 =
+            InverseDynamics::new([9, 10, 11], o64.q.cast::<f32>(), InverseConfig::default())
+                .unwrap();
+        let result32 = quasi_static(&Rigid32, &mut s32, x, z);
+        println!(
+            "(x, z) = ({x:.9}, {z}) m: f64 condition of J_f {cond64:.4e} (limit {limit64:e}), f32: {}",
+            match &result32 {
+                Ok((_, r32)) => format!("solved, condition {:.4e}", r32.jacobian_condition),
+                Err(e) => format!("{e}"),
+            }
+        );
+        assert!(cond64 <= limit64);
+        assert_eq!(
+            cond64 > limit32,
+            beyond_f32,
+            "x = {x}: f64 condition {cond64:e}"
+        );
+        match result32 {
+            Ok((_, r32)) => {
+                assert!(!beyond_f32, "f32 solved at x = {x}, condition {cond64:e}");
+                let cond32 = f64::from(r32.jacobian_condition);
+                assert!(cond32 <= limit32);
+                assert!(
+                    (0.5..=2.0 * 9.0).contains(&(cond32 / cond64)),
+                    "x = {x}: f32 condition (bound) {cond32:e}, f64 {cond64:e}"
+                );
+            }
+            Err(e) => {
+                let ErrorKind::SingularConstraintJacobian { condition, limit } = e.kind else {
+                    panic!("x = {x}: f32 fails with {e}, not a singular Jacobian");
+                };
+                assert!(beyond_f32, "f32 refused at x = {x}: {e}");
+                assert_eq!(limit, limit32);
+                assert!(condition > limit, "{e}");
+                // f32's own estimate of the condition (SVD) agrees with
+                // f64's to within f32's accuracy at that condition.
+                assert!(
+                    (condition / cond64 - 1.0).abs() <= 0.1,
+                    "f32 condition {condition:e}, f64 {cond64:e}"
+                );
+                let message = e.to_string();
+                for number in [condition, limit] {
+                    assert!(message.contains(&format!("{number:e}")), "{message}");
+                }
+            }
+        }
     }
 }
 
