@@ -24,7 +24,7 @@ pub struct Args {
     #[arg(long)]
     pub c_header: bool,
     /// Scalar type of the generated code, overriding the scene's `precision`
-    /// (`f32`: inherent methods instead of the runtime's f64 `Model` trait).
+    /// (`f32`: the module implements the runtime's `Model<.., f32>`).
     #[arg(long, value_parser = ["f64", "f32"])]
     pub precision: Option<String>,
     /// Print nothing but errors.
