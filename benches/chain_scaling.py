@@ -45,49 +45,49 @@ FUNCTIONS = ["bias", "mass_matrix", "dynamics_terms", "inverse_dynamics"]
 AXES = ["z", "y", "x"]
 
 
-def spatial_chain(n: int) -> str:
-    """A spatial serial chain of n rigid bodies with full inertia tensors."""
-    out = [f'name = "chain{n}"', f'description = "Spatial serial chain of {n} rigid bodies"',
+def serial_chain(name: str, description: str, n: int, offset: str, axis, bodies) -> str:
+    """A serial chain of n revolute joints: coordinates, frames (link k on
+    link k-1, translated by ``offset`` except the first, rotated about
+    ``axis(k)``), the bodies ``bodies(k)`` (TOML lines) and one actuator per
+    joint."""
+    out = [f'name = "{name}"', f'description = "{description}"',
            'gravity = [0, 0, -9.81]', ""]
     for k in range(n):
         out += ["[[coordinates]]", f'name = "q{k}"', "range = [-3.1, 3.1]",
                 "velocity_range = [-3.0, 3.0]", ""]
     for k in range(n):
         parent = "world" if k == 0 else f"link{k - 1}"
-        offset = "[0, 0, 0]" if k == 0 else "[0.05, 0.02, 0.3]"
+        translation = "[0, 0, 0]" if k == 0 else offset
         out += ["[[frames]]", f'name = "link{k}"', f'parent = "{parent}"',
-                f"translation = {offset}",
-                f'rotation = [{{ axis = "{AXES[k % 3]}", angle = "q{k}" }}]', ""]
+                f"translation = {translation}",
+                f'rotation = [{{ axis = "{axis(k)}", angle = "q{k}" }}]', ""]
     for k in range(n):
-        m = 1.0 + 0.1 * (k % 4)
-        ixx, iyy, izz = 0.02 + 0.001 * k, 0.025, 0.012 + 0.0005 * k
-        ixy, ixz, iyz = 0.001, -0.0007, 0.0004
-        out += ["[[components]]", f'name = "body{k}"', 'type = "rigid_body"', f"mass = {m}",
-                f'frame = "link{k}"', "position = [0.01, -0.015, 0.15]",
-                f"inertia = [[{ixx}, {ixy}, {ixz}], [{ixy}, {iyy}, {iyz}], [{ixz}, {iyz}, {izz}]]", ""]
+        out += ["[[components]]", *bodies(k), ""]
     for k in range(n):
         out += ["[[actuators]]", f'name = "tau{k}"', f'coordinate = "q{k}"', ""]
     return "\n".join(out)
+
+
+def spatial_chain(n: int) -> str:
+    """A spatial serial chain of n rigid bodies with full inertia tensors."""
+    def body(k: int) -> list[str]:
+        m = 1.0 + 0.1 * (k % 4)
+        ixx, iyy, izz = 0.02 + 0.001 * k, 0.025, 0.012 + 0.0005 * k
+        ixy, ixz, iyz = 0.001, -0.0007, 0.0004
+        return [f'name = "body{k}"', 'type = "rigid_body"', f"mass = {m}",
+                f'frame = "link{k}"', "position = [0.01, -0.015, 0.15]",
+                f"inertia = [[{ixx}, {ixy}, {ixz}], [{ixy}, {iyy}, {iyz}], [{ixz}, {iyz}, {izz}]]"]
+    return serial_chain(f"chain{n}", f"Spatial serial chain of {n} rigid bodies", n,
+                        "[0.05, 0.02, 0.3]", lambda k: AXES[k % 3], body)
 
 
 def planar_pendulum(n: int) -> str:
     """The planar n-link pendulum: point masses, relative angles about y."""
-    out = [f'name = "pendulum{n}"', f'description = "Planar {n}-link pendulum"',
-           'gravity = [0, 0, -9.81]', ""]
-    for k in range(n):
-        out += ["[[coordinates]]", f'name = "q{k}"', "range = [-3.1, 3.1]",
-                "velocity_range = [-3.0, 3.0]", ""]
-    for k in range(n):
-        parent = "world" if k == 0 else f"link{k - 1}"
-        offset = "[0, 0, 0]" if k == 0 else "[0, 0, -0.5]"
-        out += ["[[frames]]", f'name = "link{k}"', f'parent = "{parent}"',
-                f"translation = {offset}", f'rotation = [{{ axis = "y", angle = "q{k}" }}]', ""]
-    for k in range(n):
-        out += ["[[components]]", f'name = "mass{k}"', 'type = "point_mass"',
-                f"mass = {1.0 + 0.05 * k}", f'frame = "link{k}"', "position = [0, 0, -0.5]", ""]
-    for k in range(n):
-        out += ["[[actuators]]", f'name = "tau{k}"', f'coordinate = "q{k}"', ""]
-    return "\n".join(out)
+    def body(k: int) -> list[str]:
+        return [f'name = "mass{k}"', 'type = "point_mass"', f"mass = {1.0 + 0.05 * k}",
+                f'frame = "link{k}"', "position = [0, 0, -0.5]"]
+    return serial_chain(f"pendulum{n}", f"Planar {n}-link pendulum", n, "[0, 0, -0.5]",
+                        lambda k: "y", body)
 
 
 FAMILIES = {"spatial": spatial_chain, "planar": planar_pendulum}
