@@ -36,6 +36,22 @@ use std::fmt;
 /// scenes' counts and the chain linear.)
 const FLATTEN_MAX_TERMS: usize = 8;
 
+/// Adds `c` times the sum `k + sum(ts)` to a sum being built: its terms to
+/// `terms`, its constant to `constant` and that constant's magnitude to
+/// `magnitude` (for [`exact::cancel`]).
+fn open_sum(
+    ts: &[(Id, Real)],
+    k: Real,
+    c: f64,
+    constant: &mut f64,
+    magnitude: &mut f64,
+    terms: &mut Vec<(Id, f64)>,
+) {
+    *constant += c * k.get();
+    *magnitude += (c * k.get()).abs();
+    terms.extend(ts.iter().map(|&(t, ct)| (t, c * ct.get())));
+}
+
 /// Index of a node in a [`Graph`].
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Debug)]
 pub struct Id(u32);
@@ -282,9 +298,7 @@ impl Graph {
                     magnitude += (c * k.get()).abs();
                 }
                 Node::Sum(ts, k) if single || ts.len() <= FLATTEN_MAX_TERMS => {
-                    constant += c * k.get();
-                    magnitude += (c * k.get()).abs();
-                    flat.extend(ts.iter().map(|&(t, ct)| (t, c * ct.get())));
+                    open_sum(ts, *k, c, &mut constant, &mut magnitude, &mut flat);
                 }
                 _ => flat.push((id, c)),
             }
@@ -296,9 +310,7 @@ impl Graph {
             for (id, c) in flat {
                 match self.node(id) {
                     Node::Sum(ts, k) if open.contains(&id) => {
-                        constant += c * k.get();
-                        magnitude += (c * k.get()).abs();
-                        kept.extend(ts.iter().map(|&(t, ct)| (t, c * ct.get())));
+                        open_sum(ts, *k, c, &mut constant, &mut magnitude, &mut kept);
                     }
                     _ => kept.push((id, c)),
                 }
