@@ -12,7 +12,17 @@
 //!   simplify further;
 //! * Coriolis/centrifugal forces `c = d/dt p|_(qdd=0) - dT/dq`, the time
 //!   derivative being one forward-mode sweep over `p` (`q' = qd`, `t' = 1`);
-//! * mass matrix `M_ij = dp_i/dqd_j`: one forward sweep over `p` per column;
+//! * except for rigid bodies and point masses on chains, whose kinetic
+//!   energy has the rigid-body form `(m v.v + w.I w) / 2`
+//!   ([`crate::model::Body`]): their Lagrange terms are the virtual work of
+//!   their Newton-Euler inertial forces, `J_v^T m (v' + w x v) + J_w^T (I w'
+//!   + w x I w)` ([`newton_euler`]), by one forward sweep over their
+//!   velocities and one reverse sweep weighted by the forces: the recursive
+//!   Newton-Euler algorithm's two passes. On the Panda arm this halves the
+//!   bias forces' program (2,209 to 1,157 operations);
+//! * mass matrix `M_ij = dp_i/dqd_j`: one forward sweep over `p` per column
+//!   (the bodies' momenta `J^T (m v, I w)` by one reverse sweep over their
+//!   velocities);
 //! * inverse dynamics `M qdd + h = dp/dt - dT/dq + g + d`, the time
 //!   derivative along `q' = qd`, `qd' = qdd`, `t' = 1` (`Symbol::Qdd`): one
 //!   forward sweep, no mass matrix formed;
@@ -27,7 +37,7 @@
 use std::fmt;
 
 use crate::expr::{Graph, Id, Symbol};
-use crate::model::Model;
+use crate::model::{Body, Component, Model};
 
 /// A matrix of graph nodes, as rows.
 pub type Matrix = Vec<Vec<Id>>;
@@ -107,11 +117,27 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
 
     let q_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Q(i as u32)).collect();
     let qd_vars: Vec<Symbol> = (0..n).map(|i| Symbol::Qd(i as u32)).collect();
-    let (dtdq, momenta) = kinetic_gradient(g, &model.components, n);
-    let (dtdq, momenta) = (&dtdq[..], &momenta[..]);
-    // Coriolis forces: one forward sweep over the momenta.
-    let rates = g.time_derivative_at_zero_acceleration(momenta);
-    let coriolis: Vec<Id> = (0..n).map(|i| g.sub(rates[i], dtdq[i])).collect();
+    let (bodies, others) = newton_euler_split(g, &model.components);
+    let (dtdq, other_momenta) = kinetic_gradient(g, &others, n);
+    let dtdq = &dtdq[..];
+    // The bodies' momenta J^T (m v, I w): one reverse sweep over their
+    // velocities.
+    let body_momenta = body_momenta(g, &bodies, &qd_vars);
+    let momenta: Vec<Id> = (0..n)
+        .map(|i| g.add(other_momenta[i], body_momenta[i]))
+        .collect();
+    // Coriolis forces: one forward sweep over the other momenta, and the
+    // bodies' Newton-Euler forces at zero acceleration.
+    let rates = g.time_derivative_at_zero_acceleration(&other_momenta);
+    let body_forces = newton_euler(g, &bodies, &qd_vars, None);
+    let coriolis: Vec<Id> = (0..n)
+        .map(|i| {
+            g.linear(
+                &[(rates[i], 1.0), (dtdq[i], -1.0), (body_forces[i], 1.0)],
+                0.0,
+            )
+        })
+        .collect();
     // dp/dt along the motion (q' = qd, qd' = qdd, t' = 1): one more sweep.
     let one = g.constant(1.0);
     let mut motion: Vec<(Symbol, Id)> = vec![(Symbol::Time, one)];
@@ -120,7 +146,8 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         motion.push((Symbol::Q(i as u32), qd));
         motion.push((Symbol::Qd(i as u32), qdd));
     }
-    let momentum_rates = g.jvp(momenta, &motion);
+    let momentum_rates = g.jvp(&other_momenta, &motion);
+    let body_forces_in_motion = newton_euler(g, &bodies, &qd_vars, Some(&motion));
     // Mass matrix, column by column: M_ij = dp_i/dqd_j (upper triangle).
     let mut mass = vec![vec![zero; n]; n];
     for j in 0..n {
@@ -143,6 +170,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
             let terms = [
                 (momentum_rates[i], 1.0),
                 (dtdq[i], -1.0),
+                (body_forces_in_motion[i], 1.0),
                 (potential_forces[i], 1.0),
                 (damping_forces[i], 1.0),
             ];
@@ -212,11 +240,7 @@ const FORWARD_MAX_COORDINATES: usize = 4;
 
 /// `(dT/dq, dT/dqd)` of the total kinetic energy: forward mode per small
 /// component, one reverse sweep over the sum of the others.
-fn kinetic_gradient(
-    g: &mut Graph,
-    components: &[crate::model::Component],
-    n: usize,
-) -> (Vec<Id>, Vec<Id>) {
+fn kinetic_gradient(g: &mut Graph, components: &[&Component], n: usize) -> (Vec<Id>, Vec<Id>) {
     let zero = g.constant(0.0);
     let (mut dtdq, mut momenta) = (vec![zero; n], vec![zero; n]);
     let mut shared = Vec::new();
@@ -244,6 +268,120 @@ fn kinetic_gradient(
         momenta[i] = g.add(momenta[i], grad[n + i]);
     }
     (dtdq, momenta)
+}
+
+/// Bodies that touch at least this many coordinates are written in
+/// Newton-Euler form ([`newton_euler`]), and so are the bodies on their
+/// chains (touching only coordinates such a body touches): on a chain
+/// their velocities are shared by the forward and backward passes. A
+/// body touching fewer coordinates on its own (a link of a small closed
+/// mechanism) is differentiated like any other component, where its
+/// expanded derivatives simplify further (the five-bar: 96 operations for
+/// `dynamics_terms` against 118).
+const NEWTON_EULER_MIN_COORDINATES: usize = 3;
+
+/// The components' bodies to write in Newton-Euler form, and the other
+/// components.
+fn newton_euler_split<'a>(
+    g: &Graph,
+    components: &'a [Component],
+) -> (Vec<Body>, Vec<&'a Component>) {
+    let touches: Vec<Vec<usize>> = components.iter().map(|c| touched(g, c.kinetic)).collect();
+    let chains: Vec<&Vec<usize>> = components
+        .iter()
+        .zip(&touches)
+        .filter(|(c, t)| c.body.is_some() && t.len() >= NEWTON_EULER_MIN_COORDINATES)
+        .map(|(_, t)| t)
+        .collect();
+    let (mut bodies, mut others) = (Vec::new(), Vec::new());
+    for (c, t) in components.iter().zip(&touches) {
+        match c.body {
+            Some(b)
+                if chains
+                    .iter()
+                    .any(|chain| t.iter().all(|i| chain.contains(i))) =>
+            {
+                bodies.push(b)
+            }
+            _ => others.push(c),
+        }
+    }
+    (bodies, others)
+}
+
+/// Each body's velocity and angular velocity, `[v, w]` (frame axes), in
+/// order.
+fn twists(bodies: &[Body]) -> Vec<Id> {
+    bodies
+        .iter()
+        .flat_map(|b| b.velocity.into_iter().chain(b.omega))
+        .collect()
+}
+
+/// `I w` of a body (zero for a point mass).
+fn angular_momentum(g: &mut Graph, b: &Body, w: [Id; 3]) -> [Id; 3] {
+    match &b.inertia {
+        Some(inertia) => g.rotate(inertia, w),
+        None => [g.constant(0.0); 3],
+    }
+}
+
+/// The bodies' momenta `p = sum_b J_b^T (m v, I w)`, `J_b = d(v, w)/dqd`:
+/// one reverse sweep over the velocities, weighted by the body momenta.
+fn body_momenta(g: &mut Graph, bodies: &[Body], qd_vars: &[Symbol]) -> Vec<Id> {
+    let mut weights = Vec::with_capacity(6 * bodies.len());
+    for b in bodies {
+        let linear: [Id; 3] = std::array::from_fn(|k| g.mul(b.mass, b.velocity[k]));
+        let angular = angular_momentum(g, b, b.omega);
+        weights.extend(linear.into_iter().chain(angular));
+    }
+    let outputs = twists(bodies);
+    g.vjp(&outputs, &weights, qd_vars)
+}
+
+/// Lagrange's terms `d/dt dT/dqd - dT/dq` of the bodies, as Newton-Euler
+/// forces. For a body with `T = (m v.v + w.I w) / 2` (`v`, `w` in the axes
+/// of a frame turning at `w`, `I` constant there):
+///
+/// ```text
+/// d/dt dT/dqd - dT/dq = J_v^T m (v' + w x v) + J_w^T (I w' + w x I w)
+/// ```
+///
+/// with `J_v = dv/dqd`, `J_w = dw/dqd` and `'` the time derivative along the
+/// motion: the virtual work of the body's inertial forces (`v' + w x v` is
+/// the acceleration of the centre in the turning axes, `I w' + w x I w`
+/// Euler's). The rates come from one forward sweep over all velocities
+/// (`motion` the tangent `q' = qd, qd' = qdd, t' = 1`, or `None` for zero
+/// accelerations) and the projection by one reverse sweep weighted by the
+/// forces: the recursive Newton-Euler algorithm's forward and backward
+/// passes, written on the graph.
+fn newton_euler(
+    g: &mut Graph,
+    bodies: &[Body],
+    qd_vars: &[Symbol],
+    motion: Option<&[(Symbol, Id)]>,
+) -> Vec<Id> {
+    let outputs = twists(bodies);
+    let rates = match motion {
+        Some(motion) => g.jvp(&outputs, motion),
+        None => g.time_derivative_at_zero_acceleration(&outputs),
+    };
+    let mut weights = Vec::with_capacity(outputs.len());
+    for (b, rate) in bodies.iter().zip(rates.chunks(6)) {
+        let (v, w) = (b.velocity, b.omega);
+        let w_x_v = g.cross(w, v);
+        let linear: [Id; 3] = std::array::from_fn(|k| {
+            let a = g.add(rate[k], w_x_v[k]);
+            g.mul(b.mass, a)
+        });
+        let w_rate = [rate[3], rate[4], rate[5]];
+        let i_w_rate = angular_momentum(g, b, w_rate);
+        let i_w = angular_momentum(g, b, w);
+        let gyro = g.cross(w, i_w);
+        let angular: [Id; 3] = std::array::from_fn(|k| g.add(i_w_rate[k], gyro[k]));
+        weights.extend(linear.into_iter().chain(angular));
+    }
+    g.vjp(&outputs, &weights, qd_vars)
 }
 
 /// Indices of the coordinates an expression touches (through `q` or `qd`).

@@ -169,15 +169,7 @@ pub fn apply(mut model: Model, def: &DerivedSceneDef, source: &Source) -> Result
         Symbol::Time | Symbol::Param(_) | Symbol::Qdd(_) => None,
     };
     let new = g.substitute(&roots, &map);
-    let mut it = new.into_iter();
-    for c in &mut model.components {
-        c.kinetic = it.next().unwrap_or(zero);
-        c.potential = it.next().unwrap_or(zero);
-        c.dissipation = it.next().unwrap_or(zero);
-    }
-    for c in &mut model.constraints {
-        c.residual = it.next().unwrap_or(zero);
-    }
+    model.set_input_roots(new);
     for a in &mut model.actuators {
         // Checked above: actuated coordinates are kept.
         a.coordinate = index[a.coordinate].map_or(a.coordinate, |j| j as usize);

@@ -25,8 +25,18 @@ impl Graph {
     /// Gradient of `e` with respect to `vars` (`df/dx_i` for each `x_i`),
     /// by one reverse sweep.
     pub fn gradient(&mut self, e: Id, vars: &[Symbol]) -> Vec<Id> {
+        let one = self.constant(1.0);
+        self.vjp(&[e], &[one], vars)
+    }
+
+    /// Vector-Jacobian product: `sum_k w_k d(outputs_k)/dx_i` for each
+    /// variable `x_i`, by one reverse sweep from the outputs, each seeded
+    /// with its weight `w_k`. The weights are nodes held fixed: whatever
+    /// they depend on, they are not differentiated.
+    pub fn vjp(&mut self, outputs: &[Id], weights: &[Id], vars: &[Symbol]) -> Vec<Id> {
+        assert_eq!(outputs.len(), weights.len(), "one weight per output");
         let wanted: HashSet<Symbol> = vars.iter().copied().collect();
-        let order = self.reachable(&[e]);
+        let order = self.reachable(outputs);
         // Nodes that depend on a wanted variable (children precede parents).
         let mut active: HashSet<Id> = HashSet::new();
         for &id in &order {
@@ -40,9 +50,10 @@ impl Graph {
         }
         let mut contributions: HashMap<Id, Vec<(Id, f64)>> = HashMap::new();
         let mut of_symbol: HashMap<Symbol, Id> = HashMap::new();
-        if active.contains(&e) {
-            let one = self.constant(1.0);
-            contributions.insert(e, vec![(one, 1.0)]);
+        for (&output, &weight) in outputs.iter().zip(weights) {
+            if active.contains(&output) {
+                contributions.entry(output).or_default().push((weight, 1.0));
+            }
         }
         for &id in order.iter().rev() {
             let Some(terms) = contributions.remove(&id) else {

@@ -82,6 +82,7 @@ impl Context<'_> {
                 kinetic: self.graph.scale(product, 0.5),
                 potential: zero,
                 dissipation: zero,
+                body: None,
             });
         }
         Ok(out)

@@ -44,13 +44,15 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
             Some(read) => read,
             None => components::read(&cx, i, c)?,
         };
-        let [kinetic, potential, dissipation] = read.value.energies(&mut cx, &read.ctx)?;
+        let terms = read.value.energies(&mut cx, &read.ctx)?;
+        let [kinetic, potential, dissipation] = terms.energies;
         component_energies.push(Component {
             name: read.name,
             kind: read.kind.to_owned(),
             kinetic,
             potential,
             dissipation,
+            body: terms.body,
         });
     }
     let mut constraints = Vec::new();

@@ -70,6 +70,57 @@ pub struct Component {
     pub potential: Id,
     /// Rayleigh dissipation function.
     pub dissipation: Id,
+    /// The kinetic energy's rigid-body form, for a rigid body or a point
+    /// mass; `None` for other kinds.
+    pub body: Option<Body>,
+}
+
+/// A kinetic energy of rigid-body form, `T = (m v.v + w.I w) / 2`: `v` the
+/// velocity of the centre of mass and `w` the angular velocity of a frame,
+/// both in that frame's axes, and `I` the inertia about the centre in those
+/// axes, constant (parameters only). The derivation uses the form to write
+/// the body's Lagrange terms as Newton-Euler forces ([`crate::derive`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Body {
+    /// Mass `m`.
+    pub mass: Id,
+    /// Centre-of-mass velocity `v`, in the frame's axes.
+    pub velocity: [Id; 3],
+    /// The frame's angular velocity `w`, in its own axes.
+    pub omega: [Id; 3],
+    /// Inertia about the centre of mass, in the frame's axes; `None` for a
+    /// point mass.
+    pub inertia: Option<[[Id; 3]; 3]>,
+}
+
+impl Component {
+    /// Every node of the component: `T`, `V`, `D`, then its body's.
+    fn roots(&self) -> Vec<Id> {
+        let mut roots = vec![self.kinetic, self.potential, self.dissipation];
+        if let Some(b) = &self.body {
+            roots.push(b.mass);
+            roots.extend(b.velocity);
+            roots.extend(b.omega);
+            roots.extend(b.inertia.iter().flatten().flatten());
+        }
+        roots
+    }
+
+    /// Replace every node of the component, in the order of [`Self::roots`].
+    fn set_roots(&mut self, it: &mut impl Iterator<Item = Id>) {
+        let mut next = || it.next().expect("one node per root");
+        self.kinetic = next();
+        self.potential = next();
+        self.dissipation = next();
+        if let Some(b) = &mut self.body {
+            b.mass = next();
+            b.velocity = std::array::from_fn(|_| next());
+            b.omega = std::array::from_fn(|_| next());
+            if let Some(inertia) = &mut b.inertia {
+                *inertia = std::array::from_fn(|_| std::array::from_fn(|_| next()));
+            }
+        }
+    }
 }
 
 /// A holonomic constraint.
@@ -200,13 +251,22 @@ impl Model {
     }
 
     /// The scene's symbolic inputs: `T`, `V`, `D` of every component in
-    /// order, then every constraint residual.
+    /// order (and its body's nodes), then every constraint residual.
     pub fn input_roots(&self) -> Vec<Id> {
-        let mut roots: Vec<Id> = Vec::new();
-        for c in &self.components {
-            roots.extend([c.kinetic, c.potential, c.dissipation]);
-        }
+        let mut roots: Vec<Id> = self.components.iter().flat_map(Component::roots).collect();
         roots.extend(self.constraints.iter().map(|c| c.residual));
         roots
+    }
+
+    /// Replace the scene's symbolic inputs by `new`, in the order of
+    /// [`Self::input_roots`].
+    pub fn set_input_roots(&mut self, new: Vec<Id>) {
+        let mut it = new.into_iter();
+        for c in &mut self.components {
+            c.set_roots(&mut it);
+        }
+        for c in &mut self.constraints {
+            c.residual = it.next().expect("one node per root");
+        }
     }
 }

@@ -1,9 +1,8 @@
 //! `damper`: a linear damper of coefficient `d` on the rate of
 //! `expression`: `D = d (de/dt)^2 / 2`.
 
-use super::{required, Energies, Kind};
+use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
-use crate::expr::Id;
 use crate::load::scene::{ComponentDef, SScalar};
 use crate::model::context::Context;
 
@@ -27,7 +26,7 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
 }
 
 impl Energies for Damper {
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let zero = cx.graph.constant(0.0);
         let d = cx.positive(&self.damping, ctx, "damping", false)?;
         let e = cx.scalar(&self.expression, Some(ctx), false)?;
@@ -35,6 +34,6 @@ impl Energies for Damper {
         let rate = g.time_derivative_at_zero_acceleration(&[e])[0];
         let r2 = g.powi(rate, 2);
         let dr2 = g.mul(d, r2);
-        Ok([zero, zero, g.scale(dr2, 0.5)])
+        Ok([zero, zero, g.scale(dr2, 0.5)].into())
     }
 }

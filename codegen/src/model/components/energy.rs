@@ -1,9 +1,8 @@
 //! `energy`: energies written out as expressions: kinetic `T(q, qd, t)`,
 //! potential `V(q, t)` and dissipation `D(q, qd, t)`, at least one of them.
 
-use super::{Energies, Kind};
+use super::{Energies, Kind, Terms};
 use crate::error::Error;
-use crate::expr::Id;
 use crate::load::scene::{ComponentDef, SScalar};
 use crate::model::context::Context;
 
@@ -36,7 +35,7 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
 }
 
 impl Energies for Energy {
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let zero = cx.graph.constant(0.0);
         let mut out = [zero; 3];
         if let Some(t) = &self.kinetic {
@@ -48,6 +47,6 @@ impl Energies for Energy {
         if let Some(d) = &self.dissipation {
             out[2] = cx.scalar(d, Some(ctx), true)?;
         }
-        Ok(out)
+        Ok(out.into())
     }
 }

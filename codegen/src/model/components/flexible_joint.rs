@@ -7,10 +7,9 @@
 
 use toml::Spanned;
 
-use super::rigid_body::{body_energies, centre_of_mass};
-use super::{required, Energies, Kind};
+use super::rigid_body::{body_terms, centre_of_mass};
+use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
-use crate::expr::Id;
 use crate::load::scene::{ComponentDef, MaterialDef, SScalar};
 use crate::model::context::Context;
 
@@ -57,7 +56,7 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
 }
 
 impl Energies for FlexibleJoint {
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let (frame_name, mass, length, material, axis, twist) = (
             &self.frame,
             &self.mass,
@@ -95,7 +94,7 @@ impl Energies for FlexibleJoint {
         let frame = cx.lookup_frame(frame_name, ctx)?;
         let com = centre_of_mass(cx, frame_name, &frame, self.position.as_ref(), ctx)?;
         let m_id = cx.graph.constant(m);
-        let (kinetic, gravity) = body_energies(cx, m_id, &com, &frame, &inertia);
+        let mut terms = body_terms(cx, m_id, &com, frame.omega, Some(inertia));
         let k = match &self.stiffness {
             Some(k) => cx.positive(k, ctx, "stiffness", true)?,
             None => cx.graph.constant(shaft.torsional),
@@ -104,7 +103,7 @@ impl Energies for FlexibleJoint {
         let e2 = cx.graph.powi(e, 2);
         let ke2 = cx.graph.mul(k, e2);
         let spring = cx.graph.scale(ke2, 0.5);
-        let zero = cx.graph.constant(0.0);
-        Ok([kinetic, cx.graph.add(gravity, spring), zero])
+        terms.energies[1] = cx.graph.add(terms.energies[1], spring);
+        Ok(terms)
     }
 }

@@ -9,7 +9,7 @@
 use nalgebra::DMatrix;
 use toml::Spanned;
 
-use super::{required, Energies, Kind};
+use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
 use crate::expr::{Graph, Id};
 use crate::fem::{
@@ -104,13 +104,13 @@ impl Energies for Link {
         self.prepared.as_ref()
     }
 
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let link = self
             .prepared
             .as_ref()
             .expect("flexible links are prepared before the frames");
         let frame = cx.lookup_frame(&self.frame, ctx)?;
-        Ok(flexible_energies(cx, link, &frame))
+        Ok(flexible_energies(cx, link, &frame).into())
     }
 }
 

@@ -16,7 +16,7 @@ mod spring;
 pub(super) use flexible_link::station_frame;
 
 use super::context::Context;
-use super::{Coordinate, FlexibleLink};
+use super::{Body, Coordinate, FlexibleLink};
 use crate::error::Error;
 use crate::expr::Id;
 use crate::load::scene::{ComponentDef, SScalar};
@@ -68,8 +68,26 @@ pub(super) trait Energies {
         None
     }
 
-    /// Kinetic energy `T`, potential energy `V` and dissipation function `D`.
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error>;
+    /// Kinetic energy `T`, potential energy `V` and dissipation function
+    /// `D`, and the rigid-body form of `T` where it has one.
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error>;
+}
+
+/// What a component contributes to the model.
+pub(super) struct Terms {
+    /// `[T, V, D]`.
+    pub(super) energies: [Id; 3],
+    /// `T` in rigid-body form (a rigid body, a point mass).
+    pub(super) body: Option<Body>,
+}
+
+impl From<[Id; 3]> for Terms {
+    fn from(energies: [Id; 3]) -> Terms {
+        Terms {
+            energies,
+            body: None,
+        }
+    }
 }
 
 /// A component with its name, kind and error context, read into its typed

@@ -3,9 +3,9 @@
 
 use toml::Spanned;
 
-use super::{required, Energies, Kind};
+use super::rigid_body::body_terms;
+use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
-use crate::expr::Id;
 use crate::load::scene::{ComponentDef, SScalar};
 use crate::model::context::Context;
 
@@ -31,14 +31,14 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
 }
 
 impl Energies for PointMass {
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let zero = cx.graph.constant(0.0);
         let m = cx.positive(&self.mass, ctx, "mass", true)?;
         let p = cx.point(self.frame.as_ref(), &self.position, ctx)?;
-        let v2 = cx.graph.dot(p.velocity, p.velocity);
-        let mv2 = cx.graph.mul(m, v2);
-        let kinetic = cx.graph.scale(mv2, 0.5);
-        let potential = cx.gravity_potential(m, p.position);
-        Ok([kinetic, potential, zero])
+        let omega = match &self.frame {
+            Some(name) => cx.lookup_frame(name, ctx)?.omega,
+            None => [zero; 3],
+        };
+        Ok(body_terms(cx, m, &p, omega, None))
     }
 }

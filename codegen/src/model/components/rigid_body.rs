@@ -8,12 +8,13 @@
 
 use toml::Spanned;
 
-use super::{required, Energies, Kind};
+use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
 use crate::expr::Id;
 use crate::geometry::{Frame, Point};
 use crate::load::scene::{ComponentDef, InertiaEntry, SScalar, Scalar};
 use crate::model::context::Context;
+use crate::model::Body;
 
 pub(super) const KIND: Kind = Kind {
     name: "rigid_body",
@@ -41,8 +42,7 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
 }
 
 impl Energies for RigidBody {
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
-        let zero = cx.graph.constant(0.0);
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let m = cx.positive(&self.mass, ctx, "mass", false)?;
         let frame = cx.lookup_frame(&self.frame, ctx)?;
         let com = centre_of_mass(cx, &self.frame, &frame, self.position.as_ref(), ctx)?;
@@ -51,8 +51,7 @@ impl Energies for RigidBody {
             Some(rpy) => rotated(cx, &inertia, rpy, ctx)?,
             None => inertia,
         };
-        let (kinetic, potential) = body_energies(cx, m, &com, &frame, &inertia);
-        Ok([kinetic, potential, zero])
+        Ok(body_terms(cx, m, &com, frame.omega, Some(inertia)))
     }
 }
 
@@ -74,24 +73,36 @@ pub(super) fn centre_of_mass(
     }
 }
 
-/// Kinetic energy `(m v.v + w.I w) / 2` and gravity potential of a rigid
-/// body of mass `m` with centre of mass `com`, turning with `frame`,
-/// inertia about its centre in frame axes.
-pub(super) fn body_energies(
+/// The terms of a body of mass `m` with centre of mass `com`, turning at
+/// `omega` (frame axes), inertia about its centre in the same axes (`None`
+/// for a point mass): kinetic energy `(m v.v + w.I w) / 2`, gravity
+/// potential, no dissipation, and the body's form of `T`.
+pub(super) fn body_terms(
     cx: &mut Context,
     m: Id,
     com: &Point,
-    frame: &Frame,
-    inertia: &[[Id; 3]; 3],
-) -> (Id, Id) {
+    omega: [Id; 3],
+    inertia: Option<[[Id; 3]; 3]>,
+) -> Terms {
     let v2 = cx.graph.dot(com.velocity, com.velocity);
-    let w = frame.omega;
-    let iw = cx.graph.rotate(inertia, w);
-    let wiw = cx.graph.dot(w, iw);
-    let mv2 = cx.graph.mul(m, v2);
-    let total = cx.graph.add(mv2, wiw);
+    let mut total = cx.graph.mul(m, v2);
+    if let Some(inertia) = &inertia {
+        let iw = cx.graph.rotate(inertia, omega);
+        let wiw = cx.graph.dot(omega, iw);
+        total = cx.graph.add(total, wiw);
+    }
     let kinetic = cx.graph.scale(total, 0.5);
-    (kinetic, cx.gravity_potential(m, com.position))
+    let potential = cx.gravity_potential(m, com.position);
+    let zero = cx.graph.constant(0.0);
+    Terms {
+        energies: [kinetic, potential, zero],
+        body: Some(Body {
+            mass: m,
+            velocity: com.velocity,
+            omega,
+            inertia,
+        }),
+    }
 }
 
 /// The inertia tensor, full (three rows) or diagonal (three values):

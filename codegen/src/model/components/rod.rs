@@ -3,7 +3,7 @@
 
 use toml::Spanned;
 
-use super::{required, Energies, Kind};
+use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
 use crate::expr::Id;
 use crate::load::scene::{ComponentDef, SScalar};
@@ -33,7 +33,7 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
 }
 
 impl Energies for Rod {
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let zero = cx.graph.constant(0.0);
         let m = cx.positive(&self.mass, ctx, "mass", true)?;
         let a = cx.point(self.frame.as_ref(), &self.from, ctx)?;
@@ -51,6 +51,6 @@ impl Energies for Rod {
             g.scale(ab, 0.5)
         });
         let potential = cx.gravity_potential(m, mid);
-        Ok([kinetic, potential, zero])
+        Ok([kinetic, potential, zero].into())
     }
 }

@@ -1,9 +1,8 @@
 //! `spring`: a linear spring of stiffness `k` on the stretch
 //! `expression - rest`: `V = k (e - rest)^2 / 2`.
 
-use super::{required, Energies, Kind};
+use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
-use crate::expr::Id;
 use crate::load::scene::{ComponentDef, SScalar};
 use crate::model::context::Context;
 
@@ -29,7 +28,7 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
 }
 
 impl Energies for Spring {
-    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<[Id; 3], Error> {
+    fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let zero = cx.graph.constant(0.0);
         let k = cx.positive(&self.stiffness, ctx, "stiffness", false)?;
         let e = cx.scalar(&self.expression, Some(ctx), false)?;
@@ -41,6 +40,6 @@ impl Energies for Spring {
         let stretch = g.sub(e, rest);
         let s2 = g.powi(stretch, 2);
         let ks2 = g.mul(k, s2);
-        Ok([zero, g.scale(ks2, 0.5), zero])
+        Ok([zero, g.scale(ks2, 0.5), zero].into())
     }
 }
