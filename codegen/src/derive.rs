@@ -12,14 +12,15 @@
 //!   simplify further;
 //! * Coriolis/centrifugal forces `c = d/dt p|_(qdd=0) - dT/dq`, the time
 //!   derivative being one forward-mode sweep over `p` (`q' = qd`, `t' = 1`);
-//! * except for rigid bodies and point masses on chains, whose kinetic
+//! * except for rigid bodies, point masses and rods on chains, whose kinetic
 //!   energy has the rigid-body form `(m v.v + w.I w) / 2`
-//!   ([`crate::model::Body`]): their Lagrange terms are the virtual work of
+//!   ([`crate::model::Body`]; a rod is two such terms): their Lagrange terms are the virtual work of
 //!   their Newton-Euler inertial forces, `J_v^T m (v' + w x v) + J_w^T (I w'
 //!   + w x I w)` ([`newton_euler`]), by one forward sweep over their
 //!   velocities and one reverse sweep weighted by the forces: the recursive
 //!   Newton-Euler algorithm's two passes. On the Panda arm this halves the
-//!   bias forces' program (2,209 to 1,157 operations);
+//!   bias forces' program (2,209 to 1,157 operations), on the rigid
+//!   parallel robot too (555 to 273);
 //! * mass matrix `M_ij = dp_i/dqd_j`: one forward sweep over `p` per column
 //!   (the bodies' momenta `J^T (m v, I w)` by one reverse sweep over their
 //!   velocities);
@@ -290,20 +291,18 @@ fn newton_euler_split<'a>(
     let chains: Vec<&Vec<usize>> = components
         .iter()
         .zip(&touches)
-        .filter(|(c, t)| c.body.is_some() && t.len() >= NEWTON_EULER_MIN_COORDINATES)
+        .filter(|(c, t)| !c.bodies.is_empty() && t.len() >= NEWTON_EULER_MIN_COORDINATES)
         .map(|(_, t)| t)
         .collect();
     let (mut bodies, mut others) = (Vec::new(), Vec::new());
     for (c, t) in components.iter().zip(&touches) {
-        match c.body {
-            Some(b)
-                if chains
-                    .iter()
-                    .any(|chain| t.iter().all(|i| chain.contains(i))) =>
-            {
-                bodies.push(b)
-            }
-            _ => others.push(c),
+        let on_chain = chains
+            .iter()
+            .any(|chain| t.iter().all(|i| chain.contains(i)));
+        if !c.bodies.is_empty() && on_chain {
+            bodies.extend(c.bodies.iter().copied());
+        } else {
+            others.push(c);
         }
     }
     (bodies, others)

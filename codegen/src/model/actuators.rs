@@ -82,7 +82,7 @@ impl Context<'_> {
                 kinetic: self.graph.scale(product, 0.5),
                 potential: zero,
                 dissipation: zero,
-                body: None,
+                bodies: Vec::new(),
             });
         }
         Ok(out)

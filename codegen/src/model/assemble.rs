@@ -52,7 +52,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
             kinetic,
             potential,
             dissipation,
-            body: terms.body,
+            bodies: terms.bodies,
         });
     }
     let mut constraints = Vec::new();

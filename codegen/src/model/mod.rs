@@ -70,21 +70,23 @@ pub struct Component {
     pub potential: Id,
     /// Rayleigh dissipation function.
     pub dissipation: Id,
-    /// The kinetic energy's rigid-body form, for a rigid body or a point
-    /// mass; `None` for other kinds.
-    pub body: Option<Body>,
+    /// The kinetic energy's rigid-body form, for a rigid body, a point
+    /// mass or a rod (`T` the sum of its bodies' energies); empty for other
+    /// kinds.
+    pub bodies: Vec<Body>,
 }
 
 /// A kinetic energy of rigid-body form, `T = (m v.v + w.I w) / 2`: `v` the
-/// velocity of the centre of mass and `w` the angular velocity of a frame,
-/// both in that frame's axes, and `I` the inertia about the centre in those
-/// axes, constant (parameters only). The derivation uses the form to write
-/// the body's Lagrange terms as Newton-Euler forces ([`crate::derive`]).
+/// time derivative of a point's position (or of any vector, the rod's from
+/// end to end), in the axes of a frame, `w` that frame's angular velocity
+/// in its own axes, and `I` an inertia in those axes, constant (parameters
+/// only). The derivation uses the form to write the body's Lagrange terms
+/// as Newton-Euler forces ([`crate::derive`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Body {
     /// Mass `m`.
     pub mass: Id,
-    /// Centre-of-mass velocity `v`, in the frame's axes.
+    /// Velocity `v` (of the centre of mass; of the vector for a rod), in the frame's axes.
     pub velocity: [Id; 3],
     /// The frame's angular velocity `w`, in its own axes.
     pub omega: [Id; 3],
@@ -97,7 +99,7 @@ impl Component {
     /// Every node of the component: `T`, `V`, `D`, then its body's.
     fn roots(&self) -> Vec<Id> {
         let mut roots = vec![self.kinetic, self.potential, self.dissipation];
-        if let Some(b) = &self.body {
+        for b in &self.bodies {
             roots.push(b.mass);
             roots.extend(b.velocity);
             roots.extend(b.omega);
@@ -112,7 +114,7 @@ impl Component {
         self.kinetic = next();
         self.potential = next();
         self.dissipation = next();
-        if let Some(b) = &mut self.body {
+        for b in &mut self.bodies {
             b.mass = next();
             b.velocity = std::array::from_fn(|_| next());
             b.omega = std::array::from_fn(|_| next());

@@ -236,7 +236,8 @@ fn planar_pendulum_programs_grow_like_the_recursive_algorithms() {
 /// frame turned by time and a coordinate, a frame translated by a
 /// coordinate and by time, two elementary rotations in one frame, a
 /// rotated full inertia tensor, a centre of mass off the frame's origin, a
-/// point mass moving within a turning frame and one in the world, and
+/// point mass moving within a turning frame and one in the world, a rod
+/// whose end moves within a turning frame and one in the world, and
 /// gravity off the axes.
 fn mixed_bodies() -> Model {
     let s = r#"
@@ -279,6 +280,17 @@ position = ["0.1*s", "0.2", "0.3*c"]
 type = "point_mass"
 mass = 0.2
 position = ["s", "c*c", "0.1"]
+[[components]]
+type = "rod"
+frame = "arm"
+mass = 0.7
+from = [0, 0, 0]
+to = ["0.3*cos(c)", "0.1", "0.3*sin(c) + 0.2*s"]
+[[components]]
+type = "rod"
+mass = 0.3
+from = ["s", 0, 0]
+to = ["s + 0.4*cos(a)", "0.4*sin(a)", "0.1*b"]
 "#;
     Model::from_source(&Source::new(Path::new("mixed.toml"), s.into())).unwrap()
 }
@@ -294,14 +306,25 @@ fn newton_euler_forces_equal_the_lagrange_terms_of_the_bodies() {
         .iter()
         .map(|name| Model::load(&scene(name)).unwrap())
         .collect();
+    models.push(
+        Model::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../examples/parallel-robot/scenes/parallel_robot_rigid.toml"),
+        )
+        .unwrap(),
+    );
     models.push(chain(5));
     models.push(planar_pendulum(4));
     models.push(mixed_bodies());
     for mut m in models {
-        assert!(m.components.iter().any(|c| c.body.is_some()), "{}", m.name);
+        assert!(
+            m.components.iter().any(|c| !c.bodies.is_empty()),
+            "{}",
+            m.name
+        );
         let mut lagrange = m.clone();
         for c in &mut lagrange.components {
-            c.body = None;
+            c.bodies.clear();
         }
         let (eq, eq_l) = (m.equations().unwrap(), lagrange.equations().unwrap());
         let n = m.nq();

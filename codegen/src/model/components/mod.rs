@@ -78,14 +78,14 @@ pub(super) struct Terms {
     /// `[T, V, D]`.
     pub(super) energies: [Id; 3],
     /// `T` in rigid-body form (a rigid body, a point mass).
-    pub(super) body: Option<Body>,
+    pub(super) bodies: Vec<Body>,
 }
 
 impl From<[Id; 3]> for Terms {
     fn from(energies: [Id; 3]) -> Terms {
         Terms {
             energies,
-            body: None,
+            bodies: Vec::new(),
         }
     }
 }

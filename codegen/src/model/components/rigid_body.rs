@@ -96,12 +96,12 @@ pub(super) fn body_terms(
     let zero = cx.graph.constant(0.0);
     Terms {
         energies: [kinetic, potential, zero],
-        body: Some(Body {
+        bodies: vec![Body {
             mass: m,
             velocity: com.velocity,
             omega,
             inertia,
-        }),
+        }],
     }
 }
 
