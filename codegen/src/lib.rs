@@ -47,6 +47,7 @@ mod load;
 mod model;
 mod prune;
 mod reduce;
+mod resolution;
 mod schedule;
 #[cfg(test)]
 mod tests;
