@@ -248,8 +248,8 @@ fn check_f32_resolution(path: &Path, model: &Model, eq: &Equations) -> Result<()
              1/s^2 (mostly {}), beyond f32's limit 1/eps = {:.3e}: the soft modes' forces are \
              below the rounding of the stiff ones, and the stiff coordinates' deflections below \
              the resolution of the positions. Generate it in f64, or remove or stiffen the \
-             stiffest coordinates (a derived scene); to generate f32 anyway, \
-             Builder::allow_unresolved_f32(true)",
+             stiffest coordinates (a derived scene); to generate f32 anyway: \
+             `flexdyn generate --allow-unresolved-f32` or Builder::allow_unresolved_f32(true)",
             model.name,
             s.spread,
             s.stiff.0,

@@ -173,7 +173,8 @@ pub struct ServoSolution<const NQ: usize, const NC: usize, const NU: usize, T: S
 /// the path `P` (module docs). As a [`Model`] its bias forces are
 /// `h - B u(q, qd, t)`; integrate it with zero input. A failed solve inside
 /// a model evaluation writes NaN bias forces (which the integrator reports)
-/// and keeps the error for [`Servo::take_failure`].
+/// and keeps the error for [`Servo::take_failure`]. Computes in the model's
+/// scalar `T` (`f64` unless named), the path and the outputs included.
 pub struct Servo<'a, M, O, P, const NP: usize, T: Scalar = f64> {
     inner: &'a M,
     outputs: O,

@@ -109,6 +109,9 @@ struct Memory<const NQ: usize, const NC: usize, T: Scalar> {
 /// are damped instead of resonating, without start-up overshoot (see
 /// [`GeneralizedAlphaConfig::filter_start`]).
 ///
+/// Computes in `T` (`f64` unless named; the defaults of
+/// [`GeneralizedAlphaConfig`] follow it).
+///
 /// The integrator remembers `a`, `a~` and `lambda` of the state it produced;
 /// if it is handed a different state (compared bitwise), it re-initialises
 /// them from a forward-dynamics solve, so external changes to the state
