@@ -175,8 +175,10 @@ fn flexible_robot_servo_inverse_dynamics_in_f32_follows_f64_along_the_circle_exc
         panic!("f32 fails at the paper's settings: {e}");
     }
     let (tau_err, tau_peak) = c.torque;
-    // f32's resolution of the torques, with the margin of `f32_runtime`.
-    assert!(tau_err <= 1e-5 * tau_peak, "{tau_err:e} of {tau_peak}");
+    // Near f32's resolution of the torques (measured 8.5e-6 of the peak;
+    // a margin for the rounding of other generated programs), far below
+    // the errors of the faster runs (3e-3 and more).
+    assert!(tau_err <= 5e-5 * tau_peak, "{tau_err:e} of {tau_peak}");
     // The path: within f32's position tolerance (the projection's 1e-5 m).
     let tolerance = f64::from(f32::POSITION_TOLERANCE);
     assert!(c.path.0 <= tolerance, "{:e}", c.path.0);
