@@ -26,6 +26,7 @@ use crate::load::{load, resolve, LoadedScene};
 use crate::model::{build, Model, Precision};
 use crate::prune::prune;
 use crate::reduce;
+use crate::resolution::{stiffness_spread, F32_MAX_STIFFNESS_SPREAD};
 use crate::schedule::{functions, OpCount};
 
 /// The runtime crate's path in emitted code, unless the builder says
@@ -130,6 +131,7 @@ pub fn generate_scene(path: &Path) -> Result<Generated, Error> {
             perturbations: &[],
             c_interface: false,
             precision: None,
+            allow_unresolved_f32: false,
         },
     )
 }
@@ -164,6 +166,8 @@ struct Options<'a> {
     c_interface: bool,
     /// The precision, overriding the scene's.
     precision: Option<Precision>,
+    /// Generate `f32` even beyond its stiffness spread.
+    allow_unresolved_f32: bool,
 }
 
 /// [`generate_scene`] with `options`, applying the perturbation among
@@ -186,6 +190,9 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
     }
     let (runtime, perturbations) = (options.runtime, options.perturbations);
     let eq = model.equations()?;
+    if model.precision == Precision::F32 && !options.allow_unresolved_f32 {
+        check_f32_resolution(path, &model, &eq)?;
+    }
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
     let functions = functions(&model, &eq);
     let c = options
@@ -220,6 +227,40 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
     })
 }
 
+/// Refuses an `f32` module for a scene whose stiffness spread exceeds
+/// [`F32_MAX_STIFFNESS_SPREAD`] (see [`crate::resolution`]).
+fn check_f32_resolution(path: &Path, model: &Model, eq: &Equations) -> Result<(), Error> {
+    let Some(s) = stiffness_spread(model, eq) else {
+        return Ok(());
+    };
+    if s.spread <= F32_MAX_STIFFNESS_SPREAD {
+        return Ok(());
+    }
+    Err(Error {
+        file: path.to_path_buf(),
+        line: 0,
+        column: 0,
+        context: Some("precision".into()),
+        message: format!(
+            "scene `{}` cannot be computed in f32: its stiffness spread (|eigenvalues| of \
+             M^-1 d(dV/dq)/dq at rest, over the declared ranges' sample states) is {:.3e}, \
+             from the stiffest mode at {:.3e} 1/s^2 (mostly {}) to the softest at {:.3e} \
+             1/s^2 (mostly {}), beyond f32's limit 1/eps = {:.3e}: the soft modes' forces are \
+             below the rounding of the stiff ones, and the stiff coordinates' deflections below \
+             the resolution of the positions. Generate it in f64, or remove or stiffen the \
+             stiffest coordinates (a derived scene); to generate f32 anyway: \
+             `flexdyn generate --allow-unresolved-f32` or Builder::allow_unresolved_f32(true)",
+            model.name,
+            s.spread,
+            s.stiff.0,
+            s.stiff.1.join(", "),
+            s.soft.0,
+            s.soft.1.join(", "),
+            F32_MAX_STIFFNESS_SPREAD
+        ),
+    })
+}
+
 /// Configures and runs the generator.
 #[derive(Debug, Clone, Default)]
 pub struct Builder {
@@ -232,6 +273,7 @@ pub struct Builder {
     perturbations: Vec<CoefficientPerturbation>,
     c_interface: bool,
     precision: Option<Precision>,
+    allow_unresolved_f32: bool,
 }
 
 /// Settings of the index module.
@@ -327,8 +369,24 @@ impl Builder {
     /// the runtime's `Model<NQ, NC, NU, f32>`; the index module and the C
     /// interface are for `f64` models only, so asking for either with `f32`
     /// is an error.
+    ///
+    /// An `f32` module is refused (an error naming the spread and the
+    /// modes) for a scene whose linearised stiffness spreads beyond `1 /
+    /// eps_32 = 8.4e6` (see docs/embedded.md, "f32 or f64"), unless
+    /// [`Builder::allow_unresolved_f32`].
     pub fn precision(mut self, precision: Precision) -> Builder {
         self.precision = Some(precision);
+        self
+    }
+
+    /// Generate `f32` modules even for scenes whose stiffness spread `f32`
+    /// does not resolve (see [`Builder::precision`]): for a user who has
+    /// checked the f32 results that matter to them against f64 (the
+    /// flexible parallel robot's torques along the paper's circle are
+    /// within 1e-5 of f64 at 2 rad/s, 5 ms; its joint deflections are not
+    /// resolved at all).
+    pub fn allow_unresolved_f32(mut self, yes: bool) -> Builder {
+        self.allow_unresolved_f32 = yes;
         self
     }
 
@@ -403,6 +461,7 @@ impl Builder {
                     perturbations: &self.perturbations,
                     c_interface: self.c_interface,
                     precision: self.precision,
+                    allow_unresolved_f32: self.allow_unresolved_f32,
                 },
             )?;
             if self.rerun_if_changed {

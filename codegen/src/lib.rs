@@ -12,7 +12,9 @@
 //! 3. `reduce`: a derived scene's reductions (modes dropped, coordinates
 //!    frozen);
 //! 4. `derive`: Lagrange's equations ([`Equations`]);
-//! 5. `prune`: negligible summands dropped where the scene asks for it;
+//! 5. `prune`: negligible summands dropped where the scene asks for it; an
+//!    `f32` module is refused where `resolution` finds a stiffness spread
+//!    beyond f32's resolution (unless [`Builder::allow_unresolved_f32`]);
 //! 6. `schedule`: a straight-line program per emitted function (common
 //!    subexpressions, shared pairs of factors and terms);
 //! 7. `emit`: the formatted Rust module, naming the runtime crate by the
@@ -47,6 +49,7 @@ mod load;
 mod model;
 mod prune;
 mod reduce;
+mod resolution;
 mod schedule;
 #[cfg(test)]
 mod tests;

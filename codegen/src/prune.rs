@@ -16,14 +16,14 @@ pub const PRUNE_SAMPLES: usize = 64;
 /// Sample states for pruning: coordinates and velocities uniform in their
 /// declared ranges, time in `[0, 10]` s, runtime parameters at their nominal
 /// values; a fixed-seed generator, so generation is reproducible.
-struct Samples {
+pub(crate) struct Samples {
     /// `values[s][symbol slot]`: slots `2 i` (q_i), `2 i + 1` (qd_i).
     values: Vec<Vec<f64>>,
     time: Vec<f64>,
 }
 
 impl Samples {
-    fn new(coordinates: &[Coordinate]) -> Samples {
+    pub(crate) fn new(coordinates: &[Coordinate]) -> Samples {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let mut uniform = |[a, b]: [f64; 2]| {
             // xorshift64*
@@ -48,7 +48,7 @@ impl Samples {
     }
 
     /// Evaluate `roots` at every sample, handing each sample's values to `f`.
-    fn each(
+    pub(crate) fn each(
         &self,
         g: &Graph,
         roots: &[Id],

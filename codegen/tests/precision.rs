@@ -1,7 +1,8 @@
 //! Precision as a generation option: the scene key `precision` (`f64` by
 //! default, `f32`, anything else an error at the value), the builder's
-//! override, what an f32 module looks like, and the combinations that cannot
-//! work (the C interface and the index module need f64 models).
+//! override, what an f32 module looks like, the combinations that cannot
+//! work (the C interface and the index module need f64 models), and the
+//! refusal of f32 for scenes whose stiffness spread f32 does not resolve.
 
 use std::path::{Path, PathBuf};
 
@@ -121,4 +122,69 @@ fn the_c_interface_and_the_index_refuse_f32_models() {
         0,
         "nothing is written"
     );
+}
+
+/// Two decoupled oscillators: `a` (mass 1, spring 1: `w^2 = 1`) and `b`
+/// (mass 4, spring `k`: `w^2 = k / 4`), so the stiffness spread is `k / 4`.
+fn two_oscillators(k: f64) -> String {
+    format!(
+        "name = \"two_oscillators\"\nprecision = \"f32\"\n\
+         [[coordinates]]\nname = \"a\"\n[[coordinates]]\nname = \"b\"\n\
+         [[components]]\nname = \"m1\"\ntype = \"point_mass\"\nmass = 1\nposition = [\"a\", 0, 0]\n\
+         [[components]]\nname = \"m2\"\ntype = \"point_mass\"\nmass = 4\nposition = [\"b\", 0, 0]\n\
+         [[components]]\nname = \"s1\"\ntype = \"spring\"\nstiffness = 1\nexpression = \"a\"\n\
+         [[components]]\nname = \"s2\"\ntype = \"spring\"\nstiffness = {k:e}\nexpression = \"b\"\n"
+    )
+}
+
+#[test]
+fn f32_is_refused_where_the_stiffness_spread_exceeds_its_resolution() {
+    let dir = tempfile::tempdir().unwrap();
+    let generate = |scene: &Path, allow: bool| {
+        Builder::new()
+            .scene(scene)
+            .precision(Precision::F32)
+            .allow_unresolved_f32(allow)
+            .out_dir(dir.path())
+            .generate()
+    };
+    // Closed form: the spread is k / 4; f32's limit is 1 / eps = 8.389e6.
+    let scene = dir.path().join("two_oscillators.toml");
+    std::fs::write(&scene, two_oscillators(4e6)).unwrap();
+    generate(&scene, false).unwrap_or_else(|e| panic!("spread 1e6: {e}"));
+    std::fs::write(&scene, two_oscillators(4e8)).unwrap();
+    let message = generate(&scene, false).unwrap_err().to_string();
+    for part in [
+        "in precision: scene `two_oscillators` cannot be computed in f32",
+        "stiffness spread",
+        "is 1.000e8",
+        "stiffest mode at 1.000e8 1/s^2 (mostly b",
+        "softest at 1.000e0 1/s^2 (mostly a",
+        "limit 1/eps = 8.389e6",
+        "Generate it in f64",
+        "Builder::allow_unresolved_f32(true)",
+    ] {
+        assert!(message.contains(part), "`{part}` not in: {message}");
+    }
+    // The flexible parallel robot (its flexible joints at 1.8e10 1/s^2
+    // against the rigid-body motion under gravity) is refused; the rigid
+    // robot and the spin-up beam are not; the override generates it.
+    let flexible = workspace().join("examples/parallel-robot/scenes/parallel_robot_flexible.toml");
+    let message = generate(&flexible, false).unwrap_err().to_string();
+    for part in [
+        "scene `parallel_robot_flexible` cannot be computed in f32",
+        "stiffest mode at 1.778e10 1/s^2 (mostly th",
+        "limit 1/eps = 8.389e6",
+    ] {
+        assert!(message.contains(part), "`{part}` not in: {message}");
+    }
+    assert!(!dir.path().join("parallel_robot_flexible.rs").exists());
+    for scene in [
+        "examples/parallel-robot/scenes/parallel_robot_rigid.toml",
+        "scenes/spin_up_beam.toml",
+    ] {
+        generate(&workspace().join(scene), false).unwrap_or_else(|e| panic!("{scene}: {e}"));
+    }
+    generate(&flexible, true).unwrap_or_else(|e| panic!("with the override: {e}"));
+    assert!(dir.path().join("parallel_robot_flexible.rs").exists());
 }

@@ -39,6 +39,13 @@ pub trait Scalar: RealField + Copy + Default + Into<f64> + core::iter::Sum {
     /// system): `1e12` (`f64`), `1e6` (`f32`, about `1 / (8 eps)`: beyond it
     /// not one significant digit of the accelerations is certain).
     const KKT_MAX_CONDITION: Self;
+    /// Default largest accepted condition estimate of an implicit
+    /// integrator's Newton iteration matrix (generalized-α): `1e14`
+    /// (`f64`), `1e6` (`f32`). Newton tolerates an inexact matrix (it slows
+    /// down, the residual it drives to zero is evaluated exactly), so the
+    /// limit sits where the correction would keep no significant digit:
+    /// `kappa * eps` about `0.02` (`f64`) and `0.1` (`f32`).
+    const ITERATION_MAX_CONDITION: Self;
 
     /// `x` rounded to this type (exact for `f64`).
     fn of(x: f64) -> Self;
@@ -58,6 +65,7 @@ impl Scalar for f64 {
     const RANK_TOLERANCE: Self = 1e-10;
     const MAX_CONDITION: Self = 1e8;
     const KKT_MAX_CONDITION: Self = 1e12;
+    const ITERATION_MAX_CONDITION: Self = 1e14;
 
     #[inline]
     fn of(x: f64) -> Self {
@@ -83,6 +91,7 @@ impl Scalar for f32 {
     const RANK_TOLERANCE: Self = 1e-4;
     const MAX_CONDITION: Self = 1e4;
     const KKT_MAX_CONDITION: Self = 1e6;
+    const ITERATION_MAX_CONDITION: Self = 1e6;
 
     #[inline]
     fn of(x: f64) -> Self {

@@ -27,6 +27,10 @@ pub struct Args {
     /// (`f32`: the module implements the runtime's `Model<.., f32>`).
     #[arg(long, value_parser = ["f64", "f32"])]
     pub precision: Option<String>,
+    /// Generate f32 even for a scene whose stiffness spread f32 does not
+    /// resolve (refused by default; see docs/embedded.md, "f32 or f64").
+    #[arg(long)]
+    pub allow_unresolved_f32: bool,
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
@@ -36,7 +40,8 @@ pub struct Args {
 pub fn run(args: &Args) -> Result<(), String> {
     let mut builder = crate::codegen::Builder::new()
         .out_dir(&args.out)
-        .c_interface(args.c_header);
+        .c_interface(args.c_header)
+        .allow_unresolved_f32(args.allow_unresolved_f32);
     match args.precision.as_deref() {
         Some("f32") => builder = builder.precision(crate::codegen::Precision::F32),
         Some(_) => builder = builder.precision(crate::codegen::Precision::F64),

@@ -950,10 +950,17 @@ pub fn write(results: &Results, ops: &[(usize, usize)], files: &Files) -> Result
     push(
         &mut md,
         "The same scenes generated with `precision = \"f32\"` run the runtime's model terms, \
-         inverse dynamics and RK4 in f32 (for single-precision FPUs). Measured against f64 \
-         (the test `f32_runtime` of examples/cortex-m-bench): the rigid robot's torques along \
-         this circle agree to 2.2e-6 of the peak torque and its coordinates to 4.5e-6; near \
-         the workspace edge the f32 error grows as the Jacobian's condition times 1.2e-7. \
+         inverse dynamics, RK4, Gauss-Legendre, generalized-alpha and the servo constraints in \
+         f32 (for single-precision FPUs). Measured against f64 (the tests `f32_runtime` and \
+         `flexible_robot_servo_f32` of examples/cortex-m-bench): the rigid robot's torques \
+         along this circle agree to 2.2e-6 of the peak torque and its coordinates to 4.5e-6; \
+         near the workspace edge the f32 error grows as the Jacobian's condition times 1.2e-7. \
+         The flexible robot's servo inverse dynamics (2 rad/s, 5 ms, one turn): torques within \
+         8.5e-6 of the peak, the platform within 2.7e-6 m of the circle (f64: 1.5e-6 m), but \
+         the flexible joints' deflections (1e-8 rad) not resolved at all; at 10 rad/s the \
+         torques are off by 3.1e-3 of the peak at 5 ms and 0.21 at 0.5 ms, and at 50 ms f32 \
+         refuses (Newton matrix condition). Its stiffness spread (7e11, beyond f32's 1/eps = \
+         8.4e6) makes the generator refuse the flexible variants in f32 unless overridden. \
          Cost on a Cortex-M4F, the hard cases and the f32 limits: \
          [docs/embedded.md](../../../docs/embedded.md#f32-or-f64).",
     );

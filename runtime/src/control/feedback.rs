@@ -8,6 +8,7 @@
 //! whatever feed-forward input `tau` the integrator is given.
 
 use crate::model::Model;
+use crate::scalar::Scalar;
 use nalgebra::{SMatrix, SVector};
 
 /// A state-feedback law `u(q, qd, t)` for `NU` actuator inputs. Any
@@ -47,14 +48,14 @@ impl<'a, M, L> Feedback<'a, M, L> {
 }
 
 /// `h -= B u`.
-pub(crate) fn subtract_input<M, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn subtract_input<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    u: &SVector<f64, NU>,
-    h: &mut SVector<f64, NQ>,
+    u: &SVector<T, NU>,
+    h: &mut SVector<T, NQ>,
 ) where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
-    let mut b = SMatrix::<f64, NQ, NU>::zeros();
+    let mut b = SMatrix::<T, NQ, NU>::zeros();
     model.actuator_map(&mut b);
     *h -= b * u;
 }

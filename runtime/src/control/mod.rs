@@ -15,6 +15,9 @@
 //!   integrated. [`servo_run`] drives it along the prescription and hands
 //!   each sample to a callback: inverse dynamics of flexible scenes.
 //!
+//! [`Servo`] and [`servo_run`] compute in the model's scalar (`f64` or
+//! `f32`, see [`crate::Scalar`]); [`Feedback`] and [`JointPd`] in `f64`.
+//!
 //! None of the wrappers provides analytic bias Jacobians (the law's
 //! derivatives are unknown), so the implicit integrator differentiates the
 //! closed loop numerically. The wrappers evaluate the model in place: no
@@ -30,33 +33,35 @@ pub use servo::{
     servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, ServoSolution, ServoSummary,
 };
 
+use crate::scalar::Scalar;
 use nalgebra::SVector;
 
-/// Desired values, rates and accelerations of `N` quantities at one time.
+/// Desired values, rates and accelerations of `N` quantities at one time,
+/// in `T` (`f64` unless named).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Target<const N: usize> {
+pub struct Target<const N: usize, T: Scalar = f64> {
     /// Desired values.
-    pub position: SVector<f64, N>,
+    pub position: SVector<T, N>,
     /// Their time derivatives.
-    pub velocity: SVector<f64, N>,
+    pub velocity: SVector<T, N>,
     /// Their second time derivatives.
-    pub acceleration: SVector<f64, N>,
+    pub acceleration: SVector<T, N>,
 }
 
 /// A desired motion of `N` quantities: the references of [`JointPd`] (which
-/// uses the values and rates) and the prescription of [`Servo`]. Any
-/// `Fn(f64) -> Target<N>` is one.
-pub trait Trajectory<const N: usize> {
+/// uses the values and rates, in `f64`) and the prescription of [`Servo`]
+/// (in the servo's scalar). Any `Fn(T) -> Target<N, T>` is one.
+pub trait Trajectory<const N: usize, T: Scalar = f64> {
     /// The desired motion at time `t`.
-    fn at(&self, t: f64) -> Target<N>;
+    fn at(&self, t: T) -> Target<N, T>;
 }
 
-impl<F, const N: usize> Trajectory<N> for F
+impl<F, T: Scalar, const N: usize> Trajectory<N, T> for F
 where
-    F: Fn(f64) -> Target<N>,
+    F: Fn(T) -> Target<N, T>,
 {
     #[inline]
-    fn at(&self, t: f64) -> Target<N> {
+    fn at(&self, t: T) -> Target<N, T> {
         self(t)
     }
 }

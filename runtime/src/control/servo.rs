@@ -58,13 +58,14 @@ use crate::input::Linear;
 use crate::integrate::Integrator;
 use crate::linalg::Svd;
 use crate::model::Model;
+use crate::scalar::Scalar;
 use crate::state::{Drift, State};
 use core::cell::Cell;
 use nalgebra::{SMatrix, SVector};
 
 /// `NP` outputs `y(q)` of a model with `NQ` coordinates, with their
 /// Jacobian; [`Coordinates`] selects coordinates.
-pub trait Outputs<const NQ: usize, const NP: usize> {
+pub trait Outputs<const NQ: usize, const NP: usize, T: Scalar = f64> {
     /// Checks the set-up ([`Servo::new`] calls it); the default accepts it.
     fn validate(&self) -> Result<(), Error> {
         Ok(())
@@ -74,11 +75,11 @@ pub trait Outputs<const NQ: usize, const NP: usize> {
     /// (so that `y'' = Y_q qdd + (dY_q/dt) qd`). Every output is written.
     fn evaluate(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        y: &mut SVector<f64, NP>,
-        y_q: &mut SMatrix<f64, NP, NQ>,
-        convective: &mut SVector<f64, NP>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        y: &mut SVector<T, NP>,
+        y_q: &mut SMatrix<T, NP, NQ>,
+        convective: &mut SVector<T, NP>,
     );
 }
 
@@ -87,7 +88,7 @@ pub trait Outputs<const NQ: usize, const NP: usize> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Coordinates<const NP: usize>(pub [usize; NP]);
 
-impl<const NQ: usize, const NP: usize> Outputs<NQ, NP> for Coordinates<NP> {
+impl<T: Scalar, const NQ: usize, const NP: usize> Outputs<NQ, NP, T> for Coordinates<NP> {
     /// [`ErrorKind::InvalidIndex`] if an index is not below `NQ` or repeats.
     fn validate(&self) -> Result<(), Error> {
         check_indices("prescribed coordinate", &self.0, NQ, true)
@@ -95,22 +96,22 @@ impl<const NQ: usize, const NP: usize> Outputs<NQ, NP> for Coordinates<NP> {
 
     fn evaluate(
         &self,
-        q: &SVector<f64, NQ>,
-        _qd: &SVector<f64, NQ>,
-        y: &mut SVector<f64, NP>,
-        y_q: &mut SMatrix<f64, NP, NQ>,
-        convective: &mut SVector<f64, NP>,
+        q: &SVector<T, NQ>,
+        _qd: &SVector<T, NQ>,
+        y: &mut SVector<T, NP>,
+        y_q: &mut SMatrix<T, NP, NQ>,
+        convective: &mut SVector<T, NP>,
     ) {
-        y_q.fill(0.0);
-        convective.fill(0.0);
+        y_q.fill(T::zero());
+        convective.fill(T::zero());
         for (k, &i) in self.0.iter().enumerate() {
             // Validated indices; an invalid one gives NaN, never a panic.
             match q.get(i) {
                 Some(&qi) => {
                     y[k] = qi;
-                    y_q[(k, i)] = 1.0;
+                    y_q[(k, i)] = T::one();
                 }
-                None => y[k] = f64::NAN,
+                None => y[k] = T::NAN,
             }
         }
     }
@@ -118,15 +119,15 @@ impl<const NQ: usize, const NP: usize> Outputs<NQ, NP> for Coordinates<NP> {
 
 /// Settings of [`Servo`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ServoConfig {
+pub struct ServoConfig<T: Scalar = f64> {
     /// Stabilisation of the servo constraints `y - y_d` (1/s).
     pub output_gains: Baumgarte,
     /// Stabilisation and conditioning limit of the closure constraints:
     /// must be the integrator's [`crate::StepSettings::dynamics`].
-    pub dynamics: DynamicsConfig,
+    pub dynamics: DynamicsConfig<T>,
     /// Largest accepted servo condition `1 / sigma_min` of the normalised
     /// servo matrix (module docs).
-    pub max_condition: f64,
+    pub max_condition: T,
     /// Cap on Jacobi SVD sweeps of the servo matrix.
     pub max_sweeps: u32,
     /// Whether [`servo_run`]'s trial step keeps the integrator's coordinate
@@ -139,15 +140,15 @@ pub struct ServoConfig {
     pub trial_projection: bool,
 }
 
-impl Default for ServoConfig {
+impl<T: Scalar> Default for ServoConfig<T> {
     /// Both stabilisations at the default Baumgarte gains (as the default
-    /// [`crate::StepSettings`]), condition limit `1e8`, 40 sweeps, trial
-    /// step with projection.
+    /// [`crate::StepSettings`]), condition limit [`Scalar::MAX_CONDITION`]
+    /// (`1e8` in f64, `1e4` in f32), 40 sweeps, trial step with projection.
     fn default() -> Self {
         ServoConfig {
             output_gains: Baumgarte::default(),
             dynamics: DynamicsConfig::default(),
-            max_condition: 1e8,
+            max_condition: T::MAX_CONDITION,
             max_sweeps: 40,
             trial_projection: true,
         }
@@ -156,33 +157,34 @@ impl Default for ServoConfig {
 
 /// The servo solve at one state.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ServoSolution<const NQ: usize, const NC: usize, const NU: usize> {
+pub struct ServoSolution<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f64> {
     /// Actuator inputs.
-    pub tau: SVector<f64, NU>,
+    pub tau: SVector<T, NU>,
     /// Accelerations under them.
-    pub qdd: SVector<f64, NQ>,
+    pub qdd: SVector<T, NQ>,
     /// Constraint forces (multipliers).
-    pub lambda: SVector<f64, NC>,
+    pub lambda: SVector<T, NC>,
     /// Servo condition: `1 / sigma_min` of the normalised servo matrix
     /// (module docs).
-    pub condition: f64,
+    pub condition: T,
 }
 
 /// The model `inner` with its inputs chosen so that the outputs `O` follow
-/// the path `T` (module docs). As a [`Model`] its bias forces are
+/// the path `P` (module docs). As a [`Model`] its bias forces are
 /// `h - B u(q, qd, t)`; integrate it with zero input. A failed solve inside
 /// a model evaluation writes NaN bias forces (which the integrator reports)
-/// and keeps the error for [`Servo::take_failure`].
-pub struct Servo<'a, M, O, T, const NP: usize> {
+/// and keeps the error for [`Servo::take_failure`]. Computes in the model's
+/// scalar `T` (`f64` unless named), the path and the outputs included.
+pub struct Servo<'a, M, O, P, const NP: usize, T: Scalar = f64> {
     inner: &'a M,
     outputs: O,
-    path: T,
+    path: P,
     /// Settings.
-    pub config: ServoConfig,
+    pub config: ServoConfig<T>,
     failure: Cell<Option<Error>>,
 }
 
-impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
+impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
     /// Servo constraints making `outputs` of `inner` follow `path`.
     ///
     /// Errors: [`ErrorKind::InvalidConfiguration`] unless `NP == NU`;
@@ -191,13 +193,13 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
     pub fn new<const NQ: usize, const NC: usize, const NU: usize>(
         inner: &'a M,
         outputs: O,
-        path: T,
-        config: ServoConfig,
+        path: P,
+        config: ServoConfig<T>,
     ) -> Result<Self, Error>
     where
-        M: Model<NQ, NC, NU>,
-        O: Outputs<NQ, NP>,
-        T: Trajectory<NP>,
+        M: Model<NQ, NC, NU, T>,
+        O: Outputs<NQ, NP, T>,
+        P: Trajectory<NP, T>,
     {
         if NP > NU {
             return Err(Error::new(
@@ -238,7 +240,7 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
     }
 
     /// The prescribed path.
-    pub fn path(&self) -> &T {
+    pub fn path(&self) -> &P {
         &self.path
     }
 
@@ -264,14 +266,14 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
     /// [`ErrorKind::NonFiniteResult`].
     pub fn solve<const NQ: usize, const NC: usize, const NU: usize>(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-    ) -> Result<ServoSolution<NQ, NC, NU>, Error>
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+    ) -> Result<ServoSolution<NQ, NC, NU, T>, Error>
     where
-        M: Model<NQ, NC, NU>,
-        O: Outputs<NQ, NP>,
-        T: Trajectory<NP>,
+        M: Model<NQ, NC, NU, T>,
+        O: Outputs<NQ, NP, T>,
+        P: Trajectory<NP, T>,
     {
         let terms = eval::dynamics_terms(self.inner, q, qd, t)?;
         self.solve_terms(q, qd, t, terms)
@@ -280,15 +282,15 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
     /// [`Servo::solve`] from the model's terms at the state.
     fn solve_terms<const NQ: usize, const NC: usize, const NU: usize>(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        terms: Terms<NQ, NC>,
-    ) -> Result<ServoSolution<NQ, NC, NU>, Error>
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        terms: Terms<NQ, NC, T>,
+    ) -> Result<ServoSolution<NQ, NC, NU, T>, Error>
     where
-        M: Model<NQ, NC, NU>,
-        O: Outputs<NQ, NP>,
-        T: Trajectory<NP>,
+        M: Model<NQ, NC, NU, T>,
+        O: Outputs<NQ, NP, T>,
+        P: Trajectory<NP, T>,
     {
         eval::check_terms(&terms, t)?;
         let b = eval::actuator_map(self.inner, t)?;
@@ -305,16 +307,16 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
         let kkt = Kkt::new(terms.m, &terms.phi_q, dynamics.max_condition, t)?;
         // qdd = x0 + xb u, lambda = mu0 + mub u.
         let (x0, mu0) = kkt.solve(&-terms.h, &c);
-        let mut xb = SMatrix::<f64, NQ, NU>::zeros();
-        let mut mub = SMatrix::<f64, NC, NU>::zeros();
+        let mut xb = SMatrix::<T, NQ, NU>::zeros();
+        let mut mub = SMatrix::<T, NC, NU>::zeros();
         for j in 0..NU {
             let (x, mu) = kkt.solve(&b.column(j).into_owned(), &SVector::zeros());
             xb.set_column(j, &x);
             mub.set_column(j, &mu);
         }
-        let mut y = SVector::<f64, NP>::zeros();
-        let mut y_q = SMatrix::<f64, NP, NQ>::zeros();
-        let mut convective = SVector::<f64, NP>::zeros();
+        let mut y = SVector::<T, NP>::zeros();
+        let mut y_q = SMatrix::<T, NP, NQ>::zeros();
+        let mut convective = SVector::<T, NP>::zeros();
         self.outputs
             .evaluate(q, qd, &mut y, &mut y_q, &mut convective);
         for o in [&y, &convective] {
@@ -333,15 +335,14 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
         }
         let gains = &self.config.output_gains;
         let s = target.acceleration
-            + (target.velocity - y_q * qd) * (2.0 * gains.alpha)
-            + (target.position - y) * (gains.beta * gains.beta)
+            + (target.velocity - y_q * qd) * T::of(2.0 * gains.alpha)
+            + (target.position - y) * T::of(gains.beta * gains.beta)
             - convective;
         // Scales: the M^-1-norms of the output gradients and of the
         // actuator columns.
-        let rows =
-            SVector::<f64, NP>::from_fn(|i, _| kkt.inverse_mass_norm(&y_q.row(i).transpose()));
+        let rows = SVector::<T, NP>::from_fn(|i, _| kkt.inverse_mass_norm(&y_q.row(i).transpose()));
         let cols =
-            SVector::<f64, NU>::from_fn(|j, _| kkt.inverse_mass_norm(&b.column(j).into_owned()));
+            SVector::<T, NU>::from_fn(|j, _| kkt.inverse_mass_norm(&b.column(j).into_owned()));
         let (tau, condition) = solve_normalised(
             &(y_q * xb),
             &(s - y_q * x0),
@@ -366,17 +367,25 @@ impl<'a, M, O, T, const NP: usize> Servo<'a, M, O, T, NP> {
 /// `a~ = diag(1 / rows) a diag(1 / cols)`; returns `x` and `1 / sigma_min(a~)`,
 /// or [`ErrorKind::SingularServo`] when that exceeds `limit` (a zero row or
 /// column scale: infinite).
-fn solve_normalised<const NP: usize, const NU: usize>(
-    a: &SMatrix<f64, NP, NU>,
-    rhs: &SVector<f64, NP>,
-    (rows, cols): (&SVector<f64, NP>, &SVector<f64, NU>),
-    config: &ServoConfig,
-    t: f64,
-) -> Result<(SVector<f64, NU>, f64), Error> {
+fn solve_normalised<T: Scalar, const NP: usize, const NU: usize>(
+    a: &SMatrix<T, NP, NU>,
+    rhs: &SVector<T, NP>,
+    (rows, cols): (&SVector<T, NP>, &SVector<T, NU>),
+    config: &ServoConfig<T>,
+    t: T,
+) -> Result<(SVector<T, NU>, T), Error> {
     let limit = config.max_condition;
-    let singular = |condition: f64| Error::new(ErrorKind::SingularServo { condition, limit }, t);
-    if !(rows.iter().chain(cols.iter()).all(|s| *s > 0.0)) {
-        return Err(singular(f64::INFINITY));
+    let singular = |condition: T| {
+        Error::new(
+            ErrorKind::SingularServo {
+                condition: condition.into(),
+                limit: limit.into(),
+            },
+            t,
+        )
+    };
+    if !(rows.iter().chain(cols.iter()).all(|s| *s > T::zero())) {
+        return Err(singular(T::INFINITY));
     }
     let mut scaled = *a;
     for j in 0..NU {
@@ -388,30 +397,31 @@ fn solve_normalised<const NP: usize, const NU: usize>(
     let svd = Svd::new(&scaled, config.max_sweeps)
         .map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))?;
     let condition = if NU == 0 {
-        1.0
+        T::one()
     } else {
-        1.0 / svd.sigma_sorted(NU - 1)
+        T::one() / svd.sigma_sorted(NU - 1)
     };
     if !(condition <= limit) {
         return Err(singular(condition));
     }
-    let mut z = SVector::<f64, NU>::zeros();
+    let mut z = SVector::<T, NU>::zeros();
     svd.solve(&rhs.component_div(rows), NU, &mut z);
     let x = z.component_div(cols);
     eval::check_result(&x, Quantity::Input, t)?;
     Ok((x, condition))
 }
 
-impl<M, O, T, const NQ: usize, const NC: usize, const NU: usize, const NP: usize> Model<NQ, NC, NU>
-    for Servo<'_, M, O, T, NP>
+impl<M, O, P, T, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
+    Model<NQ, NC, NU, T> for Servo<'_, M, O, P, NP, T>
 where
-    M: Model<NQ, NC, NU>,
-    O: Outputs<NQ, NP>,
-    T: Trajectory<NP>,
+    M: Model<NQ, NC, NU, T>,
+    O: Outputs<NQ, NP, T>,
+    P: Trajectory<NP, T>,
+    T: Scalar,
 {
-    crate::forward_model!(inner: M, NQ, NC, NU);
-    fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
-        let mut terms = Terms::<NQ, NC>::zeros();
+    crate::forward_model!(inner: M, NQ, NC, NU, T);
+    fn bias(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T, h: &mut SVector<T, NQ>) {
+        let mut terms = Terms::<NQ, NC, T>::zeros();
         self.dynamics_terms(
             q,
             qd,
@@ -424,13 +434,13 @@ where
     }
     fn dynamics_terms(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
-        t: f64,
-        m: &mut SMatrix<f64, NQ, NQ>,
-        h: &mut SVector<f64, NQ>,
-        phi_q: &mut SMatrix<f64, NC, NQ>,
-        gamma: &mut SVector<f64, NC>,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        m: &mut SMatrix<T, NQ, NQ>,
+        h: &mut SVector<T, NQ>,
+        phi_q: &mut SMatrix<T, NC, NQ>,
+        gamma: &mut SVector<T, NC>,
     ) {
         self.inner.dynamics_terms(q, qd, t, m, h, phi_q, gamma);
         let terms = Terms {
@@ -443,7 +453,7 @@ where
             Ok(solution) => subtract_input(self.inner, &solution.tau, h),
             Err(e) => {
                 self.failure.set(Some(e));
-                h.fill(f64::NAN);
+                h.fill(T::NAN);
             }
         }
     }
@@ -451,22 +461,22 @@ where
 
 /// One sample of [`servo_run`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ServoSample<const NQ: usize, const NU: usize> {
+pub struct ServoSample<const NQ: usize, const NU: usize, T: Scalar = f64> {
     /// The state.
-    pub state: State<NQ>,
+    pub state: State<NQ, T>,
     /// The actuator inputs at that time.
-    pub tau: SVector<f64, NU>,
+    pub tau: SVector<T, NU>,
 }
 
 /// Summary of [`servo_run`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ServoSummary {
+pub struct ServoSummary<T: Scalar = f64> {
     /// Steps taken.
     pub steps: usize,
     /// Largest servo condition seen.
-    pub max_condition: f64,
+    pub max_condition: T,
     /// Largest constraint drift after any step.
-    pub max_drift: Drift,
+    pub max_drift: Drift<T>,
 }
 
 /// Inverse dynamics with the unprescribed coordinates integrated: `steps`
@@ -492,27 +502,28 @@ pub struct ServoSummary {
 pub fn servo_run<
     M,
     O,
-    T,
+    P,
     G,
     F,
+    T: Scalar,
     const NQ: usize,
     const NC: usize,
     const NU: usize,
     const NP: usize,
 >(
-    servo: &Servo<'_, M, O, T, NP>,
+    servo: &Servo<'_, M, O, P, NP, T>,
     integrator: &mut G,
-    state: &mut State<NQ>,
-    dt: f64,
+    state: &mut State<NQ, T>,
+    dt: T,
     steps: usize,
     mut record: F,
-) -> Result<ServoSummary, Error>
+) -> Result<ServoSummary<T>, Error>
 where
-    M: Model<NQ, NC, NU>,
-    O: Outputs<NQ, NP>,
-    T: Trajectory<NP>,
-    G: Integrator<NQ, NC, NU> + Clone,
-    F: FnMut(&ServoSample<NQ, NU>),
+    M: Model<NQ, NC, NU, T>,
+    O: Outputs<NQ, NP, T>,
+    P: Trajectory<NP, T>,
+    G: Integrator<NQ, NC, NU, T> + Clone,
+    F: FnMut(&ServoSample<NQ, NU, T>),
 {
     state.check_finite()?;
     let first = servo.solve(&state.q, &state.qd, state.t)?;
@@ -522,7 +533,7 @@ where
         ..ServoSummary::default()
     };
     record(&ServoSample { state: *state, tau });
-    let zero = SVector::<f64, NU>::zeros();
+    let zero = SVector::<T, NU>::zeros();
     for _ in 0..steps {
         servo.take_failure();
         let mut trial_integrator = integrator.clone();

@@ -7,31 +7,32 @@ use crate::eval;
 use crate::input::Input;
 use crate::linalg::{all_finite, Lu};
 use crate::model::Model;
+use crate::scalar::Scalar;
 use crate::state::State;
 use nalgebra::{SMatrix, SVector};
 
 /// Parameters of [`GeneralizedAlpha`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GeneralizedAlphaConfig {
+pub struct GeneralizedAlphaConfig<T: Scalar = f64> {
     /// Spectral radius at infinite frequency, in `[0, 1]`: 1 = no numerical
     /// dissipation (trapezoidal / average-acceleration Newmark, energy
     /// conserving on linear systems); smaller values damp the unresolved
     /// high-frequency modes more strongly (0 = asymptotic annihilation).
-    pub rho_inf: f64,
+    pub rho_inf: T,
     /// Cap on Newton iterations per step.
     pub max_iterations: u32,
     /// Relative tolerance on the Newton corrections of `q` and `qd`.
-    pub rtol: f64,
+    pub rtol: T,
     /// Absolute tolerance on the Newton corrections of `q` and `qd`.
-    pub atol: f64,
+    pub atol: T,
     /// Relative finite-difference step for the bias Jacobians
     /// (`delta_j = fd_step * max(|x_j|, 1)`).
-    pub fd_step: f64,
+    pub fd_step: T,
     /// Largest accepted condition estimate of the iteration matrix.
-    pub max_condition: f64,
+    pub max_condition: T,
     /// The iteration matrix is re-evaluated when a Newton correction is not
     /// smaller than this fraction of the previous one.
-    pub refresh_ratio: f64,
+    pub refresh_ratio: T,
     /// When starting (or restarting) from a state, initialise the auxiliary
     /// acceleration with the low-pass filtered `a~_0 = J^-1 M a_0` (`J` the
     /// Newton iteration matrix) instead of `a~_0 = a_0`. The two agree to
@@ -43,27 +44,32 @@ pub struct GeneralizedAlphaConfig {
     pub filter_start: bool,
 }
 
-impl Default for GeneralizedAlphaConfig {
+impl<T: Scalar> Default for GeneralizedAlphaConfig<T> {
+    /// `rho_inf = 0.8`, 12 iterations, `rtol = 1e-10` (at least `100 eps`:
+    /// 1.2e-5 in f32), `atol = 1e-12` (at least `eps`), `fd_step = 1.5e-8`
+    /// (at least `sqrt(eps)`: 3.5e-4 in f32), condition limit
+    /// [`Scalar::ITERATION_MAX_CONDITION`], refresh ratio 0.25, filtered
+    /// start.
     fn default() -> Self {
         GeneralizedAlphaConfig {
-            rho_inf: 0.8,
+            rho_inf: T::of(0.8),
             max_iterations: 12,
-            rtol: 1e-10,
-            atol: 1e-12,
-            fd_step: 1.5e-8,
-            max_condition: 1e14,
-            refresh_ratio: 0.25,
+            rtol: T::of(1e-10).max(T::EPSILON * T::of(100.0)),
+            atol: T::of(1e-12).max(T::EPSILON),
+            fd_step: T::of(1.5e-8).max(T::EPSILON.square_root()),
+            max_condition: T::ITERATION_MAX_CONDITION,
+            refresh_ratio: T::of(0.25),
             filter_start: true,
         }
     }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Memory<const NQ: usize, const NC: usize> {
-    state: State<NQ>,
-    a: SVector<f64, NQ>,
-    a_aux: SVector<f64, NQ>,
-    lambda: SVector<f64, NC>,
+struct Memory<const NQ: usize, const NC: usize, T: Scalar> {
+    state: State<NQ, T>,
+    a: SVector<T, NQ>,
+    a_aux: SVector<T, NQ>,
+    lambda: SVector<T, NC>,
 }
 
 /// Generalized-α (Chung–Hulbert 1993, in the form of Arnold & Brüls 2007)
@@ -103,22 +109,25 @@ struct Memory<const NQ: usize, const NC: usize> {
 /// are damped instead of resonating, without start-up overshoot (see
 /// [`GeneralizedAlphaConfig::filter_start`]).
 ///
+/// Computes in `T` (`f64` unless named; the defaults of
+/// [`GeneralizedAlphaConfig`] follow it).
+///
 /// The integrator remembers `a`, `a~` and `lambda` of the state it produced;
 /// if it is handed a different state (compared bitwise), it re-initialises
 /// them from a forward-dynamics solve, so external changes to the state
 /// (resets, projections, events) are safe.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct GeneralizedAlpha<const NQ: usize, const NC: usize> {
+pub struct GeneralizedAlpha<const NQ: usize, const NC: usize, T: Scalar = f64> {
     /// Shared settings.
-    pub settings: StepSettings,
+    pub settings: StepSettings<T>,
     /// Scheme parameters.
-    pub config: GeneralizedAlphaConfig,
-    memory: Option<Memory<NQ, NC>>,
+    pub config: GeneralizedAlphaConfig<T>,
+    memory: Option<Memory<NQ, NC, T>>,
 }
 
-impl<const NQ: usize, const NC: usize> GeneralizedAlpha<NQ, NC> {
+impl<T: Scalar, const NQ: usize, const NC: usize> GeneralizedAlpha<NQ, NC, T> {
     /// Generalized-α with the given settings and parameters.
-    pub fn new(settings: StepSettings, config: GeneralizedAlphaConfig) -> Self {
+    pub fn new(settings: StepSettings<T>, config: GeneralizedAlphaConfig<T>) -> Self {
         GeneralizedAlpha {
             settings,
             config,
@@ -132,66 +141,67 @@ impl<const NQ: usize, const NC: usize> GeneralizedAlpha<NQ, NC> {
     }
 
     /// `(alpha_m, alpha_f, beta, gamma)` for `rho_inf` (clamped to `[0, 1]`).
-    pub fn coefficients(rho_inf: f64) -> (f64, f64, f64, f64) {
+    pub fn coefficients(rho_inf: T) -> (T, T, T, T) {
+        let (zero, one, half) = (T::zero(), T::one(), T::of(0.5));
         let rho = if rho_inf.is_finite() {
-            rho_inf.clamp(0.0, 1.0)
+            rho_inf.clamp(zero, one)
         } else {
-            1.0
+            one
         };
-        let am = (2.0 * rho - 1.0) / (rho + 1.0);
-        let af = rho / (rho + 1.0);
-        let gamma = 0.5 + af - am;
-        let beta = 0.25 * (gamma + 0.5) * (gamma + 0.5);
+        let am = (T::of(2.0) * rho - one) / (rho + one);
+        let af = rho / (rho + one);
+        let gamma = half + af - am;
+        let beta = T::of(0.25) * (gamma + half) * (gamma + half);
         (am, af, beta, gamma)
     }
 }
 
 /// Iteration matrix, factored.
-struct Jacobian<const NQ: usize, const NC: usize> {
-    lu_a: Lu<NQ>,
-    lu_w: Lu<NC>,
+struct Jacobian<const NQ: usize, const NC: usize, T: Scalar> {
+    lu_a: Lu<NQ, T>,
+    lu_w: Lu<NC, T>,
     /// `J11^-1 Phi_q^T`.
-    x: SMatrix<f64, NQ, NC>,
+    x: SMatrix<T, NQ, NC>,
     /// `dR2/da`.
-    j21: SMatrix<f64, NC, NQ>,
-    w_scale: SVector<f64, NC>,
+    j21: SMatrix<T, NC, NQ>,
+    w_scale: SVector<T, NC>,
 }
 
 /// Everything a step's residual depends on besides `(a, lambda)`.
-struct Ctx<const NQ: usize, const NU: usize> {
-    q_base: SVector<f64, NQ>,
-    v_base: SVector<f64, NQ>,
-    cq: f64,
-    cv: f64,
-    t: f64,
-    f_ext: SVector<f64, NQ>,
+struct Ctx<const NQ: usize, const NU: usize, T: Scalar> {
+    q_base: SVector<T, NQ>,
+    v_base: SVector<T, NQ>,
+    cq: T,
+    cv: T,
+    t: T,
+    f_ext: SVector<T, NQ>,
     gains: crate::dynamics::Baumgarte,
 }
 
 /// Residuals at one iterate.
-struct Residual<const NQ: usize, const NC: usize> {
-    r1: SVector<f64, NQ>,
-    r2: SVector<f64, NC>,
-    phi_q: SMatrix<f64, NC, NQ>,
-    m: SMatrix<f64, NQ, NQ>,
+struct Residual<const NQ: usize, const NC: usize, T: Scalar> {
+    r1: SVector<T, NQ>,
+    r2: SVector<T, NC>,
+    phi_q: SMatrix<T, NC, NQ>,
+    m: SMatrix<T, NQ, NQ>,
 }
 
-impl<const NQ: usize, const NU: usize> Ctx<NQ, NU> {
-    fn q(&self, a: &SVector<f64, NQ>) -> SVector<f64, NQ> {
+impl<T: Scalar, const NQ: usize, const NU: usize> Ctx<NQ, NU, T> {
+    fn q(&self, a: &SVector<T, NQ>) -> SVector<T, NQ> {
         self.q_base + a * self.cq
     }
-    fn v(&self, a: &SVector<f64, NQ>) -> SVector<f64, NQ> {
+    fn v(&self, a: &SVector<T, NQ>) -> SVector<T, NQ> {
         self.v_base + a * self.cv
     }
     /// `R1 = M a + h - Phi_q^T lambda - B tau`, `R2 = Phi_q a - c`.
     fn residual<M, const NC: usize>(
         &self,
         model: &M,
-        a: &SVector<f64, NQ>,
-        lambda: &SVector<f64, NC>,
-    ) -> Result<Residual<NQ, NC>, Error>
+        a: &SVector<T, NQ>,
+        lambda: &SVector<T, NC>,
+    ) -> Result<Residual<NQ, NC, T>, Error>
     where
-        M: Model<NQ, NC, NU>,
+        M: Model<NQ, NC, NU, T>,
     {
         let q = self.q(a);
         let v = self.v(a);
@@ -203,23 +213,23 @@ impl<const NQ: usize, const NU: usize> Ctx<NQ, NU> {
     }
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
-    for GeneralizedAlpha<NQ, NC>
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
+    for GeneralizedAlpha<NQ, NC, T>
 {
-    fn settings_mut(&mut self) -> &mut StepSettings {
+    fn settings_mut(&mut self) -> &mut StepSettings<T> {
         &mut self.settings
     }
 
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut State<NQ, T>,
         input: &I,
-        dt: f64,
-    ) -> Result<StepReport, Error>
+        dt: T,
+    ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Model<NQ, NC, NU, T>,
+        I: Input<NU, T> + ?Sized,
     {
         begin_step(state, dt, self.settings.max_step)?;
         let cfg = self.config;
@@ -232,17 +242,18 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
         let b = eval::actuator_map(model, t1)?;
         let f_ext = b * tau1;
         let (am, af, beta, gamma) = Self::coefficients(cfg.rho_inf);
-        let k = 1.0 / (1.0 - am);
-        let cq = h * h * beta * (1.0 - af) * k;
-        let cv = h * gamma * (1.0 - af) * k;
+        let one = T::one();
+        let k = one / (one - am);
+        let cq = h * h * beta * (one - af) * k;
+        let cv = h * gamma * (one - af) * k;
         let gains = dyn_cfg.baumgarte;
-        let make_ctx = |mem: &Memory<NQ, NC>| {
+        let make_ctx = |mem: &Memory<NQ, NC, T>| {
             let aux_base = (mem.a * af - mem.a_aux * am) * k;
             let q_base = state.q
                 + state.qd * h
-                + mem.a_aux * (h * h * (0.5 - beta))
+                + mem.a_aux * (h * h * (T::of(0.5) - beta))
                 + aux_base * (h * h * beta);
-            let v_base = state.qd + mem.a_aux * (h * (1.0 - gamma)) + aux_base * (h * gamma);
+            let v_base = state.qd + mem.a_aux * (h * (one - gamma)) + aux_base * (h * gamma);
             (
                 Ctx {
                     q_base,
@@ -268,7 +279,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
                     a_aux: acc.qdd,
                     lambda: acc.lambda,
                 };
-                if cfg.filter_start && cfg.rho_inf < 1.0 {
+                if cfg.filter_start && cfg.rho_inf < one {
                     let (ctx, _) = make_ctx(&mem);
                     let res = ctx.residual(model, &mem.a, &mem.lambda)?;
                     let jm = build_jacobian(
@@ -293,9 +304,9 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
         let (ctx, aux_base) = make_ctx(&mem);
         let mut a = mem.a;
         let mut lambda = mem.lambda;
-        let mut jac: Option<Jacobian<NQ, NC>> = None;
-        let mut prev_err = f64::INFINITY;
-        let mut err = f64::INFINITY;
+        let mut jac: Option<Jacobian<NQ, NC, T>> = None;
+        let mut prev_err = T::INFINITY;
+        let mut err = T::INFINITY;
         let mut iterations = 0u32;
         let mut converged = false;
         while iterations < cfg.max_iterations {
@@ -344,13 +355,13 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
             }
             let q1 = ctx.q(&a);
             let v1 = ctx.v(&a);
-            err = 0.0;
+            err = T::zero();
             for i in 0..NQ {
                 let eq = (cq * da[i]).abs() / (cfg.atol + cfg.rtol * q1[i].abs());
                 let ev = (cv * da[i]).abs() / (cfg.atol + cfg.rtol * v1[i].abs());
                 err = err.max(eq).max(ev);
             }
-            if err <= 1.0 {
+            if err <= one {
                 converged = true;
                 break;
             }
@@ -363,7 +374,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
             return Err(Error::new(
                 ErrorKind::NewtonNotConverged {
                     iterations,
-                    residual: err,
+                    residual: err.into(),
                     tolerance: 1.0,
                 },
                 t0,
@@ -371,7 +382,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
         }
         let q1 = ctx.q(&a);
         let v1 = ctx.v(&a);
-        let a_aux = aux_base + a * ((1.0 - af) * k);
+        let a_aux = aux_base + a * ((one - af) * k);
         eval::check_result(&q1, Quantity::Position, t0)?;
         eval::check_result(&v1, Quantity::Velocity, t0)?;
         let mut next = State {
@@ -391,7 +402,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
             t: t1,
             dt,
             iterations,
-            stability_estimate: 0.0,
+            stability_estimate: T::zero(),
             projection,
             drift,
         })
@@ -406,24 +417,24 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
 /// neither the implied position change `c_q delta_j` nor the velocity change
 /// `c_v delta_j` exceeds `fd_step * max(|x_j|, 1)`.
 #[allow(clippy::too_many_arguments)]
-fn build_jacobian<M, const NQ: usize, const NC: usize, const NU: usize>(
+fn build_jacobian<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
     model: &M,
-    cfg: &GeneralizedAlphaConfig,
-    max_constraint_condition: f64,
-    ctx: &Ctx<NQ, NU>,
-    a: &SVector<f64, NQ>,
-    lambda: &SVector<f64, NC>,
-    res: &Residual<NQ, NC>,
+    cfg: &GeneralizedAlphaConfig<T>,
+    max_constraint_condition: T,
+    ctx: &Ctx<NQ, NU, T>,
+    a: &SVector<T, NQ>,
+    lambda: &SVector<T, NC>,
+    res: &Residual<NQ, NC, T>,
     finite_differences: bool,
-) -> Result<Jacobian<NQ, NC>, Error>
+) -> Result<Jacobian<NQ, NC, T>, Error>
 where
-    M: Model<NQ, NC, NU>,
+    M: Model<NQ, NC, NU, T>,
 {
     let t = ctx.t;
-    let mut j11 = SMatrix::<f64, NQ, NQ>::zeros();
-    let mut j21 = SMatrix::<f64, NC, NQ>::zeros();
-    let mut hq = SMatrix::<f64, NQ, NQ>::zeros();
-    let mut hv = SMatrix::<f64, NQ, NQ>::zeros();
+    let mut j11 = SMatrix::<T, NQ, NQ>::zeros();
+    let mut j21 = SMatrix::<T, NC, NQ>::zeros();
+    let mut hq = SMatrix::<T, NQ, NQ>::zeros();
+    let mut hv = SMatrix::<T, NQ, NQ>::zeros();
     let q = ctx.q(a);
     let v = ctx.v(a);
     if !finite_differences && model.bias_jacobians(&q, &v, t, &mut hq, &mut hv) {
@@ -437,15 +448,16 @@ where
         }
         j11 = res.m + hv * ctx.cv + hq * ctx.cq;
         let g = ctx.gains;
-        j21 = res.phi_q * (1.0 + 2.0 * g.alpha * ctx.cv + g.beta * g.beta * ctx.cq);
+        j21 = res.phi_q
+            * (T::one() + T::of(2.0 * g.alpha) * ctx.cv + T::of(g.beta * g.beta) * ctx.cq);
     } else {
         for j in 0..NQ {
-            let dq = cfg.fd_step * q[j].abs().max(1.0) / ctx.cq;
-            let dv = cfg.fd_step * v[j].abs().max(1.0) / ctx.cv;
+            let dq = cfg.fd_step * q[j].abs().max(T::one()) / ctx.cq;
+            let dv = cfg.fd_step * v[j].abs().max(T::one()) / ctx.cv;
             let mut ap = *a;
             ap[j] += dq.min(dv);
             let delta = ap[j] - a[j];
-            if !(delta > 0.0) || !delta.is_finite() {
+            if !(delta > T::zero()) || !delta.is_finite() {
                 return Err(Error::new(
                     ErrorKind::SingularIterationMatrix {
                         condition: f64::INFINITY,
@@ -462,31 +474,33 @@ where
         Ok((lu, _)) => lu,
         Err(condition) => {
             return Err(Error::new(
-                ErrorKind::SingularIterationMatrix { condition },
+                ErrorKind::SingularIterationMatrix {
+                    condition: condition.into(),
+                },
                 t,
             ))
         }
     };
     let mut x = res.phi_q.transpose();
     for j in 0..NC {
-        let mut col: SVector<f64, NQ> = x.column(j).into_owned();
+        let mut col: SVector<T, NQ> = x.column(j).into_owned();
         lu_a.solve(&mut col);
         x.set_column(j, &col);
     }
     let w = j21 * x;
-    let mut w_scale = SVector::<f64, NC>::zeros();
+    let mut w_scale = SVector::<T, NC>::zeros();
     for i in 0..NC {
         let d = w[(i, i)].abs();
-        if !(d > 0.0) || !d.is_finite() {
+        if !(d > T::zero()) || !d.is_finite() {
             return Err(Error::new(
                 ErrorKind::SingularConstraintJacobian {
                     condition: f64::INFINITY,
-                    limit: max_constraint_condition,
+                    limit: max_constraint_condition.into(),
                 },
                 t,
             ));
         }
-        w_scale[i] = 1.0 / crate::math::sqrt(d);
+        w_scale[i] = T::one() / d.square_root();
     }
     let mut ws = w;
     for j in 0..NC {
@@ -499,8 +513,8 @@ where
         Err(condition) => {
             return Err(Error::new(
                 ErrorKind::SingularConstraintJacobian {
-                    condition,
-                    limit: max_constraint_condition,
+                    condition: condition.into(),
+                    limit: max_constraint_condition.into(),
                 },
                 t,
             ))
