@@ -14,13 +14,13 @@
 //!   derivative being one forward-mode sweep over `p` (`q' = qd`, `t' = 1`);
 //! * except for rigid bodies, point masses and rods on chains, whose kinetic
 //!   energy has the rigid-body form `(m v.v + w.I w) / 2`
-//!   ([`crate::model::Body`]; a rod is two such terms): their Lagrange terms are the virtual work of
-//!   their Newton-Euler inertial forces, `J_v^T m (v' + w x v) + J_w^T (I w'
-//!   + w x I w)` ([`newton_euler`]), by one forward sweep over their
-//!   velocities and one reverse sweep weighted by the forces: the recursive
-//!   Newton-Euler algorithm's two passes. On the Panda arm this halves the
-//!   bias forces' program (2,209 to 1,157 operations), on the rigid
-//!   parallel robot too (555 to 273);
+//!   ([`crate::model::Body`]; a rod is two such terms): their Lagrange
+//!   terms are the virtual work of their Newton-Euler inertial forces,
+//!   `J_v^T m (v' + w x v) + J_w^T (I w' + w x I w)` ([`newton_euler`]), by
+//!   one forward sweep over their velocities and one reverse sweep weighted
+//!   by the forces: the recursive Newton-Euler algorithm's two passes. On
+//!   the Panda arm this halves the bias forces' program (2,209 to 1,157
+//!   operations), on the rigid parallel robot too (555 to 273);
 //! * mass matrix `M_ij = dp_i/dqd_j`: one forward sweep over `p` per column
 //!   (the bodies' momenta `J^T (m v, I w)` by one reverse sweep over their
 //!   velocities);
