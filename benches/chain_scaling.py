@@ -165,6 +165,7 @@ def main() -> int:
                 f.write(",".join(str(r[c]) for c in cols) + "\n")
     if args.plot:
         import matplotlib
+        import matplotlib.ticker
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         before = []
@@ -191,7 +192,10 @@ def main() -> int:
             ax.set_ylabel("operations (emitted program)")
             ax.set_title(fam)
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend()
+            ax.set_xticks(sorted({r["n"] for r in sub}))
+            ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            ax.legend(loc="upper left", fontsize=7)
         fig.tight_layout()
         fig.savefig(args.plot, dpi=120)
     return 0

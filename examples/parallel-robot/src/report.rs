@@ -956,7 +956,7 @@ pub fn write(results: &Results, ops: &[(usize, usize)], files: &Files) -> Result
          along this circle agree to 2.2e-6 of the peak torque and its coordinates to 4.5e-6; \
          near the workspace edge the f32 error grows as the Jacobian's condition times 1.2e-7. \
          The flexible robot's servo inverse dynamics (2 rad/s, 5 ms, one turn): torques within \
-         8.5e-6 of the peak, the platform within 2.7e-6 m of the circle (f64: 1.5e-6 m), but \
+         8.3e-6 of the peak, the platform within 2.7e-6 m of the circle (f64: 1.5e-6 m), but \
          the flexible joints' deflections (1e-8 rad) not resolved at all; at 10 rad/s the \
          torques are off by 3.1e-3 of the peak at 5 ms and 0.21 at 0.5 ms, and at 50 ms f32 \
          refuses (Newton matrix condition). Its stiffness spread (7e11, beyond f32's 1/eps = \
