@@ -2,7 +2,8 @@
 //! `flexdyn eval --scene` (the interpreter, no rebuild), compared with
 //! Pinocchio (`crba`, `nonLinearEffects`, `rnea`) at 1000 seeded random
 //! states by `tests/pinocchio/validate.py`: UR5, Panda (arm joints; the
-//! fingers held fixed) and Baxter (a tree with prismatic joints), to 1e-12
+//! fingers held fixed), Baxter (a tree with prismatic joints), xArm7 and
+//! Unitree Z1, to 1e-12
 //! of each term's scale. Plus a negative run: with one inertia entry of
 //! each imported scene changed by a relative 1e-6 the comparison must fail.
 //! The shipped `scenes/ur5.toml` must be the import of today. The Python
@@ -50,7 +51,7 @@ fn a_perturbed_inertia_fails_the_comparison() {
     };
     println!("{text}");
     assert_eq!(code, Some(1), "expected the comparison to fail:\n{text}");
-    for robot in ["ur5", "panda", "baxter"] {
+    for robot in ["ur5", "panda", "baxter", "xarm7", "z1"] {
         assert!(
             text.contains(&format!("{robot}: M: "))
                 && text

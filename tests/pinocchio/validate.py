@@ -55,6 +55,9 @@ ROBOTS = [
     ),
     # A tree with prismatic joints (grippers), 19 moving joints.
     ("baxter", "baxter_description/urdf/baxter.urdf", [], False),
+    # Two more arms the derivation was not tuned on (7 and 6 joints).
+    ("xarm7", "xarm_description/urdf/xarm7.urdf", [], False),
+    ("z1", "z1_description/urdf/z1.urdf", [], False),
 ]
 
 # Robots validated again with rotor inertias: `armature = ARMATURE[k]` added
