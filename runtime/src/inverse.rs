@@ -425,7 +425,9 @@ const CHORD_CONTRACTION: f64 = 0.25;
 /// Inverse dynamics with `NP` prescribed coordinates; keeps the previous
 /// position solution as the Newton starting point of the next call, and on
 /// the fast path the inverse of the free-coordinate Jacobian there.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Two solvers are equal when their settings and that kept state are (the
+/// scratch storage of a call does not count).
+#[derive(Clone, Copy, Debug)]
 pub struct InverseDynamics<
     const NQ: usize,
     const NC: usize,
@@ -444,6 +446,22 @@ pub struct InverseDynamics<
     /// Time, velocities and accelerations of the solution `guess`, for the
     /// second-order predictor of the next starting point.
     motion: Option<(T, SVector<T, NQ>, SVector<T, NQ>)>,
+    /// Scratch for the Jacobians of two Newton iterates (overwritten before
+    /// every read; kept here so that a call does not clear them).
+    jacobians: [SMatrix<T, NC, NQ>; 2],
+}
+
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usize> PartialEq
+    for InverseDynamics<NQ, NC, NU, NP, T>
+{
+    fn eq(&self, other: &Self) -> bool {
+        self.config == other.config
+            && self.prescribed == other.prescribed
+            && self.free == other.free
+            && self.guess == other.guess
+            && self.jacobian_inverse == other.jacobian_inverse
+            && self.motion == other.motion
+    }
 }
 
 impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
@@ -495,6 +513,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
             guess: initial_guess,
             jacobian_inverse: None,
             motion: None,
+            jacobians: [SMatrix::zeros(); 2],
         })
     }
 
@@ -663,7 +682,6 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
         // Iterates after the first are evaluated with their Jacobian (one
         // program for both): the last one's is the Jacobian at the solution.
         // `jacobians[current]` is at `q` when `have_jacobian`.
-        let mut jacobians = [SMatrix::<T, NC, NQ>::zeros(); 2];
         let mut current = 0;
         let mut have_jacobian = false;
         // The inverse for chord steps: the previous call's (at the guess), or
@@ -693,10 +711,10 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
             if fresh {
                 factorizations += 1;
                 if !have_jacobian {
-                    eval::constraint_jacobian_into(model, &q, t, &mut jacobians[current])?;
+                    eval::constraint_jacobian_into(model, &q, t, &mut self.jacobians[current])?;
                     have_jacobian = true;
                 }
-                let phi_q = &jacobians[current];
+                let phi_q = &self.jacobians[current];
                 if square
                     && self
                         .free_inverse(phi_q, cfg.max_condition, &mut local)
@@ -728,7 +746,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
                 &q_new,
                 t,
                 &mut phi_new,
-                &mut jacobians[1 - current],
+                &mut self.jacobians[1 - current],
             )?;
             let res_new = inf_norm(&phi_new);
             if !fresh && !(res_new <= T::of(CHORD_CONTRACTION) * res) {
@@ -747,9 +765,9 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
         }
         // 2. Velocities and accelerations.
         if !have_jacobian {
-            eval::constraint_jacobian_into(model, &q, t, &mut jacobians[current])?;
+            eval::constraint_jacobian_into(model, &q, t, &mut self.jacobians[current])?;
         }
-        let phi_q = &jacobians[current];
+        let phi_q = &self.jacobians[current];
         let phi_t = eval::constraint_time_derivative(model, &q, t)?;
         // The inverse at the solution overwrites the iterates' (no copy).
         let inv = &mut local;
@@ -825,12 +843,14 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
             Some(solution) => solution,
             None => forces_from(&cfg, phi_q, &b, &r, t)?,
         };
+        let (velocity_residual, acceleration_residual) =
+            residual_norms(phi_q, (&qd, &phi_t), (&qdd, &-gamma));
         let report = InverseReport {
             iterations,
             factorizations,
             position_residual: res,
-            velocity_residual: residual_norm(phi_q, &qd, &phi_t),
-            acceleration_residual: residual_norm(phi_q, &qdd, &-gamma),
+            velocity_residual,
+            acceleration_residual,
             jacobian_condition,
             kinematics: if fast.is_some() {
                 SolvePath::Elimination
@@ -939,15 +959,25 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usi
     }
 }
 
-/// `max |a x + c|`.
-fn residual_norm<T: Scalar, const R: usize, const C: usize>(
+/// `(max |a x + c|, max |a y + d|)`, in one pass over `a`.
+fn residual_norms<T: Scalar, const R: usize, const C: usize>(
     a: &SMatrix<T, R, C>,
-    x: &SVector<T, C>,
-    c: &SVector<T, R>,
-) -> T {
-    let mut y = *c;
-    mul_vec_acc(a, x.as_slice(), y.as_mut_slice());
-    inf_norm(&y)
+    (x, c): (&SVector<T, C>, &SVector<T, R>),
+    (y, d): (&SVector<T, C>, &SVector<T, R>),
+) -> (T, T) {
+    let (mut u, mut v) = (*c, *d);
+    for ((col, xk), yk) in a
+        .as_slice()
+        .chunks_exact(R.max(1))
+        .zip(x.iter())
+        .zip(y.iter())
+    {
+        for ((ui, vi), e) in u.iter_mut().zip(v.iter_mut()).zip(col) {
+            *ui += *e * *xk;
+            *vi += *e * *yk;
+        }
+    }
+    (inf_norm(&u), inf_norm(&v))
 }
 
 /// Checks that the leading `needed` singular values are well conditioned.
