@@ -59,12 +59,12 @@ impl Model {
     /// Stages 4 and 5: the equations of motion, derived and, when the scene
     /// asks for it, pruned. Adds the derived terms to [`Model::graph`].
     pub fn equations(&mut self) -> Result<Equations, Error> {
-        let mut eq = derive(self).map_err(|e| Error {
-            file: self.sources.first().cloned().unwrap_or_default(),
-            line: 0,
-            column: 0,
-            context: Some(e.context.clone()),
-            message: e.message.clone(),
+        let mut eq = derive(self).map_err(|e| {
+            Error::unplaced(
+                self.sources.first().cloned().unwrap_or_default(),
+                Some(&e.context),
+                e.message,
+            )
         })?;
         prune(self, &mut eq);
         Ok(eq)
@@ -139,15 +139,15 @@ pub fn generate_scene(path: &Path) -> Result<Generated, Error> {
 /// The runtime path as a Rust path: `a::b`, `::a::b` or `crate::a`, without
 /// generic arguments.
 fn runtime_path(text: &str) -> Result<syn::Path, Error> {
-    let error = |why: String| Error {
-        file: PathBuf::new(),
-        line: 0,
-        column: 0,
-        context: Some("Builder::runtime_path".into()),
-        message: format!(
-            "`{text}` is not a path to the runtime crate (such as `flexdyn_runtime`, \
-             `crate::rt` or `::my_rt`): {why}"
-        ),
+    let error = |why: String| {
+        Error::unplaced(
+            PathBuf::new(),
+            Some("Builder::runtime_path"),
+            format!(
+                "`{text}` is not a path to the runtime crate (such as `flexdyn_runtime`, \
+                 `crate::rt` or `::my_rt`): {why}"
+            ),
+        )
     };
     let path: syn::Path = syn::parse_str(text).map_err(|e| error(e.to_string()))?;
     if path.segments.iter().any(|s| !s.arguments.is_none()) {
@@ -180,13 +180,11 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
         model.precision = p;
     }
     if options.c_interface && model.precision != Precision::F64 {
-        return Err(Error {
-            file: path.to_path_buf(),
-            line: 0,
-            column: 0,
-            context: None,
-            message: "the C interface is generated for f64 models only (the scene or the builder asks for f32)".into(),
-        });
+        return Err(Error::unplaced(
+            path.to_path_buf(),
+            None,
+            "the C interface is generated for f64 models only (the scene or the builder asks for f32)",
+        ));
     }
     let (runtime, perturbations) = (options.runtime, options.perturbations);
     let eq = model.equations()?;
@@ -200,16 +198,14 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
         .then(|| CInterface::new(&model, &functions));
     let (emitted, applied) = emit(&model, &eq, functions, runtime, perturbation);
     if let (Some(c), false) = (perturbation, applied) {
-        return Err(Error {
-            file: path.to_path_buf(),
-            line: 0,
-            column: 0,
-            context: None,
-            message: format!(
+        return Err(Error::unplaced(
+            path.to_path_buf(),
+            None,
+            format!(
                 "cannot perturb coefficient {} of `{}`: the function does not exist or has fewer coefficients",
                 c.index, c.function
             ),
-        });
+        ));
     }
     Ok(Generated {
         name: model.name.clone(),
@@ -236,12 +232,10 @@ fn check_f32_resolution(path: &Path, model: &Model, eq: &Equations) -> Result<()
     if s.spread <= F32_MAX_STIFFNESS_SPREAD {
         return Ok(());
     }
-    Err(Error {
-        file: path.to_path_buf(),
-        line: 0,
-        column: 0,
-        context: Some("precision".into()),
-        message: format!(
+    Err(Error::unplaced(
+        path.to_path_buf(),
+        Some("precision"),
+        format!(
             "scene `{}` cannot be computed in f32: its stiffness spread (|eigenvalues| of \
              M^-1 d(dV/dq)/dq at rest, over the declared ranges' sample states) is {:.3e}, \
              from the stiffest mode at {:.3e} 1/s^2 (mostly {}) to the softest at {:.3e} \
@@ -258,7 +252,7 @@ fn check_f32_resolution(path: &Path, model: &Model, eq: &Equations) -> Result<()
             s.soft.1.join(", "),
             F32_MAX_STIFFNESS_SPREAD
         ),
-    })
+    ))
 }
 
 /// Configures and runs the generator.
@@ -417,12 +411,12 @@ impl Builder {
     pub fn scene_files(&self) -> Result<Vec<PathBuf>, Error> {
         let mut files = self.scenes.clone();
         for dir in &self.dirs {
-            let io = |e: std::io::Error| Error {
-                file: dir.clone(),
-                line: 0,
-                column: 0,
-                context: None,
-                message: format!("cannot list scene directory: {e}"),
+            let io = |e: std::io::Error| {
+                Error::unplaced(
+                    dir.clone(),
+                    None,
+                    format!("cannot list scene directory: {e}"),
+                )
             };
             let mut found: Vec<PathBuf> = std::fs::read_dir(dir)
                 .map_err(io)?
@@ -470,17 +464,15 @@ impl Builder {
                 }
             }
             if let Some(other) = scenes.iter().find(|s| s.name == g.name) {
-                return Err(Error {
-                    file: f.clone(),
-                    line: 0,
-                    column: 0,
-                    context: None,
-                    message: format!(
+                return Err(Error::unplaced(
+                    f.clone(),
+                    None,
+                    format!(
                         "scene name `{}` is already used by {}",
                         g.name,
                         other.scene.display()
                     ),
-                });
+                ));
             }
             scenes.push(g);
         }
@@ -489,23 +481,15 @@ impl Builder {
             .iter()
             .find(|c| !scenes.iter().any(|s| s.name == c.scene))
         {
-            return Err(Error {
-                file: PathBuf::new(),
-                line: 0,
-                column: 0,
-                context: None,
-                message: format!("cannot perturb scene `{}`: it is not generated", c.scene),
-            });
+            return Err(Error::unplaced(
+                PathBuf::new(),
+                None,
+                format!("cannot perturb scene `{}`: it is not generated", c.scene),
+            ));
         }
         let out_dir = match &self.out_dir {
             Some(d) => d.clone(),
-            None => std::env::var_os("OUT_DIR").map(PathBuf::from).ok_or_else(|| Error {
-                file: PathBuf::new(),
-                line: 0,
-                column: 0,
-                context: None,
-                message: "no output directory: set one with Builder::out_dir or run from a build script".into(),
-            })?,
+            None => std::env::var_os("OUT_DIR").map(PathBuf::from).ok_or_else(|| Error::unplaced(PathBuf::new(), None, "no output directory: set one with Builder::out_dir or run from a build script"))?,
         };
         let mut outputs: Vec<(PathBuf, String)> = scenes
             .iter()
@@ -519,35 +503,24 @@ impl Builder {
             &self.index,
             scenes.iter().find(|s| s.precision != Precision::F64),
         ) {
-            return Err(Error {
-                file: s.scene.clone(),
-                line: 0,
-                column: 0,
-                context: None,
-                message: format!(
+            return Err(Error::unplaced(
+                s.scene.clone(),
+                None,
+                format!(
                     "scene `{}` is generated in {}: the index module `{}` needs f64 models",
                     s.name,
                     s.precision.rust_type(),
                     index.file
                 ),
-            });
+            ));
         }
         if let Some(index) = &self.index {
-            let text = index_source(&scenes, index).map_err(|message| Error {
-                file: PathBuf::from(&index.file),
-                line: 0,
-                column: 0,
-                context: None,
-                message,
-            })?;
+            let text = index_source(&scenes, index)
+                .map_err(|message| Error::unplaced(PathBuf::from(&index.file), None, message))?;
             outputs.push((out_dir.join(&index.file), text));
         }
-        let io = |p: &Path, e: std::io::Error| Error {
-            file: p.to_path_buf(),
-            line: 0,
-            column: 0,
-            context: None,
-            message: format!("cannot write: {e}"),
+        let io = |p: &Path, e: std::io::Error| {
+            Error::unplaced(p.to_path_buf(), None, format!("cannot write: {e}"))
         };
         std::fs::create_dir_all(&out_dir).map_err(|e| io(&out_dir, e))?;
         let mut written = Vec::new();

@@ -34,6 +34,24 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {}
 
+impl Error {
+    /// An error about `file` as a whole, without a position in it (I/O,
+    /// settings of the builder, checks of the derived model).
+    pub fn unplaced(
+        file: impl Into<PathBuf>,
+        context: Option<&str>,
+        message: impl Into<String>,
+    ) -> Error {
+        Error {
+            file: file.into(),
+            line: 0,
+            column: 0,
+            context: context.map(str::to_owned),
+            message: message.into(),
+        }
+    }
+}
+
 /// Maps byte offsets of a scene file to lines and columns.
 #[derive(Debug, Clone)]
 pub struct Source {
@@ -96,13 +114,7 @@ impl Source {
 
     /// An error without a position in the file.
     pub fn error(&self, message: impl Into<String>) -> Error {
-        Error {
-            file: self.path.clone(),
-            line: 0,
-            column: 0,
-            context: None,
-            message: message.into(),
-        }
+        Error::unplaced(self.path.clone(), None, message)
     }
 }
 

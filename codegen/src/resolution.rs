@@ -85,7 +85,7 @@ pub(crate) fn stiffness_spread(model: &Model, eq: &Equations) -> Option<Stiffnes
         let Some(li) = l.clone().try_inverse() else {
             return;
         };
-        let a = &li * (&k + k.transpose()) * 0.5 * li.transpose();
+        let a = &li * k * li.transpose();
         let eigen = SymmetricEigen::new((&a + a.transpose()) * 0.5);
         let size = |j: usize| eigen.eigenvalues[j].abs();
         let Some(stiff) = (0..n).max_by(|&i, &j| size(i).total_cmp(&size(j))) else {

@@ -32,12 +32,12 @@ pub struct LoadedScene {
 
 /// Read a scene file.
 pub fn load(path: &Path) -> Result<LoadedScene, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error {
-        file: path.to_path_buf(),
-        line: 0,
-        column: 0,
-        context: None,
-        message: format!("cannot read scene file: {e}"),
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        Error::unplaced(
+            path.to_path_buf(),
+            None,
+            format!("cannot read scene file: {e}"),
+        )
     })?;
     resolve(Source::new(path, text))
 }
