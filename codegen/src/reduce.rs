@@ -152,7 +152,7 @@ pub fn apply(mut model: Model, def: &DerivedSceneDef, source: &Source) -> Result
             next += 1;
         }
     }
-    let roots = model.input_roots();
+    let roots = model.roots();
     let g = &mut model.graph;
     let zero = g.constant(0.0);
     let q: Vec<Id> = index
@@ -169,7 +169,7 @@ pub fn apply(mut model: Model, def: &DerivedSceneDef, source: &Source) -> Result
         Symbol::Time | Symbol::Param(_) | Symbol::Qdd(_) => None,
     };
     let new = g.substitute(&roots, &map);
-    model.set_input_roots(new);
+    model.set_roots(new);
     for a in &mut model.actuators {
         // Checked above: actuated coordinates are kept.
         a.coordinate = index[a.coordinate].map_or(a.coordinate, |j| j as usize);

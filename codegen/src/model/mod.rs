@@ -96,9 +96,9 @@ pub struct Body {
 }
 
 impl Component {
-    /// Every node of the component: `T`, `V`, `D`, then its body's.
-    fn roots(&self) -> Vec<Id> {
-        let mut roots = vec![self.kinetic, self.potential, self.dissipation];
+    /// The nodes of the component's bodies.
+    fn body_nodes(&self) -> Vec<Id> {
+        let mut roots = Vec::new();
         for b in &self.bodies {
             roots.push(b.mass);
             roots.extend(b.velocity);
@@ -108,12 +108,10 @@ impl Component {
         roots
     }
 
-    /// Replace every node of the component, in the order of [`Self::roots`].
-    fn set_roots(&mut self, it: &mut impl Iterator<Item = Id>) {
+    /// Replace the nodes of the component's bodies, in the order of
+    /// [`Self::body_nodes`].
+    fn set_body_nodes(&mut self, it: &mut impl Iterator<Item = Id>) {
         let mut next = || it.next().expect("one node per root");
-        self.kinetic = next();
-        self.potential = next();
-        self.dissipation = next();
         for b in &mut self.bodies {
             b.mass = next();
             b.velocity = std::array::from_fn(|_| next());
@@ -253,22 +251,39 @@ impl Model {
     }
 
     /// The scene's symbolic inputs: `T`, `V`, `D` of every component in
-    /// order (and its body's nodes), then every constraint residual.
+    /// order, then every constraint residual (what the export writes).
     pub fn input_roots(&self) -> Vec<Id> {
-        let mut roots: Vec<Id> = self.components.iter().flat_map(Component::roots).collect();
+        let mut roots: Vec<Id> = Vec::new();
+        for c in &self.components {
+            roots.extend([c.kinetic, c.potential, c.dissipation]);
+        }
         roots.extend(self.constraints.iter().map(|c| c.residual));
         roots
     }
 
-    /// Replace the scene's symbolic inputs by `new`, in the order of
-    /// [`Self::input_roots`].
-    pub fn set_input_roots(&mut self, new: Vec<Id>) {
+    /// Every node the model refers to: [`Self::input_roots`], then the
+    /// components' bodies'.
+    pub fn roots(&self) -> Vec<Id> {
+        let mut roots = self.input_roots();
+        roots.extend(self.components.iter().flat_map(Component::body_nodes));
+        roots
+    }
+
+    /// Replace every node the model refers to by `new`, in the order of
+    /// [`Self::roots`].
+    pub fn set_roots(&mut self, new: Vec<Id>) {
         let mut it = new.into_iter();
+        let mut next = || it.next().expect("one node per root");
         for c in &mut self.components {
-            c.set_roots(&mut it);
+            c.kinetic = next();
+            c.potential = next();
+            c.dissipation = next();
         }
         for c in &mut self.constraints {
-            c.residual = it.next().expect("one node per root");
+            c.residual = next();
+        }
+        for c in &mut self.components {
+            c.set_body_nodes(&mut it);
         }
     }
 }
