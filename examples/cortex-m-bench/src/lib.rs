@@ -103,6 +103,16 @@ impl Toolchain {
         }
         Ok(tc)
     }
+
+    /// `rustc --version` of the cross compiler (what the recorded counts
+    /// are compared against: see [`Allowance`]).
+    pub fn version(&self) -> Result<String, String> {
+        let out = run_tool(Command::new(&self.rustc).arg("--version"))?;
+        if !out.status.success() {
+            return Err(format!("{} --version failed", self.rustc.display()));
+        }
+        Ok(String::from_utf8_lossy(&out.stdout).trim().to_owned())
+    }
 }
 
 /// The workspace root.
@@ -328,6 +338,90 @@ pub fn parse_bench(stdout: &str) -> Result<Bench, String> {
 
 /// The header of the table of recorded counts in docs/benchmarks.md.
 pub const RECORDED_HEADER: &str = "| firmware measurement | instructions | stack (bytes) |";
+
+/// The line of docs/benchmarks.md that names the compiler of the recorded
+/// counts: this prefix, then `rustc --version` in backquotes.
+pub const RECORDED_COMPILER: &str = "Compiler of the recorded counts: ";
+
+/// The compiler named in `markdown` (docs/benchmarks.md) under
+/// [`RECORDED_COMPILER`].
+pub fn recorded_compiler(markdown: &str) -> Result<String, String> {
+    markdown
+        .lines()
+        .find_map(|l| l.trim().strip_prefix(RECORDED_COMPILER))
+        .map(|rest| {
+            rest.trim()
+                .trim_end_matches('.')
+                .trim_matches('`')
+                .to_owned()
+        })
+        .filter(|v| !v.is_empty())
+        .ok_or_else(|| format!("no line starting `{RECORDED_COMPILER}` names the compiler"))
+}
+
+/// How far a measured count may exceed its recorded figure.
+///
+/// Instruction counts are deterministic for one compiler build, so with the
+/// compiler that recorded the table the bound is tight (10 %). Another
+/// compiler build (a newer Debian `rustc-web`, which a machine set up later
+/// gets: the archive serves only the newest) inlines and allocates stack
+/// slots differently; with it the bound is 25 %. Small stacks move by whole
+/// spill slots (84 to 96 bytes between Rust 1.85 and 1.96), so a stack
+/// depth may also grow by a fixed number of bytes. Either way a change that
+/// doubles a function's instructions or stack fails (tested for every
+/// recorded row).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Allowance {
+    /// Largest ratio of measured to recorded instructions and stack.
+    pub growth: f64,
+    /// Stack bytes a depth may grow by whatever its ratio.
+    pub stack_bytes: u64,
+}
+
+impl Allowance {
+    /// The allowance with the recording compiler (`same`) or another one.
+    pub fn for_compiler(same: bool) -> Allowance {
+        if same {
+            Allowance {
+                growth: 1.10,
+                stack_bytes: 32,
+            }
+        } else {
+            Allowance {
+                growth: 1.25,
+                stack_bytes: 64,
+            }
+        }
+    }
+
+    /// The largest instruction count and stack depth accepted for `r`.
+    pub fn limits(&self, r: &Measurement) -> (u64, u64) {
+        let grown = |x: u64| (self.growth * x as f64).floor() as u64;
+        (
+            grown(r.instructions),
+            grown(r.stack).max(r.stack + self.stack_bytes),
+        )
+    }
+
+    /// What of `m` exceeds its recorded figure `r`, one line each.
+    pub fn exceeded(&self, m: &Measurement, r: &Measurement) -> Vec<String> {
+        let (ins, stack) = self.limits(r);
+        let mut out = Vec::new();
+        if m.instructions > ins {
+            out.push(format!(
+                "{} instructions: {}, recorded {}, limit {ins}",
+                m.name, m.instructions, r.instructions
+            ));
+        }
+        if m.stack > stack {
+            out.push(format!(
+                "{} stack: {} bytes, recorded {}, limit {stack}",
+                m.name, m.stack, r.stack
+            ));
+        }
+        out
+    }
+}
 
 /// The counts recorded in `markdown` (docs/benchmarks.md): the rows of the
 /// table under [`RECORDED_HEADER`], `` | `name` | 45,730 | 1,388 | ``.

@@ -1,12 +1,16 @@
 //! Builds the firmware, runs it on QEMU and prints its counts as the rows of
-//! the table in docs/benchmarks.md, with the flash and RAM of each program.
+//! the table in docs/benchmarks.md (after the line naming the compiler), with
+//! the flash and RAM of each program.
 
-use flexdyn_cortex_m_bench::{build, flash_and_ram, parse_bench, qemu, Toolchain, RECORDED_HEADER};
+use flexdyn_cortex_m_bench::{
+    build, flash_and_ram, parse_bench, qemu, Toolchain, RECORDED_COMPILER, RECORDED_HEADER,
+};
 
 fn main() -> Result<(), String> {
     let tc = Toolchain::find()?;
     let dir = build(&tc)?;
     let bench = parse_bench(&qemu(&dir.join("bench"))?)?;
+    println!("{RECORDED_COMPILER}`{}`.\n", tc.version()?);
     println!("{RECORDED_HEADER}\n|---|---:|---:|");
     for m in &bench.counts {
         println!("| `{}` | {} | {} |", m.name, m.instructions, m.stack);
