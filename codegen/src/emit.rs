@@ -124,7 +124,7 @@ fn usize_lit(i: usize) -> Literal {
 }
 
 /// Programs with at most this many statements are emitted as one `let` per
-/// statement (see `Printer::statement`).
+/// statement (see `Emitter::function`).
 const FLAT_STATEMENTS: usize = 512;
 
 /// Variables per declaration in longer programs.

@@ -162,11 +162,11 @@ mod tests {
                     let want: Vec<f64> = match terms {
                         Terms::Nodes(outputs) => outputs
                             .iter()
-                            .flat_map(column_major)
+                            .flat_map(|o| column_major(o))
                             .map(|id| model.graph.eval(&[id], &env)[0])
                             .collect(),
                         Terms::Constants(outputs) => {
-                            outputs.iter().flat_map(column_major).collect()
+                            outputs.iter().flat_map(|o| column_major(o)).collect()
                         }
                     };
                     let tape = it.tape(f).unwrap();
@@ -189,7 +189,7 @@ mod tests {
     }
 
     /// A matrix given as rows, column by column.
-    fn column_major<T: Copy>(rows: &Vec<Vec<T>>) -> Vec<T> {
+    fn column_major<T: Copy>(rows: &[Vec<T>]) -> Vec<T> {
         let cols = rows.first().map_or(0, Vec::len);
         (0..cols)
             .flat_map(|j| rows.iter().map(move |r| r[j]))
