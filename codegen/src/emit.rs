@@ -138,6 +138,15 @@ const PRODUCT: u8 = 2;
 const UNARY: u8 = 3;
 const ATOM: u8 = 4;
 
+/// An argument's name, `_name` where the function does not use it.
+fn argument(name: &str, used: bool) -> proc_macro2::Ident {
+    if used {
+        format_ident!("{}", name)
+    } else {
+        format_ident!("_{}", name)
+    }
+}
+
 /// `v<n>`.
 fn var(v: u32) -> proc_macro2::Ident {
     format_ident!("v{}", v)
@@ -349,7 +358,6 @@ impl Emitter<'_> {
                 body.extend(quote!(let [#(#group),*]: [#real; #n];));
             }
         }
-        // Outputs the function never writes are named `_x`.
         let touched = |k: usize| {
             lowered.ops.iter().any(
                 |op| matches!(op, Op::Zero { output } | Op::Store { output, .. } if *output == k),
@@ -359,13 +367,7 @@ impl Emitter<'_> {
             .outputs
             .iter()
             .enumerate()
-            .map(|(k, o)| {
-                if touched(k) {
-                    format_ident!("{}", o.name)
-                } else {
-                    format_ident!("_{}", o.name)
-                }
-            })
+            .map(|(k, o)| argument(o.name, touched(k)))
             .collect();
         let mut printer = Printer {
             emitter: self,
@@ -392,19 +394,12 @@ impl Emitter<'_> {
             (ret, tail) = (quote!(-> bool), quote!(true));
         }
         let read: Vec<Symbol> = lowered.reads().collect();
-        let arg = |name: &str, used: bool| {
-            if used {
-                format_ident!("{}", name)
-            } else {
-                format_ident!("_{}", name)
-            }
-        };
         let nq = usize_lit(self.model.nq());
         let vector = quote!(&SVector<#real, #nq>);
-        let q = arg("q", read.iter().any(|s| matches!(s, Symbol::Q(_))));
-        let qd = arg("qd", read.iter().any(|s| matches!(s, Symbol::Qd(_))));
-        let qdd = arg("qdd", read.iter().any(|s| matches!(s, Symbol::Qdd(_))));
-        let t = arg("t", read.contains(&Symbol::Time));
+        let q = argument("q", read.iter().any(|s| matches!(s, Symbol::Q(_))));
+        let qd = argument("qd", read.iter().any(|s| matches!(s, Symbol::Qd(_))));
+        let qdd = argument("qdd", read.iter().any(|s| matches!(s, Symbol::Qdd(_))));
+        let t = argument("t", read.contains(&Symbol::Time));
         let inputs = match spec.inputs {
             Inputs::Constant => quote!(),
             Inputs::Positions => quote!(#q: #vector, #t: #real,),
