@@ -3,7 +3,6 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::write::Names;
 use super::{at, Inertial, Joint, Kind, Link, Origin, Pose};
 use crate::error::{Error, Source};
 use crate::expr::exact;
@@ -16,7 +15,7 @@ pub(super) fn tensor(i: &[f64; 6]) -> Matrix3<f64> {
 /// depth-first order from the root (children in file order).
 pub(super) struct Tree {
     pub(super) root: usize,
-    pub(super) parent_joint: Vec<Option<usize>>,
+    parent_joint: Vec<Option<usize>>,
     pub(super) order: Vec<usize>,
 }
 
@@ -87,11 +86,6 @@ impl Tree {
         })
     }
 
-    /// The frame a joint below link `l` hangs from (`None`: the world).
-    pub(super) fn parent_frame(&self, l: usize, names: &Names) -> Option<String> {
-        (l != self.root).then(|| names.link[l].clone())
-    }
-
     /// Whether joint `j` moves (not fixed, not held).
     pub(super) fn moves(joints: &[Joint], j: usize) -> bool {
         joints[j].kind != Kind::Fixed && !joints[j].held
@@ -112,7 +106,7 @@ impl Tree {
 
 /// `R = Rz(yaw) Ry(pitch) Rx(roll)`, sines and cosines folded exactly at
 /// multiples of `pi/12` like the scene's rotations.
-pub(super) fn rpy_matrix(rpy: [f64; 3]) -> Matrix3<f64> {
+fn rpy_matrix(rpy: [f64; 3]) -> Matrix3<f64> {
     let (sr, cr) = exact::sin_cos(rpy[0]);
     let (sp, cp) = exact::sin_cos(rpy[1]);
     let (sy, cy) = exact::sin_cos(rpy[2]);
@@ -123,7 +117,7 @@ pub(super) fn rpy_matrix(rpy: [f64; 3]) -> Matrix3<f64> {
 }
 
 /// `A B` with the cancellation rule of [`exact::cancel`] on every entry.
-pub(super) fn product(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
+fn product(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
     Matrix3::from_fn(|i, j| {
         let terms = (0..3).map(|k| a[(i, k)] * b[(k, j)]);
         exact::cancel(terms.clone().sum(), terms.map(f64::abs).sum())
@@ -131,7 +125,7 @@ pub(super) fn product(a: &Matrix3<f64>, b: &Matrix3<f64>) -> Matrix3<f64> {
 }
 
 /// `A v` with the cancellation rule.
-pub(super) fn apply(a: &Matrix3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
+fn apply(a: &Matrix3<f64>, v: &Vector3<f64>) -> Vector3<f64> {
     Vector3::from_fn(|i, _| {
         let terms = (0..3).map(|k| a[(i, k)] * v[k]);
         exact::cancel(terms.clone().sum(), terms.map(f64::abs).sum())

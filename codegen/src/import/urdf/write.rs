@@ -81,10 +81,17 @@ fn axis_text(a: &[f64; 3]) -> String {
 }
 
 /// Scene identifiers of the links (frames) and joints (coordinates).
-pub(super) struct Names {
-    pub(super) link: Vec<String>,
-    pub(super) joint: Vec<String>,
-    pub(super) joint_frame: Vec<String>,
+struct Names {
+    link: Vec<String>,
+    joint: Vec<String>,
+    joint_frame: Vec<String>,
+}
+
+impl Names {
+    /// The frame a joint below link `l` hangs from (`None`: the world).
+    fn parent_frame(&self, tree: &Tree, l: usize) -> Option<String> {
+        (l != tree.root).then(|| self.link[l].clone())
+    }
 }
 
 fn names(links: &[Link], joints: &[Joint]) -> Names {
@@ -190,7 +197,7 @@ pub(super) fn write_scene(
 
     for &j in &tree.order {
         let joint = &joints[j];
-        let parent = tree.parent_frame(joint.parent, &names);
+        let parent = names.parent_frame(tree, joint.parent);
         let o = &joint.origin;
         let mut rotations = rpy_rotations(&o.rpy);
         let q = &names.joint[j];
