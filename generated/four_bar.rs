@@ -210,6 +210,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
             + 0.16666666666666666 * v1 * v4 * qdd[0] + 0.3333333333333333 * v4 * v6
             - 0.16666666666666666 * v0 * v4 * v7 - 0.3333333333333333 * v3 * v5;
     }
+    ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 3, 1>) {
         *b = SMatrix::zeros();

@@ -141,6 +141,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         let v1 = self.l * self.m;
         tau[0] = self.l * qdd[0] * v1 + 9.81 * v0 * v1 + qd[0] * self.c;
     }
+    ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 1, 1>) {
         *b = SMatrix::zeros();

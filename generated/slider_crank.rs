@@ -208,6 +208,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             - 0.004000000000000001 * v1 * v3 * qdd[0] - 0.08 * v2 * v4 - 0.08 * v3 * v5;
         tau[2] = 1.2 * qdd[2];
     }
+    ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 3, 1>) {
         *b = SMatrix::zeros();

@@ -267,6 +267,7 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
         tau[4] = 566.4761185942573 * q[4] + 6.47822335157899 * v2
             + 0.6858542325445467 * v3 + 1.0000000000000007 * qdd[4];
     }
+    ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f64, 5, 1>) {
         *b = SMatrix::zeros();

@@ -196,7 +196,7 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
     let c = options
         .c_interface
         .then(|| CInterface::new(&model, &functions));
-    let (emitted, applied) = emit(&model, &eq, functions, runtime, perturbation);
+    let (emitted, applied) = emit(&model, functions, runtime, perturbation);
     if let (Some(c), false) = (perturbation, applied) {
         return Err(Error::unplaced(
             path.to_path_buf(),

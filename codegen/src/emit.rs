@@ -7,10 +7,12 @@
 use proc_macro2::{Literal, TokenStream};
 use quote::{format_ident, quote};
 
-use crate::derive::Equations;
-use crate::expr::{Graph, Id, Symbol};
+use crate::expr::Symbol;
 use crate::model::{Model, Precision};
-use crate::schedule::{Code, Function, OpCount, Program, Shape, Stmt};
+use crate::schedule::{
+    lower, Binary, Code, Inputs, Op, OpCount, Operand, OutputSpec, Program, Scheduled, Shape, Stmt,
+    Value,
+};
 
 /// Operation counts of one emitted function.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,17 +46,7 @@ pub fn struct_name(scene: &str) -> String {
         .collect()
 }
 
-/// How a function's inputs are named in its signature.
-#[derive(Clone, Copy)]
-struct Inputs {
-    q: bool,
-    qd: bool,
-    qdd: bool,
-    t: bool,
-}
-
 struct Emitter<'a> {
-    graph: &'a Graph,
     model: &'a Model,
     reports: Vec<FunctionReport>,
     perturbation: Option<&'a CoefficientPerturbation>,
@@ -132,17 +124,154 @@ fn usize_lit(i: usize) -> Literal {
 }
 
 /// Programs with at most this many statements are emitted as one `let` per
-/// statement (see `Emitter::stmts`).
+/// statement (see `Emitter::function`).
 const FLAT_STATEMENTS: usize = 512;
 
 /// Variables per declaration in longer programs.
 const DECLARATION_GROUP: usize = 64;
 
-/// Precedence classes for parenthesising.
+/// Binding strength of printed Rust expressions, for the parentheses that
+/// the association of the lowered operations needs (on top of those the
+/// lowering asks for).
 const SUM: u8 = 1;
 const PRODUCT: u8 = 2;
-const ATOM: u8 = 3;
+const UNARY: u8 = 3;
+const ATOM: u8 = 4;
 
+/// An argument's name, `_name` where the function does not use it.
+fn argument(name: &str, used: bool) -> proc_macro2::Ident {
+    if used {
+        format_ident!("{}", name)
+    } else {
+        format_ident!("_{}", name)
+    }
+}
+
+/// `v<n>`.
+fn var(v: u32) -> proc_macro2::Ident {
+    format_ident!("v{}", v)
+}
+
+/// Prints the operations of one lowered function as Rust.
+struct Printer<'e, 'a> {
+    emitter: &'e Emitter<'a>,
+    /// The function's outputs.
+    outputs: &'static [OutputSpec],
+    /// Output names.
+    names: Vec<proc_macro2::Ident>,
+    /// The text of each intermediate (taken by its one reader) and its
+    /// binding strength.
+    texts: Vec<Option<(TokenStream, u8)>>,
+    /// `let ` in flat programs, nothing where variables are declared first.
+    bind: TokenStream,
+}
+
+impl Printer<'_, '_> {
+    /// An operand's text, parenthesised where the lowering asks for it or
+    /// where it binds less strongly than `need`.
+    fn operand(&mut self, o: Operand, need: u8) -> TokenStream {
+        let (text, strength) = match o.value {
+            Value::Var(v) => {
+                let v = var(v);
+                (quote!(#v), ATOM)
+            }
+            Value::Input(s) => (self.emitter.input(s), ATOM),
+            Value::Literal(x) => {
+                let strength = if x < 0.0 { UNARY } else { ATOM };
+                (self.emitter.lit(x), strength)
+            }
+            Value::Temp(t) => self.texts[t as usize]
+                .take()
+                .expect("an intermediate is read once, after it is written"),
+        };
+        if o.paren || strength < need {
+            quote!((#text))
+        } else {
+            text
+        }
+    }
+
+    fn set(&mut self, dst: u32, text: TokenStream, strength: u8) {
+        self.texts[dst as usize] = Some((text, strength));
+    }
+
+    /// The statement an operation prints, if any (intermediates are printed
+    /// where they are read), and the value a returned output ends with.
+    fn op(&mut self, op: &Op, out: &mut TokenStream, tail: &mut TokenStream) {
+        let bind = self.bind.clone();
+        match op {
+            Op::Binary { dst, op, a, b } => {
+                let (level, sign) = match op {
+                    Binary::Add => (SUM, quote!(+)),
+                    Binary::Sub => (SUM, quote!(-)),
+                    Binary::Mul => (PRODUCT, quote!(*)),
+                    Binary::Div => (PRODUCT, quote!(/)),
+                };
+                let a = self.operand(*a, level);
+                let b = self.operand(*b, level + 1);
+                self.set(*dst, quote!(#a #sign #b), level);
+            }
+            Op::Neg { dst, a } => {
+                let a = self.operand(*a, UNARY);
+                self.set(*dst, quote!(-#a), UNARY);
+            }
+            Op::Call { dst, f, a } => {
+                let name = format_ident!("{}", f.name());
+                let a = self.operand(*a, SUM);
+                self.set(*dst, quote!(math::#name(#a)), ATOM);
+            }
+            Op::Atan2 { dst, y, x } => {
+                let (y, x) = (self.operand(*y, SUM), self.operand(*x, SUM));
+                self.set(*dst, quote!(math::atan2(#y, #x)), ATOM);
+            }
+            Op::Bind { var: v, value } => {
+                let (v, e) = (var(*v), self.operand(*value, SUM));
+                out.extend(quote!(#bind #v = #e;));
+            }
+            Op::SinCos { sin, cos, arg } => {
+                let (s, c) = (var(*sin), var(*cos));
+                let a = self.operand(*arg, SUM);
+                out.extend(quote!(#bind (#s, #c) = math::sin_cos(#a);));
+            }
+            Op::SinCosArray(batch) => {
+                let pairs = batch.iter().map(|(s, c, _)| {
+                    let (s, c) = (var(*s), var(*c));
+                    quote!((#s, #c))
+                });
+                let pairs: Vec<TokenStream> = pairs.collect();
+                let args: Vec<TokenStream> = batch
+                    .iter()
+                    .map(|(_, _, a)| self.operand(*a, SUM))
+                    .collect();
+                out.extend(quote!(#bind [#(#pairs),*] = math::sin_cos_array([#(#args),*]);));
+            }
+            Op::Zero { output } => {
+                let name = &self.names[*output];
+                out.extend(quote!(*#name = SMatrix::zeros();));
+            }
+            Op::Store {
+                output,
+                row,
+                col,
+                value,
+            } => {
+                let e = self.operand(*value, SUM);
+                let name = &self.names[*output];
+                let (i, j) = (usize_lit(*row), usize_lit(*col));
+                match self.outputs[*output].shape {
+                    Shape::Scalar => *tail = e,
+                    Shape::Vector(_) => out.extend(quote!(#name[#i] = #e;)),
+                    Shape::Matrix { .. } => out.extend(quote!(#name[(#i, #j)] = #e;)),
+                }
+            }
+            Op::Mirror { output, row, col } => {
+                let name = &self.names[*output];
+                let (i, j) = (usize_lit(*row), usize_lit(*col));
+                out.extend(quote!(#name[(#j, #i)] = #name[(#i, #j)];));
+            }
+        }
+    }
+}
 impl Emitter<'_> {
     fn lit(&self, x: f64) -> TokenStream {
         lit(x, self.model.precision)
@@ -153,199 +282,26 @@ impl Emitter<'_> {
         format_ident!("{}", self.model.precision.rust_type())
     }
 
-    fn param_ident(&self, i: u32) -> proc_macro2::Ident {
-        format_ident!("{}", self.model.runtime_parameters[i as usize].name)
-    }
-
-    fn precedence(c: &Code) -> u8 {
-        match c {
-            Code::Sum { .. } => SUM,
-            Code::Prod { .. } => PRODUCT,
-            Code::Lit(x) if *x < 0.0 => SUM,
-            _ => ATOM,
-        }
-    }
-
-    /// Tokens for `c`, parenthesised when its precedence is below `need`.
-    fn code(&self, c: &Code, need: u8) -> TokenStream {
-        let body = match c {
-            Code::Var(v) => {
-                let id = format_ident!("v{}", v);
-                quote!(#id)
-            }
-            Code::Sym(Symbol::Q(i)) => {
-                let i = usize_lit(*i as usize);
+    /// An input as the function reads it.
+    fn input(&self, s: Symbol) -> TokenStream {
+        match s {
+            Symbol::Q(i) => {
+                let i = usize_lit(i as usize);
                 quote!(q[#i])
             }
-            Code::Sym(Symbol::Qd(i)) => {
-                let i = usize_lit(*i as usize);
+            Symbol::Qd(i) => {
+                let i = usize_lit(i as usize);
                 quote!(qd[#i])
             }
-            Code::Sym(Symbol::Qdd(i)) => {
-                let i = usize_lit(*i as usize);
+            Symbol::Qdd(i) => {
+                let i = usize_lit(i as usize);
                 quote!(qdd[#i])
             }
-            Code::Sym(Symbol::Time) => quote!(t),
-            Code::Sym(Symbol::Param(i)) => {
-                let p = self.param_ident(*i);
+            Symbol::Time => quote!(t),
+            Symbol::Param(i) => {
+                let p = format_ident!("{}", self.model.runtime_parameters[i as usize].name);
                 quote!(self.#p)
             }
-            Code::Lit(x) => self.lit(*x),
-            Code::Sum { constant, terms } => self.sum(*constant, terms),
-            Code::Prod { num, den } => {
-                let num_t: Vec<TokenStream> = num.iter().map(|f| self.code(f, ATOM)).collect();
-                let numerator = join_mul(quote!(1.0), &num_t);
-                match den.as_slice() {
-                    [] => numerator,
-                    [d] => {
-                        let d = self.code(d, ATOM);
-                        quote!(#numerator / #d)
-                    }
-                    _ => {
-                        let den_t: Vec<TokenStream> =
-                            den.iter().map(|f| self.code(f, ATOM)).collect();
-                        let d = join_mul(quote!(1.0), &den_t);
-                        quote!(#numerator / (#d))
-                    }
-                }
-            }
-            Code::Call(f, a) => {
-                let name = format_ident!("{}", f.name());
-                let a = self.code(a, SUM);
-                quote!(math::#name(#a))
-            }
-            Code::Atan2(y, x) => {
-                let y = self.code(y, SUM);
-                let x = self.code(x, SUM);
-                quote!(math::atan2(#y, #x))
-            }
-        };
-        if Self::precedence(c) < need {
-            quote!((#body))
-        } else {
-            body
-        }
-    }
-
-    fn term(&self, coef: f64, t: &Code) -> TokenStream {
-        let a = coef.abs();
-        if a == 1.0 {
-            self.code(t, PRODUCT)
-        } else {
-            let l = self.lit(a);
-            let t = self.code(t, PRODUCT);
-            quote!(#l * #t)
-        }
-    }
-
-    fn sum(&self, constant: f64, terms: &[(f64, Code)]) -> TokenStream {
-        let pos: Vec<&(f64, Code)> = terms.iter().filter(|(c, _)| *c > 0.0).collect();
-        let neg: Vec<&(f64, Code)> = terms.iter().filter(|(c, _)| *c < 0.0).collect();
-        let mut out = TokenStream::new();
-        let mut first = true;
-        for (c, t) in &pos {
-            let tt = self.term(*c, t);
-            if first {
-                out = tt;
-                first = false;
-            } else {
-                out = quote!(#out + #tt);
-            }
-        }
-        if first && constant != 0.0 {
-            out = self.lit(constant);
-            first = false;
-        } else if constant > 0.0 {
-            let l = self.lit(constant);
-            out = quote!(#out + #l);
-        } else if constant < 0.0 {
-            let l = self.lit(-constant);
-            out = quote!(#out - #l);
-        }
-        for (c, t) in &neg {
-            let tt = self.term(*c, t);
-            if first {
-                out = quote!(-#tt);
-                first = false;
-            } else {
-                out = quote!(#out - #tt);
-            }
-        }
-        out
-    }
-
-    /// The statements of a program (the sines and cosines of angles that
-    /// read inputs only first, see below): one `let` each, or, in programs longer
-    /// than [`FLAT_STATEMENTS`], variables declared up front in groups of
-    /// [`DECLARATION_GROUP`] (`let [v0, v1, ...]: [f64; 64];`) and then
-    /// assigned. Every `let` opens a lexical
-    /// scope nested in the previous one, and LLVM builds the debug
-    /// information of nested scopes recursively: a 4282-statement function
-    /// overflowed rustc's stack in debug builds.
-    fn stmts(&self, p: &Program) -> TokenStream {
-        let mut out = TokenStream::new();
-        let flat = p.stmts.len() <= FLAT_STATEMENTS;
-        if !flat {
-            let vars: Vec<proc_macro2::Ident> = p
-                .stmts
-                .iter()
-                .flat_map(|s| match s {
-                    Stmt::Let { var, .. } => vec![*var],
-                    Stmt::SinCos { sin, cos, .. } => vec![*sin, *cos],
-                })
-                .map(|v| format_ident!("v{}", v))
-                .collect();
-            for group in vars.chunks(DECLARATION_GROUP) {
-                let n = usize_lit(group.len());
-                let real = self.real();
-                out.extend(quote!(let [#(#group),*]: [#real; #n];));
-            }
-        }
-        let bind = if flat { quote!(let) } else { quote!() };
-        // In f64, the sines and cosines of the angles that read inputs only
-        // come first, all from one `math::sin_cos_array` call (bitwise
-        // `sin_cos` lane by lane, two lanes per SIMD instruction).
-        let batched = |s: &Stmt| {
-            self.model.precision == Precision::F64
-                && matches!(s, Stmt::SinCos { arg, .. } if !arg.reads_variables())
-        };
-        let (mut pairs, mut args) = (Vec::new(), Vec::new());
-        for s in p.stmts.iter().filter(|s| batched(s)) {
-            if let Stmt::SinCos { sin, cos, arg } = s {
-                let (s, c) = (format_ident!("v{}", sin), format_ident!("v{}", cos));
-                pairs.push(quote!((#s, #c)));
-                args.push(self.code(arg, SUM));
-            }
-        }
-        if !pairs.is_empty() {
-            out.extend(quote!(#bind [#(#pairs),*] = math::sin_cos_array([#(#args),*]);));
-        }
-        for s in p.stmts.iter().filter(|s| !batched(s)) {
-            out.extend(match s {
-                Stmt::Let { var, value } => {
-                    let v = format_ident!("v{}", var);
-                    let e = self.code(value, SUM);
-                    quote!(#bind #v = #e;)
-                }
-                Stmt::SinCos { sin, cos, arg } => {
-                    let s = format_ident!("v{}", sin);
-                    let c = format_ident!("v{}", cos);
-                    let a = self.code(arg, SUM);
-                    quote!(#bind (#s, #c) = math::sin_cos(#a);)
-                }
-            });
-        }
-        out
-    }
-
-    /// Which inputs a set of expressions reads.
-    fn inputs(&self, ids: &[Id]) -> Inputs {
-        let syms = self.graph.symbols(ids);
-        Inputs {
-            q: syms.iter().any(|s| matches!(s, Symbol::Q(_))),
-            qd: syms.iter().any(|s| matches!(s, Symbol::Qd(_))),
-            qdd: syms.iter().any(|s| matches!(s, Symbol::Qdd(_))),
-            t: syms.contains(&Symbol::Time),
         }
     }
 
@@ -358,150 +314,109 @@ impl Emitter<'_> {
         }
     }
 
-    /// A function writing one or more outputs (vectors or matrices) from its
-    /// program. A matrix whose entries are not all computed is zeroed first;
-    /// symmetric matrices mirror their upper triangle.
-    fn function(&mut self, f: &mut Function) -> TokenStream {
-        let nq = usize_lit(self.model.nq());
-        self.record(f.sig.name, &mut f.program);
-        let (sig, outputs, slots, p) = (&f.sig, &f.outputs, &f.slots, &f.program);
-        let used = self.inputs(&f.ids);
-        let body = self.stmts(p);
+    /// The function `f`: its lowered operations printed, in a signature
+    /// with the inputs it takes (named `_x` where unread) and its outputs
+    /// (`&mut` arguments, or the returned value). Programs longer than
+    /// [`FLAT_STATEMENTS`] declare their variables up front in groups of
+    /// [`DECLARATION_GROUP`] (`let [v0, v1, ...]: [f64; 64];`) and then
+    /// assign them: every `let` opens a lexical scope nested in the
+    /// previous one, and LLVM builds the debug information of nested scopes
+    /// recursively (a 4282-statement function overflowed rustc's stack in
+    /// debug builds).
+    fn function(&mut self, f: &mut Scheduled) -> TokenStream {
+        let spec = f.spec();
+        if spec.inputs != Inputs::Constant {
+            self.record(spec.name, &mut f.program);
+        }
+        let lowered = lower(f, self.model.precision == Precision::F64);
         let real = self.real();
-        let mut assigns = TokenStream::new();
+        let vars: Vec<proc_macro2::Ident> = lowered
+            .ops
+            .iter()
+            .flat_map(|op| match op {
+                Op::Bind { var, .. } => vec![*var],
+                Op::SinCos { sin, cos, .. } => vec![*sin, *cos],
+                Op::SinCosArray(batch) => batch.iter().flat_map(|(s, c, _)| [*s, *c]).collect(),
+                _ => Vec::new(),
+            })
+            .map(var)
+            .collect();
+        let statements = lowered
+            .ops
+            .iter()
+            .map(|op| match op {
+                Op::Bind { .. } | Op::SinCos { .. } => 1,
+                Op::SinCosArray(batch) => batch.len(),
+                _ => 0,
+            })
+            .sum::<usize>();
+        let mut body = TokenStream::new();
+        let flat = statements <= FLAT_STATEMENTS;
+        if !flat {
+            for group in vars.chunks(DECLARATION_GROUP) {
+                let n = usize_lit(group.len());
+                body.extend(quote!(let [#(#group),*]: [#real; #n];));
+            }
+        }
+        let touched = |k: usize| {
+            lowered.ops.iter().any(
+                |op| matches!(op, Op::Zero { output } | Op::Store { output, .. } if *output == k),
+            )
+        };
+        let names: Vec<proc_macro2::Ident> = spec
+            .outputs
+            .iter()
+            .enumerate()
+            .map(|(k, o)| argument(o.name, touched(k)))
+            .collect();
+        let mut printer = Printer {
+            emitter: self,
+            outputs: spec.outputs,
+            names: names.clone(),
+            texts: vec![None; lowered.temps as usize],
+            bind: if flat { quote!(let) } else { quote!() },
+        };
+        let mut tail = TokenStream::new();
+        for op in &lowered.ops {
+            printer.op(op, &mut body, &mut tail);
+        }
         let mut args = TokenStream::new();
-        for (k, o) in outputs.iter().enumerate() {
-            let name = format_ident!("{}", o.name);
-            let count = slots.iter().filter(|s| s.0 == k).count();
-            let arg = if count == 0 {
-                format_ident!("_{}", o.name)
-            } else {
-                name.clone()
-            };
+        let mut ret = TokenStream::new();
+        for ((o, name), &(rows, cols)) in spec.outputs.iter().zip(&names).zip(&lowered.shapes) {
+            let (r, c) = (usize_lit(rows), usize_lit(cols));
             match o.shape {
-                Shape::Vector => {
-                    let len = usize_lit(o.entries.first().map_or(0, Vec::len));
-                    args.extend(quote!(#arg: &mut SVector<#real, #len>,));
-                }
-                Shape::Matrix { symmetric } => {
-                    let rows = o.entries.len();
-                    let cols = self.model.nq();
-                    let (r, c) = (usize_lit(rows), usize_lit(cols));
-                    args.extend(quote!(#arg: &mut SMatrix<#real, #r, #c>,));
-                    let full = if symmetric {
-                        rows * (rows + 1) / 2
-                    } else {
-                        rows * cols
-                    };
-                    if count > 0 && count < full {
-                        assigns.extend(quote!(*#name = SMatrix::zeros();));
-                    }
-                }
+                Shape::Scalar => ret = quote!(-> #real),
+                Shape::Vector(_) => args.extend(quote!(#name: &mut SVector<#real, #r>,)),
+                Shape::Matrix { .. } => args.extend(quote!(#name: &mut SMatrix<#real, #r, #c>,)),
             }
         }
-        for (c, &(k, i, j)) in p.outputs.iter().zip(slots) {
-            let name = format_ident!("{}", outputs[k].name);
-            let e = self.code(c, SUM);
-            let (il, jl) = (usize_lit(i), usize_lit(j));
-            match outputs[k].shape {
-                Shape::Vector => assigns.extend(quote!(#name[#jl] = #e;)),
-                Shape::Matrix { symmetric } => {
-                    assigns.extend(quote!(#name[(#il, #jl)] = #e;));
-                    if symmetric && i != j {
-                        assigns.extend(quote!(#name[(#jl, #il)] = #name[(#il, #jl)];));
-                    }
-                }
-            }
+        if spec.optional {
+            (ret, tail) = (quote!(-> bool), quote!(true));
         }
-        let (q, qd, t) = input_idents(used);
-        let fname = format_ident!("{}", sig.name);
-        let doc = sig.doc;
-        let (ret, tail) = optional_output(sig.optional);
-        let qd_arg = if sig.with_qd {
-            quote!(#qd: &SVector<#real, #nq>,)
-        } else {
-            quote!()
+        let read: Vec<Symbol> = lowered.reads().collect();
+        let nq = usize_lit(self.model.nq());
+        let vector = quote!(&SVector<#real, #nq>);
+        let q = argument("q", read.iter().any(|s| matches!(s, Symbol::Q(_))));
+        let qd = argument("qd", read.iter().any(|s| matches!(s, Symbol::Qd(_))));
+        let qdd = argument("qdd", read.iter().any(|s| matches!(s, Symbol::Qdd(_))));
+        let t = argument("t", read.contains(&Symbol::Time));
+        let inputs = match spec.inputs {
+            Inputs::Constant => quote!(),
+            Inputs::Positions => quote!(#q: #vector, #t: #real,),
+            Inputs::Velocities => quote!(#q: #vector, #qd: #vector, #t: #real,),
+            Inputs::Accelerations => quote!(#q: #vector, #qd: #vector, #qdd: #vector, #t: #real,),
         };
-        let qdd_arg = if sig.with_qdd {
-            let qdd = if used.qdd {
-                format_ident!("qdd")
-            } else {
-                format_ident!("_qdd")
-            };
-            quote!(#qdd: &SVector<#real, #nq>,)
-        } else {
-            quote!()
-        };
+        let fname = format_ident!("{}", spec.name);
+        let doc = spec.doc;
         quote! {
             #[doc = #doc]
             #[inline]
-            fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #qdd_arg #t: #real, #args) #ret {
+            fn #fname(&self, #inputs #args) #ret {
                 #body
-                #assigns
                 #tail
             }
         }
     }
-
-    /// A function returning one scalar from its program.
-    fn scalar_fn(&mut self, f: &mut Function) -> TokenStream {
-        let nq = usize_lit(self.model.nq());
-        self.record(f.sig.name, &mut f.program);
-        let (name, doc, with_qd, p) = (f.sig.name, f.sig.doc, f.sig.with_qd, &f.program);
-        let used = self.inputs(&f.ids);
-        let body = self.stmts(p);
-        let e = self.code(&p.outputs[0], SUM);
-        let (q, qd, t) = input_idents(used);
-        let fname = format_ident!("{}", name);
-        let real = self.real();
-        let qd_arg = if with_qd {
-            quote!(#qd: &SVector<#real, #nq>,)
-        } else {
-            quote!()
-        };
-        quote! {
-            #[doc = #doc]
-            #[inline]
-            fn #fname(&self, #q: &SVector<#real, #nq>, #qd_arg #t: #real) -> #real {
-                #body
-                #e
-            }
-        }
-    }
-}
-
-/// `a * b * c` from factor tokens (the `seed` is used when there are none).
-fn join_mul(seed: TokenStream, factors: &[TokenStream]) -> TokenStream {
-    let mut it = factors.iter();
-    let Some(first) = it.next() else {
-        return seed;
-    };
-    let mut out = first.clone();
-    for f in it {
-        out = quote!(#out * #f);
-    }
-    out
-}
-
-/// Optional outputs override a trait method that returns whether the output
-/// was generated.
-fn optional_output(optional: bool) -> (TokenStream, TokenStream) {
-    if optional {
-        (quote!(-> bool), quote!(true))
-    } else {
-        (quote!(), quote!())
-    }
-}
-
-fn input_idents(used: Inputs) -> (proc_macro2::Ident, proc_macro2::Ident, proc_macro2::Ident) {
-    let name = |used: bool, n: &str| {
-        if used {
-            format_ident!("{}", n)
-        } else {
-            format_ident!("_{}", n)
-        }
-    };
-    (name(used.q, "q"), name(used.qd, "qd"), name(used.t, "t"))
 }
 
 /// Emit the module of a scene, naming the runtime crate by `runtime`, with
@@ -509,13 +424,11 @@ fn input_idents(used: Inputs) -> (proc_macro2::Ident, proc_macro2::Ident, proc_m
 /// the perturbation found its coefficient.
 pub fn emit(
     model: &Model,
-    eq: &Equations,
-    functions: Vec<Function>,
+    functions: Vec<Scheduled>,
     runtime: &syn::Path,
     perturbation: Option<&CoefficientPerturbation>,
 ) -> (Emitted, bool) {
     let mut e = Emitter {
-        graph: &model.graph,
         model,
         reports: Vec::new(),
         perturbation,
@@ -529,36 +442,16 @@ pub fn emit(
     let real = e.real();
     let scene = model.name.as_str();
 
-    // The trait's functions, then the optional outputs (the trait's
-    // methods default to "not generated").
-    let (mut core, mut scalars, mut optional) =
-        (TokenStream::new(), TokenStream::new(), TokenStream::new());
+    // The trait's functions, then the runtime parameters, then the optional
+    // outputs (the trait's methods default to "not generated").
+    let (mut required, mut optional) = (TokenStream::new(), TokenStream::new());
     for mut f in functions {
-        if f.is_scalar() {
-            scalars.extend(e.scalar_fn(&mut f));
-        } else if f.sig.optional {
+        if f.spec().optional {
             optional.extend(e.function(&mut f));
         } else {
-            core.extend(e.function(&mut f));
+            required.extend(e.function(&mut f));
         }
     }
-
-    // Actuator map: constant.
-    let mut b_assigns = TokenStream::new();
-    let any_actuator = nu > 0;
-    if any_actuator {
-        b_assigns.extend(quote!(*b = SMatrix::zeros();));
-    }
-    for (i, row) in eq.actuator_map.iter().enumerate() {
-        for (j, &g) in row.iter().enumerate() {
-            if g != 0.0 {
-                let (il, jl) = (usize_lit(i), usize_lit(j));
-                let l = lit(g, model.precision);
-                b_assigns.extend(quote!(b[(#il, #jl)] = #l;));
-            }
-        }
-    }
-    let b_arg = if any_actuator { quote!(b) } else { quote!(_b) };
 
     let coords = model.coordinates.iter().map(|c| c.name.as_str());
     let acts = model.actuators.iter().map(|a| a.name.as_str());
@@ -634,12 +527,7 @@ pub fn emit(
     };
     let members = quote! {
         #consts
-        #core
-        #[inline]
-        fn actuator_map(&self, #b_arg: &mut SMatrix<#real, #nq_l, #nu_l>) {
-            #b_assigns
-        }
-        #scalars
+        #required
         #parameters
         #optional
     };

@@ -30,7 +30,7 @@ use quote::{format_ident, quote};
 
 use crate::emit::struct_name;
 use crate::model::Model;
-use crate::schedule::{Function, Shape};
+use crate::schedule::{Inputs, OutputSpec, Scheduled, Shape, Spec};
 
 /// Status codes, their names after the prefix and their meaning.
 const STATUS: [(&str, i32, &str); 5] = [
@@ -74,44 +74,34 @@ fn comment(text: &str) -> String {
     text.replace("*/", "* /")
 }
 
-/// One output array of a wrapped function.
-struct Array {
-    name: &'static str,
-    rows: usize,
-    cols: usize,
-    /// A vector (`SVector`), else a matrix (`SMatrix`).
-    vector: bool,
-}
-
-impl Array {
-    fn len(&self) -> usize {
-        self.rows * self.cols
-    }
+/// One scheduled function, as the C interface sees it: its table entry and
+/// the `(rows, columns)` of each output.
+struct Wrapped {
+    spec: &'static Spec,
+    shapes: Vec<(usize, usize)>,
 }
 
 impl Wrapped {
-    /// The arrays besides `q` the function reads: `qd`, `qdd`, or neither.
-    fn inputs(&self) -> Vec<&'static str> {
-        let mut v = Vec::new();
-        if self.with_qd {
-            v.push("qd");
+    /// The arrays the function reads: `q`, `qd`, `qdd` as it takes them.
+    fn inputs(&self) -> &'static [&'static str] {
+        match self.spec.inputs {
+            Inputs::Constant => &[],
+            Inputs::Positions => &["q"],
+            Inputs::Velocities => &["q", "qd"],
+            Inputs::Accelerations => &["q", "qd", "qdd"],
         }
-        if self.with_qdd {
-            v.push("qdd");
-        }
-        v
     }
-}
 
-/// One scheduled function, as the C interface sees it.
-struct Wrapped {
-    name: &'static str,
-    doc: &'static str,
-    with_qd: bool,
-    with_qdd: bool,
-    optional: bool,
-    /// Empty for a function returning one scalar.
-    outputs: Vec<Array>,
+    /// Whether it returns one value (written to `out`).
+    fn is_scalar(&self) -> bool {
+        matches!(
+            self.spec.outputs,
+            [OutputSpec {
+                shape: Shape::Scalar,
+                ..
+            }]
+        )
+    }
 }
 
 /// The C interface of one scene.
@@ -130,33 +120,17 @@ pub struct CInterface {
 impl CInterface {
     /// The interface of `model` with its scheduled `functions` (before they
     /// are emitted).
-    pub fn new(model: &Model, functions: &[Function]) -> CInterface {
+    pub fn new(model: &Model, functions: &[Scheduled]) -> CInterface {
         let nq = model.nq();
         let functions = functions
             .iter()
             .map(|f| Wrapped {
-                name: f.sig.name,
-                doc: f.sig.doc,
-                with_qd: f.sig.with_qd,
-                with_qdd: f.sig.with_qdd,
-                optional: f.sig.optional,
-                outputs: f
+                spec: f.spec(),
+                shapes: f
+                    .spec()
                     .outputs
                     .iter()
-                    .map(|o| match o.shape {
-                        Shape::Vector => Array {
-                            name: o.name,
-                            rows: o.entries.first().map_or(0, Vec::len),
-                            cols: 1,
-                            vector: true,
-                        },
-                        Shape::Matrix { .. } => Array {
-                            name: o.name,
-                            rows: o.entries.len(),
-                            cols: nq,
-                            vector: false,
-                        },
-                    })
+                    .map(|o| o.shape.size(f.dims))
                     .collect(),
             })
             .collect();
@@ -221,7 +195,6 @@ impl CInterface {
             .iter()
             .map(|f| self.wrapper(f, &s, &model_trait))
             .collect();
-        wrappers.push(self.actuator_map(&s, &model_trait));
         if self.has_inverse() {
             wrappers.push(self.inverse(runtime));
         }
@@ -280,121 +253,94 @@ impl CInterface {
         s: &proc_macro2::Ident,
         model_trait: &TokenStream,
     ) -> TokenStream {
-        let cname = format_ident!("{}_{}", self.prefix, f.name);
-        let method = format_ident!("{}", f.name);
+        let cname = format_ident!("{}_{}", self.prefix, f.spec.name);
+        let method = format_ident!("{}", f.spec.name);
         let nq = n(self.nq);
-        let doc = format!(" {} C: `{}`.", f.doc, self.c_signature(f));
+        let doc = format!(" {} C: `{}`.", f.spec.doc, self.c_signature(f));
         let arrays = "`q`, `qd`, `qdd`: NQ; each output its size";
-        // The velocity and acceleration inputs the function takes, in order.
+        // The arrays the function reads, in order, then its time.
         let inputs: Vec<proc_macro2::Ident> = f
             .inputs()
             .iter()
             .map(|name| format_ident!("{}", name))
             .collect();
-        let qd_arg = quote!(#(#inputs: *const f64,)*);
-        let qd_read = quote!(#(let #inputs = unsafe { c_read::<#nq>(#inputs) };)*);
-        let qd_pass = quote!(#(&#inputs,)*);
-        let qd_null = quote!(#(|| #inputs.is_null())*);
-        if f.outputs.is_empty() {
-            return Self::export(
-                &doc,
-                arrays,
-                quote! {
-                    pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, out: *mut f64) -> i32 {
-                        if q.is_null() #qd_null || out.is_null() {
-                            return C_NULL_POINTER;
-                        }
-                        let model = unsafe { c_model(params) };
-                        let q = unsafe { c_read::<#nq>(q) };
-                        #qd_read
-                        let value = <#s as #model_trait>::#method(&model, &q, #qd_pass t);
-                        unsafe { *out = value };
-                        if value.is_finite() { C_OK } else { C_NON_FINITE }
-                    }
-                },
-            );
-        }
-        let args = f.outputs.iter().map(|o| {
-            let id = format_ident!("{}", o.name);
-            quote!(#id: *mut f64,)
-        });
-        let nulls = f.outputs.iter().filter(|o| o.len() > 0).map(|o| {
-            let id = format_ident!("{}", o.name);
-            quote!(|| #id.is_null())
-        });
-        let locals = f.outputs.iter().map(|o| {
-            let local = format_ident!("{}_", o.name);
-            let (r, c) = (n(o.rows), n(o.cols));
-            if o.vector {
-                quote!(let mut #local = SVector::<f64, #r>::zeros();)
-            } else {
-                quote!(let mut #local = SMatrix::<f64, #r, #c>::zeros();)
-            }
-        });
-        let pass = f.outputs.iter().map(|o| {
-            let local = format_ident!("{}_", o.name);
-            quote!(&mut #local,)
-        });
-        let call = quote!(<#s as #model_trait>::#method(&model, &q, #qd_pass t, #(#pass)*));
-        // Optional outputs return `true` (generated).
-        let call = if f.optional {
-            quote!(let _ = #call;)
+        let time = if inputs.is_empty() {
+            (quote!(), quote!())
         } else {
-            quote!(#call;)
+            (quote!(t: f64,), quote!(t,))
         };
-        let writes = f.outputs.iter().map(|o| {
-            let (id, local) = (format_ident!("{}", o.name), format_ident!("{}_", o.name));
-            quote!(finite &= unsafe { c_write(&#local, #id) };)
-        });
-        Self::export(
-            &doc,
-            arrays,
+        let (t_arg, t_pass) = time;
+        let outputs: Vec<(proc_macro2::Ident, usize)> = if f.is_scalar() {
+            vec![(format_ident!("out"), 1)]
+        } else {
+            let sizes = f.shapes.iter().map(|(r, c)| r * c);
+            let names = f.spec.outputs.iter().map(|o| format_ident!("{}", o.name));
+            names.zip(sizes).collect()
+        };
+        let nulls: Vec<TokenStream> = inputs
+            .iter()
+            .chain(outputs.iter().filter(|(_, len)| *len > 0).map(|(id, _)| id))
+            .map(|id| quote!(#id.is_null()))
+            .collect();
+        let null = if nulls.is_empty() {
+            quote!()
+        } else {
+            quote!(if #(#nulls)||* {
+                return C_NULL_POINTER;
+            })
+        };
+        let reads = quote!(#(let #inputs = unsafe { c_read::<#nq>(#inputs) };)*);
+        let pass = quote!(#(&#inputs,)* #t_pass);
+        let args = outputs.iter().map(|(id, _)| quote!(#id: *mut f64,));
+        let item = if f.is_scalar() {
             quote! {
-                pub unsafe extern "C" fn #cname(params: *const f64, q: *const f64, #qd_arg t: f64, #(#args)*) -> i32 {
-                    if q.is_null() #qd_null #(#nulls)* {
-                        return C_NULL_POINTER;
-                    }
+                pub unsafe extern "C" fn #cname(params: *const f64, #(#inputs: *const f64,)* #t_arg #(#args)*) -> i32 {
+                    #null
                     let model = unsafe { c_model(params) };
-                    let q = unsafe { c_read::<#nq>(q) };
-                    #qd_read
+                    #reads
+                    let value = <#s as #model_trait>::#method(&model, #pass);
+                    unsafe { *out = value };
+                    if value.is_finite() { C_OK } else { C_NON_FINITE }
+                }
+            }
+        } else {
+            let locals = f.spec.outputs.iter().zip(&f.shapes).map(|(o, &(r, c))| {
+                let local = format_ident!("{}_", o.name);
+                let (r, c) = (n(r), n(c));
+                match o.shape {
+                    Shape::Vector(_) => quote!(let mut #local = SVector::<f64, #r>::zeros();),
+                    _ => quote!(let mut #local = SMatrix::<f64, #r, #c>::zeros();),
+                }
+            });
+            let locals_pass = f.spec.outputs.iter().map(|o| {
+                let local = format_ident!("{}_", o.name);
+                quote!(&mut #local,)
+            });
+            let call = quote!(<#s as #model_trait>::#method(&model, #pass #(#locals_pass)*));
+            // Optional outputs return `true` (generated).
+            let call = if f.spec.optional {
+                quote!(let _ = #call;)
+            } else {
+                quote!(#call;)
+            };
+            let writes = f.spec.outputs.iter().map(|o| {
+                let (id, local) = (format_ident!("{}", o.name), format_ident!("{}_", o.name));
+                quote!(finite &= unsafe { c_write(&#local, #id) };)
+            });
+            quote! {
+                pub unsafe extern "C" fn #cname(params: *const f64, #(#inputs: *const f64,)* #t_arg #(#args)*) -> i32 {
+                    #null
+                    let model = unsafe { c_model(params) };
+                    #reads
                     #(#locals)*
                     #call
                     let mut finite = true;
                     #(#writes)*
                     if finite { C_OK } else { C_NON_FINITE }
                 }
-            },
-        )
-    }
-
-    fn actuator_map(&self, s: &proc_macro2::Ident, model_trait: &TokenStream) -> TokenStream {
-        let cname = format_ident!("{}_actuator_map", self.prefix);
-        let (nq, nu) = (n(self.nq), n(self.nu));
-        let doc = format!(
-            " Actuator map `B` (NQ x NU, row-major): actuator `j` adds `B[:, j] tau[j]` to the \
-             generalized forces. C: `int {}_actuator_map(const double *params, double *b)`.",
-            self.prefix
-        );
-        let null = if self.nq * self.nu > 0 {
-            quote!(if b.is_null() {
-                return C_NULL_POINTER;
-            })
-        } else {
-            quote!()
+            }
         };
-        Self::export(
-            &doc,
-            "`b`: NQ * NU",
-            quote! {
-                pub unsafe extern "C" fn #cname(params: *const f64, b: *mut f64) -> i32 {
-                    #null
-                    let model = unsafe { c_model(params) };
-                    let mut b_ = SMatrix::<f64, #nq, #nu>::zeros();
-                    <#s as #model_trait>::actuator_map(&model, &mut b_);
-                    if unsafe { c_write(&b_, b) } { C_OK } else { C_NON_FINITE }
-                }
-            },
-        )
+        Self::export(&doc, arrays, item)
     }
 
     fn inverse(&self, runtime: &syn::Path) -> TokenStream {
@@ -468,25 +414,21 @@ impl CInterface {
     }
 
     fn c_signature(&self, f: &Wrapped) -> String {
-        let qd: String = f
-            .inputs()
-            .iter()
-            .map(|name| format!("const double *{name}, "))
-            .collect();
-        let outs: Vec<String> = if f.outputs.is_empty() {
-            vec!["double *out".into()]
-        } else {
-            f.outputs
+        let mut args = vec!["const double *params".to_owned()];
+        args.extend(
+            f.inputs()
                 .iter()
-                .map(|o| format!("double *{}", o.name))
-                .collect()
-        };
-        format!(
-            "int {}_{}(const double *params, const double *q, {qd}double t, {})",
-            self.prefix,
-            f.name,
-            outs.join(", ")
-        )
+                .map(|name| format!("const double *{name}")),
+        );
+        if !f.inputs().is_empty() {
+            args.push("double t".into());
+        }
+        if f.is_scalar() {
+            args.push("double *out".into());
+        } else {
+            args.extend(f.spec.outputs.iter().map(|o| format!("double *{}", o.name)));
+        }
+        format!("int {}_{}({})", self.prefix, f.spec.name, args.join(", "))
     }
 
     fn inverse_signature(&self) -> String {
@@ -554,26 +496,21 @@ impl CInterface {
         }
         h.push('\n');
         for f in &self.functions {
-            let sizes: Vec<String> = f
-                .outputs
-                .iter()
-                .map(|o| format!("{} {} x {}", o.name, o.rows, o.cols))
-                .collect();
-            let sizes = if sizes.is_empty() {
+            let sizes = if f.is_scalar() {
                 "out: one double".to_owned()
             } else {
+                let sizes = f.spec.outputs.iter().zip(&f.shapes);
+                let sizes: Vec<String> = sizes
+                    .map(|(o, (r, c))| format!("{} {r} x {c}", o.name))
+                    .collect();
                 sizes.join(", ")
             };
             h.push_str(&format!(
                 "/* {} ({sizes}) */\n{};\n\n",
-                comment(f.doc),
+                comment(f.spec.doc),
                 self.c_signature(f)
             ));
         }
-        h.push_str(&format!(
-            "/* Actuator map B (b {} x {}). */\nint {}_actuator_map(const double *params, double *b);\n\n",
-            self.nq, self.nu, self.prefix
-        ));
         if self.has_inverse() {
             h.push_str(&format!(
                 "/* Inverse dynamics: the NP coordinates `prescribed` follow p, v, a at time t;\n   \

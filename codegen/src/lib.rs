@@ -15,22 +15,29 @@
 //! 5. `prune`: negligible summands dropped where the scene asks for it; an
 //!    `f32` module is refused where `resolution` finds a stiffness spread
 //!    beyond f32's resolution (unless [`Builder::allow_unresolved_f32`]);
-//! 6. `schedule`: a straight-line program per emitted function (common
-//!    subexpressions, shared pairs of factors and terms);
-//! 7. `emit`: the formatted Rust module, naming the runtime crate by the
-//!    path [`Builder::runtime_path`] (default `flexdyn_runtime`); with
-//!    [`Builder::c_interface`], `emit_c` adds its `extern "C"` wrappers and
-//!    writes the C header.
+//! 6. `schedule`: the table of emitted functions ([`interpret::Function`]:
+//!    name, inputs, outputs with their shapes and symmetry) and a
+//!    straight-line program per function of a scene (common subexpressions,
+//!    shared pairs of factors and terms), lowered once into operations in
+//!    evaluation order;
+//! 7. `emit`: the formatted Rust module, printing those operations, naming
+//!    the runtime crate by the path [`Builder::runtime_path`] (default
+//!    `flexdyn_runtime`); with [`Builder::c_interface`], `emit_c` adds its
+//!    `extern "C"` wrappers and writes the C header.
 //!
-//! [`interpret`] is emit's twin for run time: it lowers the same scheduled
-//!    programs to instruction tapes that compute, bitwise, what the emitted
-//!    Rust computes, so a scene file can be evaluated without compiling it.
+//! [`interpret`] is emit's twin for run time: it assembles the same lowered
+//!    operations into instruction tapes that compute, bitwise, what the
+//!    emitted Rust computes, so a scene file can be evaluated without
+//!    compiling it.
 //!
 //! Each stage imports only from earlier ones. `export` writes a model's
-//! symbolic inputs as JSON ([`export_json`]).
+//! symbolic inputs as JSON ([`export_json`]); `import` writes scene text
+//! from a URDF robot description ([`import_urdf`]), which is then loaded
+//! like any scene.
 //!
 //! The public API is the builder and its results, the symbolic model of a
-//! scene ([`Model::load`], [`Model::equations`]) with the expression graph
+//! scene ([`Model::load`], [`Model::equations`]; the types of its fields,
+//! the finite-element data of flexible links in [`flexible`]) with the expression graph
 //! its terms live in ([`Graph`], [`Node`], [`Id`], [`Symbol`], [`Func`],
 //! [`powi_f64`]), functions of time in the scene grammar ([`TimeFunction`]),
 //! and errors with their position ([`Error`], [`Source`]).
@@ -44,6 +51,7 @@ mod export;
 mod expr;
 mod fem;
 mod geometry;
+mod import;
 pub mod interpret;
 mod load;
 mod model;
@@ -61,7 +69,19 @@ pub use emit::FunctionReport;
 pub use error::{Error, Source};
 pub use export::export_json;
 pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
-pub use load::urdf::{import_urdf, UrdfOptions};
-pub use model::{Model, Precision};
+pub use import::{import_urdf, UrdfOptions};
+pub use model::{
+    Actuator, Body, Component, Constraint, Coordinate, FlexibleLink, Model, Outputs, Precision,
+    RuntimeParameter,
+};
 pub use schedule::OpCount;
 pub use time_function::TimeFunction;
+
+/// The finite-element data of a flexible link ([`FlexibleLink`]), as the
+/// model holds it.
+pub mod flexible {
+    pub use crate::fem::modal::{ModeKind, Station};
+    pub use crate::fem::{
+        Beam, BoundaryConditions, EndCondition, FeModel, Invariants, Material, ModalBasis, Section,
+    };
+}

@@ -9,7 +9,6 @@
 
 pub mod parse;
 pub mod scene;
-pub mod urdf;
 
 use std::path::Path;
 

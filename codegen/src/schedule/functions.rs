@@ -1,326 +1,471 @@
-//! The emitted functions, each one program: which derived terms each
-//! computes (the functions of the runtime's `Model` trait, the fused ones
-//! sharing the subexpressions of several terms, and the optional outputs),
-//! with the structurally zero entries of matrices and the lower triangle of
-//! symmetric ones left out.
+//! The table of emitted functions ([`Function`], one entry each: name, doc,
+//! inputs, outputs with their shapes and symmetry, whether optional, and
+//! which derived terms it computes), and each function of a scene scheduled
+//! as one program ([`functions()`]), with the structurally zero entries of
+//! matrices and the lower triangle of symmetric ones left out. Everything
+//! else (the Rust and C emitters, the interpreter, the command line's
+//! dispatch) is derived from this table: adding a function is one entry.
 
-use super::{schedule, Program};
+use super::{schedule, Code, Program};
 use crate::derive::Equations;
 use crate::expr::{Graph, Id};
 use crate::model::Model;
 
-/// What an emitted function is called and how.
-#[derive(Debug, Clone, Copy)]
-pub struct Signature {
-    /// Function name.
-    pub name: &'static str,
-    /// Its doc comment.
-    pub doc: &'static str,
-    /// Whether it takes the velocities.
-    pub with_qd: bool,
-    /// Whether it takes the accelerations (after the velocities).
-    pub with_qdd: bool,
-    /// Whether it overrides an optional trait method (returns `true`).
-    pub optional: bool,
+/// A dimension of a scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dim {
+    /// The number of coordinates `NQ`.
+    Coordinates,
+    /// The number of constraints `NC`.
+    Constraints,
+    /// The number of actuator inputs `NU`.
+    Actuators,
 }
 
-impl Signature {
-    fn new(name: &'static str, doc: &'static str, with_qd: bool) -> Signature {
-        Signature {
-            name,
-            doc,
-            with_qd,
-            with_qdd: false,
-            optional: false,
+/// A scene's dimensions, `(NQ, NC, NU)`.
+pub type Dims = (usize, usize, usize);
+
+impl Dim {
+    /// Its size in a scene of dimensions `dims`.
+    pub fn size(self, (nq, nc, nu): Dims) -> usize {
+        match self {
+            Dim::Coordinates => nq,
+            Dim::Constraints => nc,
+            Dim::Actuators => nu,
         }
-    }
-
-    fn with_accelerations(mut self) -> Signature {
-        self.with_qdd = true;
-        self
-    }
-
-    fn optional(mut self) -> Signature {
-        self.optional = true;
-        self
     }
 }
 
 /// Storage of an output.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Shape {
-    /// A vector: one row of entries.
-    Vector,
-    /// A matrix; a symmetric one computes its upper triangle.
+    /// One value, returned by the function.
+    Scalar,
+    /// A vector (`SVector`).
+    Vector(Dim),
+    /// A matrix (`SMatrix`); a symmetric one computes its upper triangle
+    /// and mirrors it.
     Matrix {
+        /// Rows.
+        rows: Dim,
+        /// Columns.
+        cols: Dim,
         /// Whether it is symmetric.
         symmetric: bool,
     },
 }
 
-/// One output argument of an emitted function.
-#[derive(Debug, Clone)]
-pub struct Output {
-    /// Argument name.
+impl Shape {
+    /// `(rows, columns)` in a scene of dimensions `dims` (a vector has one
+    /// column, a value is 1 x 1).
+    pub fn size(self, dims: Dims) -> (usize, usize) {
+        match self {
+            Shape::Scalar => (1, 1),
+            Shape::Vector(n) => (n.size(dims), 1),
+            Shape::Matrix { rows, cols, .. } => (rows.size(dims), cols.size(dims)),
+        }
+    }
+}
+
+/// One output argument of a function in the table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OutputSpec {
+    /// Argument name (`out` for a returned value).
     pub name: &'static str,
     /// Its storage.
     pub shape: Shape,
-    /// Its entries as rows (one row for a vector).
-    pub entries: Vec<Vec<Id>>,
 }
 
-impl Output {
-    fn vector(name: &'static str, entries: &[Id]) -> Output {
-        Output {
-            name,
-            shape: Shape::Vector,
-            entries: vec![entries.to_vec()],
-        }
+/// The arrays a function reads besides the runtime parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Inputs {
+    /// None: a constant (the actuator map).
+    Constant,
+    /// `q` and `t`.
+    Positions,
+    /// `q`, `qd` and `t`.
+    Velocities,
+    /// `q`, `qd`, `qdd` and `t`.
+    Accelerations,
+}
+
+/// The terms a function computes: per output, its entries as rows.
+pub enum Terms {
+    /// Nodes of the expression graph, computed by one program.
+    Nodes(Vec<Vec<Vec<Id>>>),
+    /// Constants (the actuator map), written as literals.
+    Constants(Vec<Vec<Vec<f64>>>),
+}
+
+/// What a function of the table is called, reads, writes and computes.
+#[derive(Clone, Copy)]
+pub struct Spec {
+    /// Function name (the method of the runtime's `Model` trait).
+    pub name: &'static str,
+    /// Its doc comment.
+    pub doc: &'static str,
+    /// What it reads.
+    pub inputs: Inputs,
+    /// What it writes, in argument order.
+    pub outputs: &'static [OutputSpec],
+    /// Whether it overrides an optional trait method (returns `true`).
+    pub optional: bool,
+    /// Its terms, `None` where the scene does not generate it (an optional
+    /// output it does not ask for).
+    terms: fn(&Model, &Equations) -> Option<Terms>,
+}
+
+/// A vector of `n`.
+const fn vector(name: &'static str, n: Dim) -> OutputSpec {
+    OutputSpec {
+        name,
+        shape: Shape::Vector(n),
     }
+}
 
-    fn matrix(name: &'static str, entries: &[Vec<Id>], symmetric: bool) -> Output {
-        Output {
-            name,
-            shape: Shape::Matrix { symmetric },
-            entries: entries.to_vec(),
-        }
+/// A matrix with `nq` columns.
+const fn matrix(name: &'static str, rows: Dim, symmetric: bool) -> OutputSpec {
+    OutputSpec {
+        name,
+        shape: Shape::Matrix {
+            rows,
+            cols: Dim::Coordinates,
+            symmetric,
+        },
     }
 }
 
-/// An emitted function and its program.
-#[derive(Debug, Clone)]
-pub struct Function {
-    /// Its signature.
-    pub sig: Signature,
-    /// Its output arguments; none for a function returning one scalar.
-    pub outputs: Vec<Output>,
-    /// The computed entries, in program output order.
-    pub ids: Vec<Id>,
-    /// Where each computed entry goes: (output, row, column).
-    pub slots: Vec<(usize, usize, usize)>,
-    /// The program computing `ids`.
-    pub program: Program,
+/// A returned value.
+const SCALAR: OutputSpec = OutputSpec {
+    name: "out",
+    shape: Shape::Scalar,
+};
+
+const NQ: Dim = Dim::Coordinates;
+const NC: Dim = Dim::Constraints;
+
+/// A vector's entries as one column.
+fn column(ids: &[Id]) -> Vec<Vec<Id>> {
+    ids.iter().map(|&id| vec![id]).collect()
 }
 
-impl Function {
-    /// A function writing one or more outputs (vectors or matrices) from one
-    /// jointly optimised program, so that all outputs share their common
-    /// subexpressions. Matrix entries that are structurally zero are not
-    /// computed (the emitted function zeroes the matrix first); symmetric
-    /// matrices compute the upper triangle.
-    fn new(graph: &Graph, sig: Signature, outputs: Vec<Output>) -> Function {
-        let zero = graph.find_constant(0.0);
-        let mut ids = Vec::new();
-        let mut slots = Vec::new();
-        for (k, o) in outputs.iter().enumerate() {
-            for (i, row) in o.entries.iter().enumerate() {
-                for (j, &e) in row.iter().enumerate() {
-                    let skip = match o.shape {
-                        Shape::Vector => false,
-                        Shape::Matrix { symmetric } => (symmetric && j < i) || Some(e) == zero,
-                    };
-                    if !skip {
-                        ids.push(e);
-                        slots.push((k, i, j));
-                    }
+/// The terms of a function of vectors and matrices.
+fn nodes(outputs: Vec<Vec<Vec<Id>>>) -> Option<Terms> {
+    Some(Terms::Nodes(outputs))
+}
+
+/// The table: every function, in emission order, with its [`Spec`].
+macro_rules! table {
+    ($($(#[$doc:meta])* $variant:ident => $spec:expr,)*) => {
+        /// The functions of a generated model (the runtime's `Model` trait), in
+        /// emission order.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum Function {
+            $($(#[$doc])* $variant,)*
+        }
+
+        impl Function {
+            /// Every function, in emission order.
+            pub const ALL: &'static [Function] = &[$(Function::$variant),*];
+
+            /// Its entry in the table.
+            pub fn spec(self) -> &'static Spec {
+                match self {
+                    $(Function::$variant => {
+                        const SPEC: Spec = $spec;
+                        &SPEC
+                    })*
                 }
             }
         }
-        let program = schedule(graph, &ids);
-        Function {
-            sig,
-            outputs,
-            ids,
+    };
+}
+
+table! {
+    /// `mass_matrix`: `M` (nq x nq).
+    MassMatrix => Spec {
+        name: "mass_matrix",
+        doc: "Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.",
+        inputs: Inputs::Positions,
+        outputs: &[matrix("m", NQ, true)],
+        optional: false,
+        terms: |_, eq| nodes(vec![eq.mass.clone()]),
+    },
+    /// `bias`: `h` (nq).
+    Bias => Spec {
+        name: "bias",
+        doc: "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.",
+        inputs: Inputs::Velocities,
+        outputs: &[vector("h", NQ)],
+        optional: false,
+        terms: |_, eq| nodes(vec![column(&eq.bias)]),
+    },
+    /// `constraints`: `Phi` (nc).
+    Constraints => Spec {
+        name: "constraints",
+        doc: "Constraint residuals `Phi(q, t)`.",
+        inputs: Inputs::Positions,
+        outputs: &[vector("phi", NC)],
+        optional: false,
+        terms: |_, eq| nodes(vec![column(&eq.phi)]),
+    },
+    /// `constraint_jacobian`: `Phi_q` (nc x nq).
+    ConstraintJacobian => Spec {
+        name: "constraint_jacobian",
+        doc: "Constraint Jacobian `Phi_q(q, t)`.",
+        inputs: Inputs::Positions,
+        outputs: &[matrix("phi_q", NC, false)],
+        optional: false,
+        terms: |_, eq| nodes(vec![eq.phi_q.clone()]),
+    },
+    /// `constraint_time_derivative`: `Phi_t` (nc).
+    ConstraintTimeDerivative => Spec {
+        name: "constraint_time_derivative",
+        doc: "Explicit time derivative of the constraints `Phi_t(q, t)`.",
+        inputs: Inputs::Positions,
+        outputs: &[vector("phi_t", NC)],
+        optional: false,
+        terms: |_, eq| nodes(vec![column(&eq.phi_t)]),
+    },
+    /// `constraint_rhs`: `gamma` (nc).
+    ConstraintRhs => Spec {
+        name: "constraint_rhs",
+        doc: "Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.",
+        inputs: Inputs::Velocities,
+        outputs: &[vector("gamma", NC)],
+        optional: false,
+        terms: |_, eq| nodes(vec![column(&eq.gamma)]),
+    },
+    /// `constraints_and_jacobian`: `Phi`, then `Phi_q`.
+    ConstraintsAndJacobian => Spec {
+        name: "constraints_and_jacobian",
+        doc: "`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).",
+        inputs: Inputs::Positions,
+        outputs: &[vector("phi", NC), matrix("phi_q", NC, false)],
+        optional: false,
+        terms: |_, eq| nodes(vec![column(&eq.phi), eq.phi_q.clone()]),
+    },
+    /// `dynamics_terms`: `M`, `h`, `Phi_q`, `gamma`.
+    DynamicsTerms => Spec {
+        name: "dynamics_terms",
+        doc: "`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).",
+        inputs: Inputs::Velocities,
+        outputs: &[
+            matrix("m", NQ, true),
+            vector("h", NQ),
+            matrix("phi_q", NC, false),
+            vector("gamma", NC),
+        ],
+        optional: false,
+        terms: |_, eq| {
+            nodes(vec![
+                eq.mass.clone(),
+                column(&eq.bias),
+                eq.phi_q.clone(),
+                column(&eq.gamma),
+            ])
+        },
+    },
+    /// `inverse_dynamics`: `M qdd + h` (nq), reads the accelerations.
+    InverseDynamics => Spec {
+        name: "inverse_dynamics",
+        doc: "Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.",
+        inputs: Inputs::Accelerations,
+        outputs: &[vector("tau", NQ)],
+        optional: false,
+        terms: |_, eq| nodes(vec![column(&eq.inverse_dynamics)]),
+    },
+    /// `actuator_map`: `B` (nq x nu), constant.
+    ActuatorMap => Spec {
+        name: "actuator_map",
+        doc: "Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.",
+        inputs: Inputs::Constant,
+        outputs: &[OutputSpec {
+            name: "b",
+            shape: Shape::Matrix {
+                rows: NQ,
+                cols: Dim::Actuators,
+                symmetric: false,
+            },
+        }],
+        optional: false,
+        terms: |_, eq| Some(Terms::Constants(vec![eq.actuator_map.clone()])),
+    },
+    /// `kinetic_energy`: `T` (one value).
+    KineticEnergy => Spec {
+        name: "kinetic_energy",
+        doc: "Kinetic energy `T`.",
+        inputs: Inputs::Velocities,
+        outputs: &[SCALAR],
+        optional: false,
+        terms: |_, eq| nodes(vec![vec![vec![eq.kinetic_energy]]]),
+    },
+    /// `potential_energy`: `V` (one value).
+    PotentialEnergy => Spec {
+        name: "potential_energy",
+        doc: "Potential energy `V` (gravity and elastic).",
+        inputs: Inputs::Positions,
+        outputs: &[SCALAR],
+        optional: false,
+        terms: |_, eq| nodes(vec![vec![vec![eq.potential_energy]]]),
+    },
+    /// `coriolis_forces` (optional output).
+    CoriolisForces => Spec {
+        name: "coriolis_forces",
+        doc: "Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).",
+        inputs: Inputs::Velocities,
+        outputs: &[vector("out", NQ)],
+        optional: true,
+        terms: |m, eq| m.outputs.forces.then(|| Terms::Nodes(vec![column(&eq.coriolis)])),
+    },
+    /// `potential_forces` (optional output).
+    PotentialForces => Spec {
+        name: "potential_forces",
+        doc: "Gravity and elastic forces `dV/dq`.",
+        inputs: Inputs::Positions,
+        outputs: &[vector("out", NQ)],
+        optional: true,
+        terms: |m, eq| {
+            m.outputs
+                .forces
+                .then(|| Terms::Nodes(vec![column(&eq.potential_forces)]))
+        },
+    },
+    /// `damping_forces` (optional output).
+    DampingForces => Spec {
+        name: "damping_forces",
+        doc: "Damping forces `dD/dqd`.",
+        inputs: Inputs::Velocities,
+        outputs: &[vector("out", NQ)],
+        optional: true,
+        terms: |m, eq| {
+            m.outputs
+                .forces
+                .then(|| Terms::Nodes(vec![column(&eq.damping_forces)]))
+        },
+    },
+    /// `coriolis_matrix` (optional output).
+    CoriolisMatrix => Spec {
+        name: "coriolis_matrix",
+        doc: "Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.",
+        inputs: Inputs::Velocities,
+        outputs: &[matrix("out", NQ, false)],
+        optional: true,
+        terms: |_, eq| eq.coriolis_matrix.as_ref().map(|c| Terms::Nodes(vec![c.clone()])),
+    },
+    /// `bias_jacobians`: `dh/dq`, then `dh/dqd` (optional output).
+    BiasJacobians => Spec {
+        name: "bias_jacobians",
+        doc: "Exact Jacobians of the bias forces: `h_q = dh/dq`, `h_qd = dh/dqd` (entry `(i, j)` is `d h_i / d x_j`).",
+        inputs: Inputs::Velocities,
+        outputs: &[matrix("h_q", NQ, false), matrix("h_qd", NQ, false)],
+        optional: true,
+        terms: |_, eq| {
+            eq.bias_jacobians
+                .as_ref()
+                .map(|(h_q, h_qd)| Terms::Nodes(vec![h_q.clone(), h_qd.clone()]))
+        },
+    },
+}
+
+impl Spec {
+    /// The terms of the function in `model`, `None` where the scene does
+    /// not generate it.
+    pub fn terms(&self, model: &Model, eq: &Equations) -> Option<Terms> {
+        (self.terms)(model, eq)
+    }
+}
+
+impl Function {
+    /// The method's name in generated code.
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+
+    /// The function called `name`, if any.
+    pub fn from_name(name: &str) -> Option<Function> {
+        Function::ALL.iter().copied().find(|f| f.name() == name)
+    }
+}
+
+/// A function of a scene, scheduled.
+#[derive(Debug, Clone)]
+pub struct Scheduled {
+    /// Which function.
+    pub function: Function,
+    /// The scene's dimensions.
+    pub dims: Dims,
+    /// Where each computed entry goes: (output, row, column).
+    pub slots: Vec<(usize, usize, usize)>,
+    /// The program computing the entries (literals only for a constant).
+    pub program: Program,
+}
+
+impl Scheduled {
+    /// Its entry in the table.
+    pub fn spec(&self) -> &'static Spec {
+        self.function.spec()
+    }
+
+    /// The function of `terms`: one jointly optimised program for all
+    /// outputs, so that they share their common subexpressions. Matrix
+    /// entries that are structurally zero are not computed (the emitted
+    /// function zeroes the matrix first); symmetric matrices compute the
+    /// upper triangle.
+    fn new(graph: &Graph, function: Function, dims: Dims, terms: Terms) -> Scheduled {
+        let outputs = function.spec().outputs;
+        // The entries to compute, and where each goes.
+        fn place<T: Copy>(
+            outputs: &[OutputSpec],
+            entries: &[Vec<Vec<T>>],
+            zero: impl Fn(T) -> bool,
+        ) -> (Vec<T>, Vec<(usize, usize, usize)>) {
+            let (mut kept, mut slots) = (Vec::new(), Vec::new());
+            for (k, o) in entries.iter().enumerate() {
+                for (i, row) in o.iter().enumerate() {
+                    for (j, &e) in row.iter().enumerate() {
+                        let skip = match outputs[k].shape {
+                            Shape::Matrix { symmetric, .. } => (symmetric && j < i) || zero(e),
+                            Shape::Scalar | Shape::Vector(_) => false,
+                        };
+                        if !skip {
+                            kept.push(e);
+                            slots.push((k, i, j));
+                        }
+                    }
+                }
+            }
+            (kept, slots)
+        }
+        let (slots, program) = match terms {
+            Terms::Nodes(entries) => {
+                let zero = graph.find_constant(0.0);
+                let (ids, slots) = place(outputs, &entries, |e| Some(e) == zero);
+                (slots, schedule(graph, &ids))
+            }
+            Terms::Constants(entries) => {
+                let (values, slots) = place(outputs, &entries, |x| x == 0.0);
+                let literals = values.into_iter().map(Code::Lit).collect();
+                (slots, Program::new(Vec::new(), literals))
+            }
+        };
+        Scheduled {
+            function,
+            dims,
             slots,
             program,
         }
     }
-
-    /// A function returning the scalar `id`.
-    fn scalar(
-        graph: &Graph,
-        name: &'static str,
-        doc: &'static str,
-        id: Id,
-        with_qd: bool,
-    ) -> Function {
-        Function {
-            sig: Signature::new(name, doc, with_qd),
-            outputs: Vec::new(),
-            ids: vec![id],
-            slots: Vec::new(),
-            program: schedule(graph, &[id]),
-        }
-    }
-
-    /// Whether it returns one scalar.
-    pub fn is_scalar(&self) -> bool {
-        self.outputs.is_empty()
-    }
 }
 
 /// The functions of a scene's module, in emission order, each scheduled.
-pub fn functions(model: &Model, eq: &Equations) -> Vec<Function> {
-    let graph = &model.graph;
-    let mut functions = vec![
-        Function::new(
-            graph,
-            Signature::new(
-                "mass_matrix",
-                "Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.",
-                false,
-            ),
-            vec![Output::matrix("m", &eq.mass, true)],
-        ),
-        Function::new(
-            graph,
-            Signature::new(
-                "bias",
-                "Bias forces `h = C(q, qd) qd + dV/dq + dD/dqd`.",
-                true,
-            ),
-            vec![Output::vector("h", &eq.bias)],
-        ),
-        Function::new(
-            graph,
-            Signature::new("constraints", "Constraint residuals `Phi(q, t)`.", false),
-            vec![Output::vector("phi", &eq.phi)],
-        ),
-        Function::new(
-            graph,
-            Signature::new(
-                "constraint_jacobian",
-                "Constraint Jacobian `Phi_q(q, t)`.",
-                false,
-            ),
-            vec![Output::matrix("phi_q", &eq.phi_q, false)],
-        ),
-        Function::new(
-            graph,
-            Signature::new(
-                "constraint_time_derivative",
-                "Explicit time derivative of the constraints `Phi_t(q, t)`.",
-                false,
-            ),
-            vec![Output::vector("phi_t", &eq.phi_t)],
-        ),
-        Function::new(
-            graph,
-            Signature::new(
-                "constraint_rhs",
-                "Acceleration right-hand side `gamma` with `Phi_q qdd = gamma`.",
-                true,
-            ),
-            vec![Output::vector("gamma", &eq.gamma)],
-        ),
-        Function::new(
-            graph,
-            Signature::new(
-                "constraints_and_jacobian",
-                "`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).",
-                false,
-            ),
-            vec![
-                Output::vector("phi", &eq.phi),
-                Output::matrix("phi_q", &eq.phi_q, false),
-            ],
-        ),
-        Function::new(
-            graph,
-            Signature::new(
-                "dynamics_terms",
-                "`M`, `h`, `Phi_q` and `gamma` together, from one program sharing all common subexpressions (what a solver needs per evaluation).",
-                true,
-            ),
-            vec![
-                Output::matrix("m", &eq.mass, true),
-                Output::vector("h", &eq.bias),
-                Output::matrix("phi_q", &eq.phi_q, false),
-                Output::vector("gamma", &eq.gamma),
-            ],
-        ),
-        Function::new(
-            graph,
-            Signature::new(
-                "inverse_dynamics",
-                "Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.",
-                true,
-            )
-            .with_accelerations(),
-            vec![Output::vector("tau", &eq.inverse_dynamics)],
-        ),
-        Function::scalar(
-            graph,
-            "kinetic_energy",
-            "Kinetic energy `T`.",
-            eq.kinetic_energy,
-            true,
-        ),
-        Function::scalar(
-            graph,
-            "potential_energy",
-            "Potential energy `V` (gravity and elastic).",
-            eq.potential_energy,
-            false,
-        ),
-    ];
-
-    // Optional outputs (the runtime trait's methods default to "not generated").
-    if model.outputs.forces {
-        for (name, doc, ids, qd) in [
-            (
-                "coriolis_forces",
-                "Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).",
-                &eq.coriolis,
-                true,
-            ),
-            (
-                "potential_forces",
-                "Gravity and elastic forces `dV/dq`.",
-                &eq.potential_forces,
-                false,
-            ),
-            (
-                "damping_forces",
-                "Damping forces `dD/dqd`.",
-                &eq.damping_forces,
-                true,
-            ),
-        ] {
-            functions.push(Function::new(
-                graph,
-                Signature::new(name, doc, qd).optional(),
-                vec![Output::vector("out", ids)],
-            ));
-        }
-    }
-    if let Some(cm) = &eq.coriolis_matrix {
-        functions.push(Function::new(
-            graph,
-            Signature::new(
-                "coriolis_matrix",
-                "Coriolis matrix from Christoffel symbols: `C qd` are the Coriolis forces and `dM/dt - 2 C` is skew-symmetric.",
-                true,
-            )
-            .optional(),
-            vec![Output::matrix("out", cm, false)],
-        ));
-    }
-
-    if let Some((h_q, h_qd)) = &eq.bias_jacobians {
-        functions.push(Function::new(
-            graph,
-            Signature::new(
-                "bias_jacobians",
-                "Exact Jacobians of the bias forces: `h_q = dh/dq`, `h_qd = dh/dqd` (entry `(i, j)` is `d h_i / d x_j`).",
-                true,
-            )
-            .optional(),
-            vec![
-                Output::matrix("h_q", h_q, false),
-                Output::matrix("h_qd", h_qd, false),
-            ],
-        ));
-    }
-    functions
+pub fn functions(model: &Model, eq: &Equations) -> Vec<Scheduled> {
+    let dims = (model.nq(), model.constraints.len(), model.actuators.len());
+    Function::ALL
+        .iter()
+        .filter_map(|&f| {
+            let terms = f.spec().terms(model, eq)?;
+            Some(Scheduled::new(&model.graph, f, dims, terms))
+        })
+        .collect()
 }

@@ -1,18 +1,25 @@
-//! Stage 6, schedule: the emitted functions ([`functions()`]: which derived
-//! terms each computes), each a straight-line program from the expression
+//! Stage 6, schedule: the table of emitted functions ([`Function`]: name,
+//! inputs, outputs, which derived terms each computes) and each function of
+//! a scene as a straight-line program ([`functions()`]) from the expression
 //! nodes of its outputs, in two passes: common-subexpression elimination
 //! ([`cse`]: every node used more than once gets one `let`, `sin` and `cos`
 //! of one argument one `sin_cos` call, only nodes reachable from the outputs
 //! are kept), then sharing of repeated pairs of factors and terms
-//! ([`share`]); a program carries its operation count ([`code`]).
+//! ([`share`]); a program carries its operation count ([`code`]). Each
+//! program is then lowered once ([`lower()`]) into operations in evaluation
+//! order, which the emitter prints and the interpreter runs.
 
 mod code;
 mod cse;
 mod functions;
+mod lower;
 mod share;
 
 pub use code::{Code, OpCount, Program, Stmt};
-pub use functions::{functions, Function, Output, Shape};
+#[cfg(test)]
+pub use functions::Terms;
+pub use functions::{functions, Function, Inputs, OutputSpec, Scheduled, Shape, Spec};
+pub use lower::{lower, Binary, Lowered, Op, Operand, Value};
 
 use crate::expr::{Graph, Id};
 

@@ -172,7 +172,7 @@ fn mass_matrix_is_the_velocity_hessian_of_the_kinetic_energy() {
 fn ops(m: &Model, eq: &crate::Equations, name: &str) -> usize {
     let f = functions(m, eq)
         .into_iter()
-        .find(|f| f.sig.name == name)
+        .find(|f| f.function.name() == name)
         .unwrap();
     f.program.ops.total()
 }

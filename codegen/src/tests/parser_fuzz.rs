@@ -1076,7 +1076,7 @@ fn generated_scenes_never_panic_the_loader_or_the_generator() {
                         Ok(eq) => {
                             let runtime = syn::parse_str("flexdyn_runtime").expect("a path");
                             let functions = crate::schedule::functions(&model, &eq);
-                            let (emitted, _) = emit(&model, &eq, functions, &runtime, None);
+                            let (emitted, _) = emit(&model, functions, &runtime, None);
                             prop_assert!(!emitted.source.is_empty());
                         }
                         Err(e) => prop_assert!(!e.message.trim().is_empty(), "{text}"),

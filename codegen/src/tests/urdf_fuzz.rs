@@ -11,7 +11,7 @@ use proptest::prelude::*;
 
 use super::parser_fuzz::{mutate, mutation, runner};
 use crate::error::Source;
-use crate::load::urdf::{import_urdf, UrdfOptions};
+use crate::import::{import_urdf, UrdfOptions};
 use crate::model::Model;
 
 const ROBOT: &str = r#"<?xml version="1.0"?>

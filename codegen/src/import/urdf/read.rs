@@ -1,0 +1,265 @@
+//! Reading the robot: links and joints from the XML, every number checked.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use super::tree::tensor;
+use super::{at, Inertial, Joint, Kind, Link, Origin, UrdfOptions, ABSURD, MAX_LINKS};
+use crate::error::{Error, Source};
+
+/// A required attribute.
+fn attribute<'a>(
+    source: &Source,
+    node: roxmltree::Node<'a, '_>,
+    name: &str,
+) -> Result<&'a str, Error> {
+    node.attribute(name).ok_or_else(|| {
+        at(
+            source,
+            node,
+            format!("<{}> needs the attribute `{name}`", node.tag_name().name()),
+        )
+    })
+}
+
+/// Numbers separated by white space, `n` of them, finite and at most
+/// `ABSURD` in magnitude.
+fn numbers<const N: usize>(
+    source: &Source,
+    node: roxmltree::Node,
+    name: &str,
+    text: &str,
+) -> Result<[f64; N], Error> {
+    let bad = |why: &str| {
+        at(
+            source,
+            node,
+            format!(
+                "<{}> attribute `{name}` = \"{text}\": {why}",
+                node.tag_name().name()
+            ),
+        )
+    };
+    let values: Vec<f64> = text
+        .split_whitespace()
+        .map(|w| w.parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| bad(&format!("expected {N} number(s)")))?;
+    let values: [f64; N] = values
+        .try_into()
+        .map_err(|_| bad(&format!("expected {N} number(s)")))?;
+    if values.iter().any(|v| !v.is_finite() || v.abs() > ABSURD) {
+        return Err(bad(&format!(
+            "numbers must be finite and at most {ABSURD:e} in magnitude"
+        )));
+    }
+    Ok(values)
+}
+
+fn number(source: &Source, node: roxmltree::Node, name: &str) -> Result<f64, Error> {
+    let text = attribute(source, node, name)?;
+    Ok(numbers::<1>(source, node, name, text)?[0])
+}
+
+fn optional_number(
+    source: &Source,
+    node: roxmltree::Node,
+    name: &str,
+) -> Result<Option<f64>, Error> {
+    node.attribute(name)
+        .map(|t| numbers::<1>(source, node, name, t).map(|v| v[0]))
+        .transpose()
+}
+
+fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, tag: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    node.children().find(|c| c.has_tag_name(tag))
+}
+
+fn origin(source: &Source, parent: roxmltree::Node) -> Result<Origin, Error> {
+    let Some(o) = child(parent, "origin") else {
+        return Ok(Origin::default());
+    };
+    let read = |name: &str| match o.attribute(name) {
+        Some(t) => numbers::<3>(source, o, name, t),
+        None => Ok([0.0; 3]),
+    };
+    Ok(Origin {
+        xyz: read("xyz")?,
+        rpy: read("rpy")?,
+    })
+}
+
+pub(super) fn read_robot(
+    source: &Source,
+    robot: roxmltree::Node,
+    options: &UrdfOptions,
+) -> Result<(Vec<Link>, Vec<Joint>), Error> {
+    let mut links: Vec<Link> = Vec::new();
+    let mut link_index: BTreeMap<String, usize> = BTreeMap::new();
+    for node in robot.children().filter(|n| n.has_tag_name("link")) {
+        let name = attribute(source, node, "name")?.to_owned();
+        if link_index.insert(name.clone(), links.len()).is_some() {
+            return Err(at(source, node, format!("link `{name}` is defined twice")));
+        }
+        if links.len() == MAX_LINKS {
+            return Err(at(source, node, format!("more than {MAX_LINKS} links")));
+        }
+        let inertial = child(node, "inertial")
+            .map(|i| read_inertial(source, i, &name))
+            .transpose()?;
+        links.push(Link { name, inertial });
+    }
+    let mut joints: Vec<Joint> = Vec::new();
+    let mut joint_names: BTreeSet<String> = BTreeSet::new();
+    for node in robot.children().filter(|n| n.has_tag_name("joint")) {
+        let name = attribute(source, node, "name")?.to_owned();
+        if !joint_names.insert(name.clone()) {
+            return Err(at(source, node, format!("joint `{name}` is defined twice")));
+        }
+        let ctx = format!("joint `{name}`");
+        let kind = match attribute(source, node, "type")? {
+            "revolute" => Kind::Revolute,
+            "continuous" => Kind::Continuous,
+            "prismatic" => Kind::Prismatic,
+            "fixed" => Kind::Fixed,
+            other @ ("floating" | "planar") => {
+                return Err(at(
+                    source,
+                    node,
+                    format!(
+                        "{ctx}: {other} joints are not supported (only revolute, continuous, \
+                         prismatic and fixed)"
+                    ),
+                ))
+            }
+            other => {
+                return Err(at(
+                    source,
+                    node,
+                    format!(
+                        "{ctx}: unknown joint type `{other}` (known: revolute, continuous, \
+                         prismatic, fixed)"
+                    ),
+                ))
+            }
+        };
+        let end = |tag: &str| -> Result<usize, Error> {
+            let e = child(node, tag)
+                .ok_or_else(|| at(source, node, format!("{ctx} has no <{tag}>")))?;
+            let link = attribute(source, e, "link")?;
+            link_index.get(link).copied().ok_or_else(|| {
+                at(
+                    source,
+                    e,
+                    format!("{ctx}: {tag} link `{link}` is not defined"),
+                )
+            })
+        };
+        let (parent, child_link) = (end("parent")?, end("child")?);
+        if parent == child_link {
+            return Err(at(
+                source,
+                node,
+                format!("{ctx} joins link `{}` to itself", links[parent].name),
+            ));
+        }
+        // A fixed joint's axis is not used (URDF files leave it zero).
+        let axis = match child(node, "axis").filter(|_| kind != Kind::Fixed) {
+            Some(a) => {
+                let v = numbers::<3>(source, a, "xyz", attribute(source, a, "xyz")?)?;
+                let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+                if n < 1e-12 {
+                    return Err(at(source, a, format!("{ctx}: the axis is zero")));
+                }
+                if (n - 1.0).abs() < 1e-15 {
+                    v
+                } else {
+                    v.map(|x| x / n)
+                }
+            }
+            None => [1.0, 0.0, 0.0],
+        };
+        let (mut limit, mut velocity) = (None, None);
+        if let Some(l) = child(node, "limit") {
+            let lower = optional_number(source, l, "lower")?;
+            let upper = optional_number(source, l, "upper")?;
+            if let (Some(lo), Some(hi)) = (lower, upper) {
+                if lo > hi {
+                    return Err(at(
+                        source,
+                        l,
+                        format!("{ctx}: lower limit {lo} is above the upper limit {hi}"),
+                    ));
+                }
+                limit = (lo < hi).then_some([lo, hi]);
+            }
+            velocity = optional_number(source, l, "velocity")?.filter(|&v| v > 0.0);
+        }
+        let damping = match child(node, "dynamics") {
+            Some(d) => optional_number(source, d, "damping")?.unwrap_or(0.0),
+            None => 0.0,
+        };
+        if damping < 0.0 {
+            return Err(at(
+                source,
+                node,
+                format!("{ctx}: negative damping {damping}"),
+            ));
+        }
+        let mimic = match child(node, "mimic") {
+            Some(m) => Some(attribute(source, m, "joint")?.to_owned()),
+            None => None,
+        };
+        joints.push(Joint {
+            held: options.fix.contains(&name),
+            name,
+            kind,
+            parent,
+            child: child_link,
+            origin: origin(source, node)?,
+            axis,
+            limit,
+            velocity,
+            damping,
+            mimic,
+        });
+    }
+    if let Some(missing) = options.fix.iter().find(|f| !joint_names.contains(*f)) {
+        return Err(source.error(format!(
+            "joint `{missing}` to hold fixed is not in the URDF"
+        )));
+    }
+    Ok((links, joints))
+}
+
+fn read_inertial(source: &Source, node: roxmltree::Node, link: &str) -> Result<Inertial, Error> {
+    let ctx = format!("link `{link}`");
+    let m = child(node, "mass")
+        .ok_or_else(|| at(source, node, format!("{ctx}: <inertial> has no <mass>")))?;
+    let mass = number(source, m, "value")?;
+    if mass < 0.0 {
+        return Err(at(source, m, format!("{ctx}: negative mass {mass}")));
+    }
+    let i = child(node, "inertia")
+        .ok_or_else(|| at(source, node, format!("{ctx}: <inertial> has no <inertia>")))?;
+    let mut inertia = [0.0; 6];
+    for (k, name) in ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]
+        .iter()
+        .enumerate()
+    {
+        inertia[k] = number(source, i, name)?;
+    }
+    let tensor = tensor(&inertia);
+    let scale = tensor.abs().max();
+    if tensor.symmetric_eigenvalues().min() < -1e-12 * scale {
+        return Err(at(
+            source,
+            i,
+            format!("{ctx}: the inertia tensor is not positive semi-definite"),
+        ));
+    }
+    Ok(Inertial {
+        origin: origin(source, node)?,
+        mass,
+        inertia,
+    })
+}

@@ -1,0 +1,282 @@
+//! A scene's emitted functions evaluated at run time, without compiling
+//! Rust: each scheduled function is lowered once, exactly as the emitter
+//! lowers it before printing ([`crate::schedule::lower`]: the operations of
+//! the emitted Rust expressions as Rust parses them), and that lowering is
+//! assembled into a compact instruction tape (`assemble`) over one array of
+//! `f64` slots (inputs, literals, then intermediate values), which
+//! [`Tape::eval`] runs (`tape`). The results are therefore bitwise those of
+//! the compiled module, by construction: the printed expressions and the
+//! tape come from the same operations, and the tape calls the runtime's
+//! `math` functions that generated code calls (a batched `sin_cos_array` is
+//! bitwise `sin_cos` lane by lane).
+
+mod assemble;
+mod tape;
+
+use std::path::Path;
+
+use crate::derive::Equations;
+use crate::error::Error;
+use crate::model::Model;
+use crate::schedule::{functions, lower};
+
+pub use crate::schedule::Function;
+pub use tape::Tape;
+
+/// A scene's functions as tapes, built from its file at run time.
+#[derive(Debug, Clone)]
+pub struct Interpreted {
+    name: String,
+    coordinates: Vec<String>,
+    actuators: Vec<String>,
+    nc: usize,
+    parameters: Vec<(String, f64)>,
+    tapes: Vec<(Function, Tape)>,
+}
+
+impl Interpreted {
+    /// Read, derive and schedule a scene file (the generator's own errors
+    /// when it has any), and lower every function it would emit.
+    pub fn load(path: &Path) -> Result<Interpreted, Error> {
+        let mut model = Model::load(path)?;
+        let eq = model.equations()?;
+        Ok(Interpreted::new(&model, &eq))
+    }
+
+    /// The tapes of a derived model.
+    pub(crate) fn new(model: &Model, eq: &Equations) -> Interpreted {
+        let (nq, nc) = (model.nq(), model.constraints.len());
+        let params = model.runtime_parameters.len();
+        let tapes = functions(model, eq)
+            .iter()
+            .map(|f| (f.function, assemble::assemble(&lower(f, true), nq, params)))
+            .collect();
+        Interpreted {
+            name: model.name.clone(),
+            coordinates: model.coordinates.iter().map(|c| c.name.clone()).collect(),
+            actuators: model.actuators.iter().map(|a| a.name.clone()).collect(),
+            nc,
+            parameters: model
+                .runtime_parameters
+                .iter()
+                .map(|p| (p.name.clone(), p.value))
+                .collect(),
+            tapes,
+        }
+    }
+
+    /// Scene name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Coordinate names.
+    pub fn coordinates(&self) -> &[String] {
+        &self.coordinates
+    }
+
+    /// Actuator names.
+    pub fn actuators(&self) -> &[String] {
+        &self.actuators
+    }
+
+    /// Number of coordinates.
+    pub fn nq(&self) -> usize {
+        self.coordinates.len()
+    }
+
+    /// Number of constraints.
+    pub fn nc(&self) -> usize {
+        self.nc
+    }
+
+    /// Number of actuators.
+    pub fn nu(&self) -> usize {
+        self.actuators.len()
+    }
+
+    /// Runtime parameters with their nominal values, in the order
+    /// [`Tape::eval`] takes them.
+    pub fn parameters(&self) -> &[(String, f64)] {
+        &self.parameters
+    }
+
+    /// The tape of a function; `None` for an optional output the scene does
+    /// not generate.
+    pub fn tape(&self, f: Function) -> Option<&Tape> {
+        self.tapes.iter().find(|(g, _)| *g == f).map(|(_, t)| t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::expr::Symbol;
+    use crate::schedule::Terms;
+
+    fn scene(name: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../scenes")
+            .join(format!("{name}.toml"))
+    }
+
+    /// Every function's tape against the expression graph evaluated node by
+    /// node (no scheduling, sharing or printing), at states spread over the
+    /// coordinates and with runtime parameters away from their nominal
+    /// values: equal to rounding.
+    #[test]
+    fn tapes_compute_the_derived_terms() {
+        for name in ["pendulum", "four_bar", "slider_crank", "spin_up_beam"] {
+            let mut model = Model::load(&scene(name)).unwrap();
+            let eq = model.equations().unwrap();
+            let it = Interpreted::new(&model, &eq);
+            let (nq, np) = (it.nq(), it.parameters().len());
+            let mut scratch = Vec::new();
+            for k in 0..5 {
+                let x = |i: usize, s: f64| ((k * 7 + i * 3) as f64 * s).sin() * 1.3;
+                let q: Vec<f64> = (0..nq).map(|i| x(i, 0.37)).collect();
+                let qd: Vec<f64> = (0..nq).map(|i| x(i, 0.91)).collect();
+                let qdd: Vec<f64> = (0..nq).map(|i| x(i, 1.73)).collect();
+                let t = 0.25 * k as f64;
+                let params: Vec<f64> = it
+                    .parameters()
+                    .iter()
+                    .enumerate()
+                    .map(|(i, (_, v))| v * 1.1 + 0.05 * (i + 1) as f64)
+                    .collect();
+                assert_eq!(params.len(), np);
+                let env = |s: Symbol| match s {
+                    Symbol::Q(i) => q[i as usize],
+                    Symbol::Qd(i) => qd[i as usize],
+                    Symbol::Qdd(i) => qdd[i as usize],
+                    Symbol::Time => t,
+                    Symbol::Param(i) => params[i as usize],
+                };
+                let mut checked = 0;
+                for &f in Function::ALL {
+                    let Some(terms) = f.spec().terms(&model, &eq) else {
+                        assert!(it.tape(f).is_none(), "{name} {}", f.name());
+                        continue;
+                    };
+                    // Every entry, column-major.
+                    let want: Vec<f64> = match terms {
+                        Terms::Nodes(outputs) => outputs
+                            .iter()
+                            .flat_map(|o| column_major(o))
+                            .map(|id| model.graph.eval(&[id], &env)[0])
+                            .collect(),
+                        Terms::Constants(outputs) => {
+                            outputs.iter().flat_map(|o| column_major(o)).collect()
+                        }
+                    };
+                    let tape = it.tape(f).unwrap();
+                    let mut got = vec![f64::NAN; tape.output_len()];
+                    tape.eval_with_accelerations(&q, &qd, &qdd, t, &params, &mut scratch, &mut got);
+                    assert_eq!(got.len(), want.len(), "{name} {}", f.name());
+                    let scale = want.iter().fold(1.0f64, |m, w| m.max(w.abs()));
+                    for (p, (a, b)) in got.iter().zip(&want).enumerate() {
+                        assert!(
+                            (a - b).abs() <= 1e-14 * scale,
+                            "{name} {} entry {p}: {a} vs {b}",
+                            f.name()
+                        );
+                    }
+                    checked += 1;
+                }
+                assert!(checked >= 11, "{name}: {checked} functions");
+            }
+        }
+    }
+
+    /// A matrix given as rows, column by column.
+    fn column_major<T: Copy>(rows: &[Vec<T>]) -> Vec<T> {
+        let cols = rows.first().map_or(0, Vec::len);
+        (0..cols)
+            .flat_map(|j| rows.iter().map(move |r| r[j]))
+            .collect()
+    }
+
+    /// The printed association, not the program's tree: `2 a b` is
+    /// `(2 a) b`, a leading negative term negates its first operand, the
+    /// constant comes after the positive terms. Chosen so that the tree's
+    /// association rounds differently.
+    #[test]
+    fn sums_and_products_associate_as_printed() {
+        use crate::schedule::{Code, Program, Scheduled};
+        let (a, b) = (0.1, 3.0f64.sqrt());
+        let (x, y) = (Code::Sym(Symbol::Q(0)), Code::Sym(Symbol::Q(1)));
+        let prod = Code::Prod {
+            num: vec![x.clone(), y.clone()],
+            den: vec![],
+        };
+        let term = |c: f64| Code::Sum {
+            constant: 0.0,
+            terms: vec![(c, prod.clone())],
+        };
+        let sum = Code::Sum {
+            constant: 0.3,
+            terms: vec![(-1.0, y.clone()), (1.0, x.clone())],
+        };
+        let lead_negative = Code::Sum {
+            constant: -0.7,
+            terms: vec![(-1.0, y.clone()), (-2.0, x.clone())],
+        };
+        let quotient = Code::Prod {
+            num: vec![],
+            den: vec![x, y],
+        };
+        let outputs = vec![term(0.3), term(-0.3), sum, lead_negative, quotient];
+        // The constraints of a scene of 2 coordinates and 5 constraints.
+        let f = Scheduled {
+            function: Function::Constraints,
+            dims: (2, outputs.len(), 0),
+            slots: (0..outputs.len()).map(|i| (0, i, 0)).collect(),
+            program: Program::new(Vec::new(), outputs),
+        };
+        let tape = assemble::assemble(&lower(&f, true), 2, 0);
+        let mut got = vec![f64::NAN; 5];
+        tape.eval(&[a, b], &[], 0.0, &[], &mut Vec::new(), &mut got);
+        // What Rust computes for the printed expressions.
+        let want = [
+            0.3 * a * b,
+            -0.3 * a * b,
+            a + 0.3 - b,
+            -0.7 - b - 2.0 * a,
+            1.0 / (a * b),
+        ];
+        assert_eq!(got, want);
+        assert_ne!(0.3 * a * b, 0.3 * (a * b), "the example distinguishes");
+    }
+
+    #[test]
+    fn intermediate_slots_are_reused() {
+        let mut model = Model::load(&scene("slider_crank")).unwrap();
+        let eq = model.equations().unwrap();
+        let it = Interpreted::new(&model, &eq);
+        let tape = it.tape(Function::DynamicsTerms).unwrap();
+        let inputs = 2 * it.nq() + 1 + it.parameters().len() + tape.literals.len();
+        assert!(
+            tape.slots - inputs < tape.instructions() / 2,
+            "{} slots for {} instructions",
+            tape.slots - inputs,
+            tape.instructions()
+        );
+    }
+
+    #[test]
+    fn a_scene_with_errors_gives_the_generators_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.toml");
+        std::fs::write(
+            &path,
+            "name = \"bad\"\n[[coordinates]]\nname = \"a\"\n\
+             [[components]]\nname = \"m\"\ntype = \"point_mass\"\nmass = 1\n\
+             position = [\"a*\", 0, 0]\n",
+        )
+        .unwrap();
+        let e = Interpreted::load(&path).unwrap_err().to_string();
+        let generator = crate::generate_scene(&path).unwrap_err().to_string();
+        assert_eq!(e, generator);
+        assert!(e.contains("bad.toml"), "{e}");
+    }
+}
