@@ -18,12 +18,13 @@ use std::time::{Duration, Instant};
 
 use quote::quote;
 
+use crate::checks::{energy_signs, f32_literals, largest_component};
 use crate::derive::{derive, Equations};
 use crate::emit::{emit, struct_name, CoefficientPerturbation, FunctionReport};
 use crate::emit_c::CInterface;
 use crate::error::{Error, Source};
 use crate::load::{load, resolve, LoadedScene};
-use crate::model::{build, Model, Precision};
+use crate::model::{build, overflow_message, Model, Precision};
 use crate::prune::prune;
 use crate::reduce;
 use crate::resolution::{stiffness_spread, F32_MAX_STIFFNESS_SPREAD};
@@ -58,15 +59,27 @@ impl Model {
 
     /// Stages 4 and 5: the equations of motion, derived and, when the scene
     /// asks for it, pruned. Adds the derived terms to [`Model::graph`].
+    ///
+    /// Refuses a derivation whose constants overflow `f64` (naming the
+    /// component with the largest constant) and `energy` components whose
+    /// kinetic energy or dissipation decreases along a velocity.
     pub fn equations(&mut self) -> Result<Equations, Error> {
-        let mut eq = derive(self).map_err(|e| {
-            Error::unplaced(
-                self.sources.first().cloned().unwrap_or_default(),
-                Some(&e.context),
-                e.message,
-            )
-        })?;
+        let file = self.sources.first().cloned().unwrap_or_default();
+        let error = |context: &str, message: String| Error::unplaced(&file, Some(context), message);
+        let mut eq = derive(self).map_err(|e| error(&e.context, e.message))?;
         prune(self, &mut eq);
+        if self.graph.take_overflow() {
+            let what = match largest_component(self) {
+                Some((c, k)) => format!(
+                    "deriving the equations of motion (the largest constant, {k:e}, is component \
+                     `{}`'s)",
+                    c.name
+                ),
+                None => "deriving the equations of motion".to_owned(),
+            };
+            return Err(error("the equations of motion", overflow_message(&what)));
+        }
+        energy_signs(self).map_err(|f| error(&f.context, f.message))?;
         Ok(eq)
     }
 }
@@ -193,6 +206,10 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
     }
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
     let functions = functions(&model, &eq);
+    if model.precision == Precision::F32 {
+        f32_literals(&model.graph, &functions)
+            .map_err(|f| Error::unplaced(path.to_path_buf(), Some(&f.context), f.message))?;
+    }
     let c = options
         .c_interface
         .then(|| CInterface::new(&model, &functions));

@@ -12,7 +12,9 @@
 //! 3. `reduce`: a derived scene's reductions (modes dropped, coordinates
 //!    frozen);
 //! 4. `derive`: Lagrange's equations ([`Equations`]);
-//! 5. `prune`: negligible summands dropped where the scene asks for it; an
+//! 5. `prune`: negligible summands dropped where the scene asks for it;
+//!    `checks` refuses a derivation whose constants overflow `f64` and
+//!    `energy` components with a negative mass or dissipation; an
 //!    `f32` module is refused where `resolution` finds a stiffness spread
 //!    beyond f32's resolution (unless [`Builder::allow_unresolved_f32`]);
 //! 6. `schedule`: a straight-line program per emitted function (common
@@ -36,6 +38,7 @@
 //! and errors with their position ([`Error`], [`Source`]).
 
 mod builder;
+mod checks;
 mod derive;
 mod emit;
 mod emit_c;

@@ -4,7 +4,8 @@
 //! `I = R I0 R^T` in frame axes, `R = Rz(yaw) Ry(pitch) Rx(roll)` from
 //! `inertia_rpy` (the URDF convention; identity by default). The mass may be
 //! zero and the tensor singular (massless and point-like bodies): the mass
-//! must be non-negative and `I0` symmetric positive semi-definite.
+//! must be non-negative and `I0` symmetric positive semi-definite, its
+//! principal moments obeying the triangle inequality.
 
 use toml::Spanned;
 
@@ -163,9 +164,8 @@ fn inertia(
     if asymmetric {
         return Err(cx.err(at, Some(ctx), "inertia tensor is not symmetric"));
     }
-    let smallest = nalgebra::Matrix3::from_fn(|i, j| val[i][j])
-        .symmetric_eigenvalues()
-        .min();
+    let moments = nalgebra::Matrix3::from_fn(|i, j| val[i][j]).symmetric_eigenvalues();
+    let smallest = moments.min();
     if smallest.is_nan() || smallest < -1e-12 * scale {
         return Err(cx.err(
             at,
@@ -175,8 +175,29 @@ fn inertia(
             ),
         ));
     }
+    // Each principal moment, a sum of m (y^2 + z^2) over the body, is at
+    // most the sum of the other two (equal for a flat body), up to the
+    // rounding of moments written with a few digits.
+    let largest = moments.max();
+    if largest > moments.sum() - largest + TRIANGLE_TOLERANCE * scale {
+        return Err(cx.err(
+            at,
+            Some(ctx),
+            format!(
+                "inertia tensor breaks the triangle inequality: its largest principal moment \
+                 {largest:e} exceeds the sum of the other two, {:e} (no mass distribution has \
+                 it; tolerance {TRIANGLE_TOLERANCE:e} of the largest entry)",
+                moments.sum() - largest
+            ),
+        ));
+    }
     Ok(ids)
 }
+
+/// How far, relative to its largest entry, an inertia tensor's largest
+/// principal moment may exceed the sum of the other two (moments written
+/// with six digits, as URDF files often are).
+const TRIANGLE_TOLERANCE: f64 = 1e-6;
 
 /// `R I R^T` with `R = Rz(yaw) Ry(pitch) Rx(roll)` from `[roll, pitch, yaw]`
 /// (parameter-only angles).
