@@ -220,3 +220,221 @@ fn a_coincident_constraint_without_b_holds_a_point_at_the_world_origin() {
         }
     }
 }
+
+#[cfg(unix)]
+#[test]
+fn outputs_follow_links_and_write_through_fifos() {
+    use std::os::unix::fs::{symlink, FileTypeExt};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("target.csv"), "precious").unwrap();
+    symlink("target.csv", d.join("link.csv")).unwrap();
+    let scene = data("actuated_pendulum.toml");
+    let simulate = |csv: &str| {
+        run(&[
+            "simulate",
+            "--scene",
+            &scene,
+            "--duration",
+            "0.1",
+            "--csv",
+            csv,
+            "--quiet",
+        ])
+    };
+    let (code, err) = simulate(&p(d, "link.csv"));
+    assert_eq!(code, Some(0), "{err}");
+    assert!(std::fs::symlink_metadata(d.join("link.csv"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let written = std::fs::read_to_string(d.join("target.csv")).unwrap();
+    assert!(written.starts_with("t,theta"), "{written}");
+    // A FIFO (like /dev/stdout or /dev/null) is written through, not replaced.
+    let fifo = d.join("fifo");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+    };
+    let (code, err) = simulate(&p(d, "fifo"));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(reader.join().unwrap(), written);
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
+    // Nothing else (no temporary file) is left.
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 3);
+}
+
+#[test]
+fn generate_of_several_scenes_writes_all_or_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The second module's path is taken by a directory.
+    std::fs::create_dir(d.join("duplicate_actuator_free.rs")).unwrap();
+    std::fs::write(
+        d.join("duplicate_actuator_free.toml"),
+        std::fs::read_to_string(data("actuated_pendulum.toml"))
+            .unwrap()
+            .replace("actuated_pendulum", "duplicate_actuator_free"),
+    )
+    .unwrap();
+    let second = p(d, "duplicate_actuator_free.toml");
+    let scene = data("actuated_pendulum.toml");
+    let out = p(d, "");
+    refused(
+        d,
+        &["duplicate_actuator_free.rs", "duplicate_actuator_free.toml"],
+        &[
+            "generate", "--scene", &scene, "--scene", &second, "--out", &out,
+        ],
+        "duplicate_actuator_free.rs: it is a directory",
+    );
+}
+
+#[test]
+fn inputs_and_scenes_are_read_up_to_a_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 65 MiB of NUL bytes (sparse): refused at the 64 MiB limit, with a
+    // short message, and without reading it whole.
+    let csv = std::fs::File::create(d.join("u.csv")).unwrap();
+    csv.set_len(65 << 20).unwrap();
+    let scene = data("actuated_pendulum.toml");
+    let o = p(d, "o.csv");
+    let u = p(d, "u.csv");
+    let args = [
+        "simulate",
+        "--scene",
+        &scene,
+        "--duration",
+        "1",
+        "--inputs",
+        &u,
+        "--csv",
+        &o,
+    ];
+    refused(
+        d,
+        &["u.csv"],
+        &args,
+        "larger than the limit of 67108864 bytes",
+    );
+    let (_, err) = run(&args);
+    assert!(err.len() < 300, "{err}");
+    // An endless scene file.
+    let out = p(d, "g");
+    refused(
+        d,
+        &["u.csv"],
+        &["generate", "--scene", "/dev/zero", "--out", &out],
+        "larger than the limit of 4194304 bytes",
+    );
+}
+
+#[test]
+fn unclear_inputs_get_errors_that_say_what_and_where() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = p(d, "s.toml");
+    // A URDF without a moving joint.
+    refused(
+        d,
+        &[],
+        &["import", "urdf", &data("fixed_only.urdf"), "--out", &out],
+        "fixed_only.urdf:2:1: the robot has no moving joint",
+    );
+    // An output directory that does not exist: refused before the run.
+    let scene = data("actuated_pendulum.toml");
+    let missing = p(d, "no/such/dir/o.csv");
+    let start = std::time::Instant::now();
+    refused(
+        d,
+        &[],
+        &[
+            "simulate",
+            "--scene",
+            &scene,
+            "--duration",
+            "1e5",
+            "--csv",
+            &missing,
+        ],
+        "directory",
+    );
+    assert!(start.elapsed().as_secs_f64() < 5.0, "checked after the run");
+    // An inputs CSV with only `t` drives nothing: refused.
+    let o = p(d, "o.csv");
+    let only_t = data("inputs_only_t.csv");
+    refused(
+        d,
+        &[],
+        &[
+            "simulate",
+            "--scene",
+            &scene,
+            "--duration",
+            "1",
+            "--inputs",
+            &only_t,
+            "--csv",
+            &o,
+        ],
+        "inputs_only_t.csv: no column besides `t`",
+    );
+    // A byte-order mark (as spreadsheets write) is accepted.
+    let bom = data("inputs_with_bom.csv");
+    let (code, err) = run(&[
+        "simulate",
+        "--scene",
+        &scene,
+        "--duration",
+        "1",
+        "--inputs",
+        &bom,
+        "--csv",
+        &o,
+        "--quiet",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+}
+
+#[test]
+fn inverse_columns_are_unique_when_an_actuator_is_named_like_its_joint() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = p(dir.path(), "i.csv");
+    let scene = data("actuator_named_like_its_joint.toml");
+    let (code, err) = run(&[
+        "inverse",
+        "--scene",
+        &scene,
+        "--duration",
+        "1",
+        "--dt",
+        "0.5",
+        "--prescribe",
+        "theta=t",
+        "--csv",
+        &csv,
+        "--quiet",
+    ]);
+    assert_eq!((code, err.as_str()), (Some(0), ""));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t,tau_theta,theta"));
+    // tau = m l^2 theta'' + m g l sin(theta), theta = t: at t = 0.5 s.
+    let row: Vec<f64> = lines
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let expected = 1.0 * 9.81 * 0.5 * 0.5f64.sin();
+    assert!((row[1] - expected).abs() < 1e-9, "{row:?} vs {expected}");
+}

@@ -29,7 +29,8 @@
 //!    Rust computes, so a scene file can be evaluated without compiling it.
 //!
 //! Each stage imports only from earlier ones. `export` writes a model's
-//! symbolic inputs as JSON ([`export_json`]).
+//! symbolic inputs as JSON ([`export_json`]); `files` writes outputs all or
+//! nothing, devices and FIFOs through ([`Outputs`]).
 //!
 //! The public API is the builder and its results, the symbolic model of a
 //! scene ([`Model::load`], [`Model::equations`]) with the expression graph
@@ -46,7 +47,9 @@ mod error;
 mod export;
 mod expr;
 mod fem;
+mod files;
 mod geometry;
+mod inertia;
 pub mod interpret;
 mod load;
 mod model;
@@ -58,12 +61,13 @@ mod schedule;
 mod tests;
 mod time_function;
 
-pub use builder::{generate_scene, write_if_changed, Builder, Generated, Report};
+pub use builder::{generate_scene, Builder, Generated, Report};
 pub use derive::Equations;
 pub use emit::FunctionReport;
 pub use error::{Error, Source};
 pub use export::export_json;
 pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
+pub use files::{check_output, read_limited, write_atomic, Outputs};
 pub use load::urdf::{import_urdf, UrdfOptions};
 pub use model::{Model, Precision};
 pub use schedule::OpCount;

@@ -29,7 +29,7 @@ use crate::eval::check_state;
 use crate::plot::{line_plot, Labels, Series};
 use crate::progress::Progress;
 use crate::sized::{with_padding, Padded, Sized};
-use crate::table::{Outputs, Table};
+use crate::table::{check_output, read_input, Outputs, Table};
 
 /// The integrators `--integrator` accepts.
 pub const INTEGRATORS: [&str; 5] = [
@@ -180,6 +180,11 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
             args.tolerance
         ));
     }
+    // The outputs' directories before the run, not after it.
+    check_output(&args.csv)?;
+    if let Some(plot) = &args.plot {
+        check_output(plot)?;
+    }
     let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
     let mut model = compiled.load(&args.scene, &parsed.name, args.interpret)?;
     let state = initial_state(args, &parsed, model.as_mut())?;
@@ -254,8 +259,7 @@ fn initial_state(
             params: Default::default(),
         });
     };
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let text = read_input(path, "state file")?;
     let s: crate::eval::State =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     check_state(model, &s, 0).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -331,6 +335,13 @@ fn drives(
         let table = Table::read(path)?;
         let file = path.display();
         let t = table.times(path)?;
+        if table.columns.len() == 1 {
+            return Err(format!(
+                "{file}: no column besides `t`: give one per actuator driven (actuators: {}) \
+                 or per coordinate targeted",
+                list(&actuators)
+            ));
+        }
         for name in table.columns.iter().filter(|c| *c != "t") {
             let v = table.column(name)?;
             let signal = Signal::Column { t: t.clone(), v };

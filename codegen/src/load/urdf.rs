@@ -30,6 +30,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Source};
 use crate::expr::exact;
+use crate::inertia::inertia_problem;
 use crate::load::parse::RESERVED;
 
 /// Options of the import.
@@ -123,6 +124,14 @@ pub fn import_urdf(source: &Source, options: &UrdfOptions) -> Result<String, Err
     }
     let (links, joints) = read_robot(source, robot, options)?;
     let tree = Tree::new(source, robot, &links, &joints)?;
+    if !tree.order.iter().any(|&j| Tree::moves(&joints, j)) {
+        return Err(at(
+            source,
+            robot,
+            "the robot has no moving joint (revolute, continuous or prismatic, not fixed by \
+             --fix): a scene needs at least one coordinate",
+        ));
+    }
     Ok(write_scene(source, robot, &links, &joints, &tree))
 }
 
@@ -372,14 +381,8 @@ fn read_inertial(source: &Source, node: roxmltree::Node, link: &str) -> Result<I
     {
         inertia[k] = number(source, i, name)?;
     }
-    let tensor = tensor(&inertia);
-    let scale = tensor.abs().max();
-    if tensor.symmetric_eigenvalues().min() < -1e-12 * scale {
-        return Err(at(
-            source,
-            i,
-            format!("{ctx}: the inertia tensor is not positive semi-definite"),
-        ));
+    if let Some(problem) = inertia_problem(&tensor(&inertia)) {
+        return Err(at(source, i, format!("{ctx}: {problem}")));
     }
     Ok(Inertial {
         origin: origin(source, node)?,

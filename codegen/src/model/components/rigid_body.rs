@@ -13,6 +13,7 @@ use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
 use crate::expr::Id;
 use crate::geometry::{Frame, Point};
+use crate::inertia::inertia_problem;
 use crate::load::scene::{ComponentDef, InertiaEntry, SScalar, Scalar};
 use crate::model::context::Context;
 use crate::model::Body;
@@ -164,40 +165,11 @@ fn inertia(
     if asymmetric {
         return Err(cx.err(at, Some(ctx), "inertia tensor is not symmetric"));
     }
-    let moments = nalgebra::Matrix3::from_fn(|i, j| val[i][j]).symmetric_eigenvalues();
-    let smallest = moments.min();
-    if smallest.is_nan() || smallest < -1e-12 * scale {
-        return Err(cx.err(
-            at,
-            Some(ctx),
-            format!(
-                "inertia tensor is not positive semi-definite (smallest principal moment {smallest:e})"
-            ),
-        ));
-    }
-    // Each principal moment, a sum of m (y^2 + z^2) over the body, is at
-    // most the sum of the other two (equal for a flat body), up to the
-    // rounding of moments written with a few digits.
-    let largest = moments.max();
-    if largest > moments.sum() - largest + TRIANGLE_TOLERANCE * scale {
-        return Err(cx.err(
-            at,
-            Some(ctx),
-            format!(
-                "inertia tensor breaks the triangle inequality: its largest principal moment \
-                 {largest:e} exceeds the sum of the other two, {:e} (no mass distribution has \
-                 it; tolerance {TRIANGLE_TOLERANCE:e} of the largest entry)",
-                moments.sum() - largest
-            ),
-        ));
+    if let Some(problem) = inertia_problem(&nalgebra::Matrix3::from_fn(|i, j| val[i][j])) {
+        return Err(cx.err(at, Some(ctx), problem));
     }
     Ok(ids)
 }
-
-/// How far, relative to its largest entry, an inertia tensor's largest
-/// principal moment may exceed the sum of the other two (moments written
-/// with six digits, as URDF files often are).
-const TRIANGLE_TOLERANCE: f64 = 1e-6;
 
 /// `R I R^T` with `R = Rz(yaw) Ry(pitch) Rx(roll)` from `[roll, pitch, yaw]`
 /// (parameter-only angles).
