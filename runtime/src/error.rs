@@ -211,10 +211,11 @@ pub enum ErrorKind {
         /// name the offending mode and the largest step that could be stable
         /// (`limit / rate`). Within a step (adaptive RK4) it is `value / dt`
         /// from the stages, which see only the modes the state excites;
-        /// [`crate::Rk4`] and [`crate::SemiImplicitEuler`] refine it by a
-        /// bounded power iteration on the model linearised at the state,
-        /// which finds the fastest mode even when it is not excited. `None`
-        /// for the `max_step` check.
+        /// [`crate::Rk4`] and [`crate::SemiImplicitEuler`] take the larger
+        /// of it and a bounded power iteration's on the model linearised at
+        /// the state, which finds the fastest mode even when it is not
+        /// excited, and report `value = dt * rate` from that one number.
+        /// `None` for the `max_step` check.
         rate: Option<f64>,
     },
     /// The adaptive integrator would need a step below its minimum step size.
