@@ -438,3 +438,33 @@ fn inverse_columns_are_unique_when_an_actuator_is_named_like_its_joint() {
     let expected = 1.0 * 9.81 * 0.5 * 0.5f64.sin();
     assert!((row[1] - expected).abs() < 1e-9, "{row:?} vs {expected}");
 }
+
+#[test]
+fn a_diverging_gauss_legendre_step_names_the_fastest_mode_and_a_step() {
+    // At 0.2 s the stage iteration of the flexible UR5 (a 1.8 kHz mode)
+    // diverges into states whose mass matrix is not positive definite.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = p(dir.path(), "o.csv");
+    let (code, err) = run(&[
+        "simulate",
+        "--scene",
+        "scenes/ur5_flexible.toml",
+        "--integrator",
+        "gauss-legendre",
+        "--duration",
+        "0.5",
+        "--dt",
+        "0.2",
+        "--csv",
+        &csv,
+        "--quiet",
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    for part in [
+        "stage iteration diverged",
+        "the fastest mode is at about",
+        "steps must be below",
+    ] {
+        assert!(err.contains(part), "`{part}` not in: {err}");
+    }
+}
