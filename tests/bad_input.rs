@@ -468,3 +468,18 @@ fn a_diverging_gauss_legendre_step_names_the_fastest_mode_and_a_step() {
         assert!(err.contains(part), "`{part}` not in: {err}");
     }
 }
+
+#[test]
+fn eval_refuses_non_finite_results_naming_the_entry() {
+    // At q = qd = 1e308 the kinetic energy m l^2 qd^2 / 2 overflows (it was
+    // written as `null` with exit status 0).
+    let scene = data("actuated_pendulum.toml");
+    let states = data("huge_state.json");
+    let (code, err) = run(&["eval", "--scene", &scene, "--states", &states]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.starts_with("error: state 0: `") && err.contains("is not finite"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}

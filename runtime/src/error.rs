@@ -566,11 +566,29 @@ impl fmt::Display for ErrorKind {
     }
 }
 
+/// A time (or any number) as messages print it: in plain decimal between
+/// `1e-4` and `1e9` (and zero), in exponent form elsewhere, so that a time
+/// of `1e300` is 6 characters, not 301 digits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Time(pub f64);
+
+impl fmt::Display for Time {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let size = self.0.abs();
+        if size == 0.0 || (1e-4..1e9).contains(&size) || !size.is_finite() {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let t = Time(self.t);
         match self.stage {
-            Some(stage) => write!(f, "at t = {} s: {}: {}", self.t, stage, self.kind),
-            None => write!(f, "at t = {} s: {}", self.t, self.kind),
+            Some(stage) => write!(f, "at t = {} s: {}: {}", t, stage, self.kind),
+            None => write!(f, "at t = {} s: {}", t, self.kind),
         }
     }
 }

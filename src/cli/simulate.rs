@@ -18,7 +18,7 @@ use flexdyn_runtime::control::{Feedback, JointPd, Target};
 use flexdyn_runtime::{
     project, AdaptiveRk4, ErrorKind, FromFn, GaussLegendre4, GeneralizedAlpha,
     GeneralizedAlphaConfig, Integrator, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State,
-    StepSettings,
+    StepSettings, Time,
 };
 use nalgebra::SVector;
 
@@ -630,7 +630,11 @@ impl Run<'_> {
                         .unwrap_or_default(),
                     _ => String::new(),
                 };
-                format!("step {k} (t = {} s, dt = {h} s): {e}{hint}", state.t)
+                format!(
+                    "step {k} (t = {} s, dt = {} s): {e}{hint}",
+                    Time(state.t),
+                    Time(h)
+                )
             })?;
             state.t = end;
             table.push(self.row(&state));
