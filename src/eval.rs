@@ -117,7 +117,8 @@ pub fn check_state(model: &dyn DynModel, s: &State, k: usize) -> Result<(), Stri
 }
 
 /// Evaluate every term at one state, with the state's runtime parameters
-/// (the model is left with them set).
+/// (the model is left with them set); an error naming the first term that
+/// is not finite there.
 pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
     for (name, &value) in &s.params {
         if !value.is_finite() {
@@ -140,7 +141,7 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
     } else {
         s.qdd.clone()
     };
-    Ok(Terms {
+    let terms = Terms {
         mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
         bias: model.bias(&s.q, &s.qd, s.t).as_slice().to_vec(),
         constraints: model.constraints(&s.q, s.t).as_slice().to_vec(),
@@ -166,5 +167,30 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         coriolis_matrix: model.coriolis_matrix(&s.q, &s.qd, s.t).map(|m| rows(&m)),
         bias_jacobian_q: jacobians.as_ref().map(|(h_q, _)| rows(h_q)),
         bias_jacobian_qd: jacobians.as_ref().map(|(_, h_qd)| rows(h_qd)),
-    })
+    };
+    // JSON has no number for infinities and NaN (serde writes `null`).
+    let json = serde_json::to_value(&terms).map_err(|e| e.to_string())?;
+    match first_null(&json) {
+        Some(entry) => Err(format!(
+            "`{entry}` is not finite at this state (the state is beyond the range where the \
+             scene's terms are finite numbers)"
+        )),
+        None => Ok(terms),
+    }
+}
+
+/// The path (`mass_matrix[0][1]`) of the first `null` in `value`.
+fn first_null(value: &serde_json::Value) -> Option<String> {
+    use serde_json::Value;
+    match value {
+        Value::Null => Some(String::new()),
+        Value::Array(items) => items
+            .iter()
+            .enumerate()
+            .find_map(|(k, v)| first_null(v).map(|rest| format!("[{k}]{rest}"))),
+        Value::Object(fields) => fields
+            .iter()
+            .find_map(|(name, v)| first_null(v).map(|rest| format!("{name}{rest}"))),
+        _ => None,
+    }
 }

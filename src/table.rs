@@ -1,8 +1,37 @@
 //! Numeric CSV tables: a header row of column names, then rows of numbers.
 
-use std::ffi::OsString;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+pub use crate::codegen::{check_output, write_atomic, OutputFiles};
+
+/// Largest input file the commands read (inputs and prescriptions CSV,
+/// states JSON, motion files, URDF): 64 MiB.
+pub const MAX_INPUT_BYTES: u64 = 64 << 20;
+
+/// The text of an input file, read up to [`MAX_INPUT_BYTES`]; errors name
+/// the file, `what` it is and the limit.
+pub fn read_input(path: &Path, what: &str) -> Result<String, String> {
+    crate::codegen::read_limited(path, MAX_INPUT_BYTES, what)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The most characters of a file's text an error message quotes.
+pub const SHOWN_CHARS: usize = 80;
+
+/// `text` as an error message quotes it: at most [`SHOWN_CHARS`]
+/// characters, control characters escaped, `...` where it was cut.
+fn shown(text: &str) -> String {
+    let mut out: String = text
+        .chars()
+        .take(SHOWN_CHARS)
+        .flat_map(char::escape_debug)
+        .collect();
+    if text.chars().nth(SHOWN_CHARS).is_some() {
+        out.push_str("...");
+    }
+    out
+}
 
 /// A table of numbers with named columns.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,10 +59,12 @@ impl Table {
 
     /// The values of a column.
     pub fn column(&self, name: &str) -> Result<Vec<f64>, String> {
-        let k =
-            self.columns.iter().position(|c| c == name).ok_or_else(|| {
-                format!("no column `{name}` (columns: {})", self.columns.join(", "))
-            })?;
+        let k = self.columns.iter().position(|c| c == name).ok_or_else(|| {
+            format!(
+                "no column `{name}` (columns: {})",
+                shown(&self.columns.join(", "))
+            )
+        })?;
         Ok(self.rows.iter().map(|r| r[k]).collect())
     }
 
@@ -44,7 +75,7 @@ impl Table {
         let t = self.column("t").map_err(|_| {
             format!(
                 "{file}: no column `t` (columns: {})",
-                self.columns.join(", ")
+                shown(&self.columns.join(", "))
             )
         })?;
         if t.is_empty() {
@@ -77,20 +108,22 @@ impl Table {
         s
     }
 
-    /// Write the table to `path` (through a temporary file: no partial output).
+    /// Write the table to `path` (all or nothing: [`write_atomic`]).
     pub fn write(&self, path: &Path) -> Result<(), String> {
         write_atomic(path, &self.to_csv())
     }
 
     /// Read a table; errors name the file and line.
     pub fn read(path: &Path) -> Result<Table, String> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let text = read_input(path, "CSV file")?;
         Table::parse(&text).map_err(|e| format!("{}:{e}", path.display()))
     }
 
-    /// Parse CSV text (errors start with the line number).
+    /// Parse CSV text (errors start with the line number and quote at most
+    /// [`SHOWN_CHARS`] characters of the file); a leading byte-order mark
+    /// (as spreadsheets write) is skipped.
     pub fn parse(text: &str) -> Result<Table, String> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut lines = text
             .lines()
             .enumerate()
@@ -123,8 +156,8 @@ impl Table {
                             format!(
                                 "{}: column `{}`: `{}` is not a finite number",
                                 i + 1,
-                                columns[k],
-                                c.trim()
+                                shown(&columns[k]),
+                                shown(c.trim())
                             )
                         })
                 })
@@ -132,78 +165,6 @@ impl Table {
             rows.push(row);
         }
         Ok(Table { columns, rows })
-    }
-}
-
-/// Write `text` to `path` through a temporary file and a rename, so that a
-/// failure never leaves a partial file behind.
-pub fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            format!("cannot write {}: {e}", path.display())
-        })
-}
-
-/// Output files of one command, all or nothing: each is written under a
-/// temporary name next to its destination (keeping the extension, which picks
-/// a plot's format) and moved into place by [`Outputs::commit`] only once all
-/// of them have been written. If the command fails first, dropping this
-/// removes the temporary files, so no output (partial or complete) is left.
-#[derive(Debug, Default)]
-pub struct Outputs {
-    /// (temporary file, destination), in order.
-    staged: Vec<(PathBuf, PathBuf)>,
-}
-
-impl Outputs {
-    /// Write the output destined for `path` through `write`, which is called
-    /// with the temporary path; errors name `path`.
-    pub fn write(
-        &mut self,
-        path: &Path,
-        write: impl FnOnce(&Path) -> Result<(), String>,
-    ) -> Result<(), String> {
-        if path.is_dir() {
-            return Err(format!(
-                "cannot write {}: it is a directory",
-                path.display()
-            ));
-        }
-        let name = path
-            .file_name()
-            .ok_or_else(|| format!("cannot write {}: not a file name", path.display()))?;
-        let mut tmp_name = OsString::from(format!(
-            ".flexdyn-{}-{}-",
-            std::process::id(),
-            self.staged.len()
-        ));
-        tmp_name.push(name);
-        let tmp = path.with_file_name(tmp_name);
-        // Registered before writing, so that a partly written file is removed too.
-        self.staged.push((tmp.clone(), path.to_path_buf()));
-        write(&tmp).map_err(|e| e.replace(&tmp.display().to_string(), &path.display().to_string()))
-    }
-
-    /// Move every output into place.
-    pub fn commit(mut self) -> Result<(), String> {
-        for (tmp, path) in std::mem::take(&mut self.staged) {
-            std::fs::rename(&tmp, &path).map_err(|e| {
-                let _ = std::fs::remove_file(&tmp);
-                format!("cannot write {}: {e}", path.display())
-            })?;
-        }
-        Ok(())
-    }
-}
-
-impl Drop for Outputs {
-    fn drop(&mut self) {
-        for (tmp, _) in &self.staged {
-            let _ = std::fs::remove_file(tmp);
-        }
     }
 }
 
@@ -225,35 +186,13 @@ mod tests {
             .contains("not a finite"));
         assert!(Table::parse("").is_err());
         assert!(back.column("y").unwrap_err().contains("no column `y`"));
-    }
-
-    #[test]
-    fn outputs_are_all_or_nothing() {
-        let dir = tempfile::tempdir().unwrap();
-        let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
-        let listing = || std::fs::read_dir(dir.path()).unwrap().count();
-        // The second output fails: the first is not left behind.
-        let mut outputs = Outputs::default();
-        outputs.write(&a, |tmp| write_atomic(tmp, "x")).unwrap();
-        let e = outputs
-            .write(&b, |tmp| {
-                std::fs::write(tmp, "partial").unwrap();
-                Err(format!("cannot plot to {}", tmp.display()))
-            })
-            .unwrap_err();
-        assert_eq!(e, format!("cannot plot to {}", b.display()));
-        drop(outputs);
-        assert_eq!(listing(), 0);
-        // Both succeed: both are in place, nothing else.
-        let mut outputs = Outputs::default();
-        outputs.write(&a, |tmp| write_atomic(tmp, "x")).unwrap();
-        outputs.write(&b, |tmp| write_atomic(tmp, "y")).unwrap();
-        outputs.commit().unwrap();
-        assert_eq!(std::fs::read_to_string(&b).unwrap(), "y");
-        assert_eq!(listing(), 2);
-        // A directory is refused before anything is written.
-        let mut outputs = Outputs::default();
-        let e = outputs.write(dir.path(), |_| Ok(())).unwrap_err();
-        assert!(e.contains("is a directory"), "{e}");
+        // A byte-order mark is skipped; a huge header is quoted in part.
+        let bom = Table::parse("\u{feff}t,u\n0,1\n").unwrap();
+        assert_eq!(bom.columns, ["t", "u"]);
+        let wide = Table::parse(&format!("{}\n", "\0".repeat(100_000))).unwrap();
+        let e = wide.column("t").unwrap_err();
+        assert!(e.len() < 6 * SHOWN_CHARS && e.ends_with("...)"), "{e}");
+        let e = Table::parse(&format!("t\n{}\n", "x".repeat(100_000))).unwrap_err();
+        assert!(e.len() < 2 * SHOWN_CHARS, "{e}");
     }
 }

@@ -1,5 +1,6 @@
 //! The generator's entry point: a builder that turns scene files into Rust
-//! modules, all or nothing, writing only files whose content changed. Each
+//! modules, all or nothing ([`crate::files`]), writing only files whose
+//! content changed. Each
 //! scene goes through the stages in order: load, model, reduce, derive,
 //! prune, then schedule and emit ([`generate_scene`]); [`Model`] offers the
 //! first stages to callers that want the symbolic model itself.
@@ -18,12 +19,14 @@ use std::time::{Duration, Instant};
 
 use quote::quote;
 
+use crate::checks::{energy_signs, f32_literals, largest_component};
 use crate::derive::{derive, Equations};
 use crate::emit::{emit, struct_name, CoefficientPerturbation, FunctionReport};
 use crate::emit_c::CInterface;
 use crate::error::{Error, Source};
+use crate::files::OutputFiles;
 use crate::load::{load, resolve, LoadedScene};
-use crate::model::{build, Model, Precision};
+use crate::model::{build, overflow_message, Model, Precision};
 use crate::prune::prune;
 use crate::reduce;
 use crate::resolution::{stiffness_spread, F32_MAX_STIFFNESS_SPREAD};
@@ -58,15 +61,27 @@ impl Model {
 
     /// Stages 4 and 5: the equations of motion, derived and, when the scene
     /// asks for it, pruned. Adds the derived terms to [`Model::graph`].
+    ///
+    /// Refuses a derivation whose constants overflow `f64` (naming the
+    /// component with the largest constant) and `energy` components whose
+    /// kinetic energy or dissipation decreases along a velocity.
     pub fn equations(&mut self) -> Result<Equations, Error> {
-        let mut eq = derive(self).map_err(|e| {
-            Error::unplaced(
-                self.sources.first().cloned().unwrap_or_default(),
-                Some(&e.context),
-                e.message,
-            )
-        })?;
+        let file = self.sources.first().cloned().unwrap_or_default();
+        let error = |context: &str, message: String| Error::unplaced(&file, Some(context), message);
+        let mut eq = derive(self).map_err(|e| error(&e.context, e.message))?;
         prune(self, &mut eq);
+        if self.graph.take_overflow() {
+            let what = match largest_component(self) {
+                Some((c, k)) => format!(
+                    "deriving the equations of motion (the largest constant, {k:e}, is component \
+                     `{}`'s)",
+                    c.name
+                ),
+                None => "deriving the equations of motion".to_owned(),
+            };
+            return Err(error("the equations of motion", overflow_message(&what)));
+        }
+        energy_signs(self).map_err(|f| error(&f.context, f.message))?;
         Ok(eq)
     }
 }
@@ -193,6 +208,10 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
     }
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
     let functions = functions(&model, &eq);
+    if model.precision == Precision::F32 {
+        f32_literals(&model.graph, &functions)
+            .map_err(|f| Error::unplaced(path.to_path_buf(), Some(&f.context), f.message))?;
+    }
     let c = options
         .c_interface
         .then(|| CInterface::new(&model, &functions));
@@ -519,33 +538,27 @@ impl Builder {
                 .map_err(|message| Error::unplaced(PathBuf::from(&index.file), None, message))?;
             outputs.push((out_dir.join(&index.file), text));
         }
-        let io = |p: &Path, e: std::io::Error| {
-            Error::unplaced(p.to_path_buf(), None, format!("cannot write: {e}"))
-        };
-        std::fs::create_dir_all(&out_dir).map_err(|e| io(&out_dir, e))?;
+        std::fs::create_dir_all(&out_dir).map_err(|e| {
+            Error::unplaced(
+                out_dir.clone(),
+                None,
+                format!("cannot create the directory: {e}"),
+            )
+        })?;
+        // All or nothing, and only the files whose content changed.
+        let io = |message: String| Error::unplaced(out_dir.clone(), None, message);
+        let mut files = OutputFiles::default();
         let mut written = Vec::new();
         for (path, text) in outputs {
-            if write_if_changed(&path, &text).map_err(|e| io(&path, e))? {
-                written.push(path);
+            if std::fs::read(&path).is_ok_and(|old| old == text.as_bytes()) {
+                continue;
             }
+            files.write_text(&path, &text).map_err(io)?;
+            written.push(path);
         }
+        files.commit().map_err(io)?;
         Ok(Report { scenes, written })
     }
-}
-
-/// Write `text` to `path` unless it already holds exactly that; the write goes
-/// through a temporary file and a rename, so readers never see half a file.
-/// Returns whether the file was written.
-pub fn write_if_changed(path: &Path, text: &str) -> std::io::Result<bool> {
-    if std::fs::read(path).is_ok_and(|old| old == text.as_bytes()) {
-        return Ok(false);
-    }
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(&tmp, path)?;
-    Ok(true)
 }
 
 fn index_source(scenes: &[Generated], index: &Index) -> Result<String, String> {

@@ -38,7 +38,7 @@
 use std::fmt;
 
 use crate::expr::{Graph, Id, Symbol};
-use crate::model::{Body, Component, Model};
+use crate::model::{Body, Component, Coordinate, Model};
 
 /// A matrix of graph nodes, as rows.
 pub type Matrix = Vec<Vec<Id>>;
@@ -157,6 +157,13 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
             mass[i][j] = m;
             mass[j][i] = m;
         }
+    }
+    let entries: Vec<Id> = mass.iter().flatten().copied().collect();
+    if g.symbols(&entries)
+        .iter()
+        .any(|s| matches!(s, Symbol::Qd(_)))
+    {
+        return Err(not_quadratic(g, &model.components, &model.coordinates));
     }
     let potential_forces = g.gradient(potential_energy, &q_vars);
     let damping_forces = g.gradient(dissipation, &qd_vars);
@@ -428,6 +435,50 @@ pub(crate) fn christoffel(g: &mut Graph, mass: &[Vec<Id>]) -> Vec<Vec<Id>> {
                 .collect()
         })
         .collect()
+}
+
+/// The error for a mass matrix that depends on velocities: the first
+/// component whose kinetic energy has a second derivative in two velocities
+/// that does (the generated `mass_matrix` has no velocities to read).
+fn not_quadratic(
+    g: &mut Graph,
+    components: &[Component],
+    coordinates: &[Coordinate],
+) -> DeriveError {
+    for c in components {
+        let velocities: Vec<u32> = g
+            .symbols(&[c.kinetic])
+            .into_iter()
+            .filter_map(|s| match s {
+                Symbol::Qd(i) => Some(i),
+                _ => None,
+            })
+            .collect();
+        for &i in &velocities {
+            let di = g.diff(c.kinetic, Symbol::Qd(i));
+            for &j in &velocities {
+                let dij = g.diff(di, Symbol::Qd(j));
+                if uses_velocity(g, dij) {
+                    return DeriveError {
+                        context: format!("component `{}`", c.name),
+                        message: format!(
+                            "the kinetic energy is not quadratic in the velocities: its second \
+                             derivative in the velocities of `{}` and `{}` (an entry of the mass \
+                             matrix) depends on velocities; a kinetic energy has the form \
+                             qd.M(q, t).qd / 2 + b(q, t).qd + T0(q, t)",
+                            coordinates[i as usize].name, coordinates[j as usize].name
+                        ),
+                    };
+                }
+            }
+        }
+    }
+    DeriveError {
+        context: "kinetic energy".into(),
+        message: "the kinetic energy is not quadratic in the velocities (the mass matrix \
+                  depends on them)"
+            .into(),
+    }
 }
 
 /// The Christoffel form needs `T = qd^T M(q) qd / 2`: no explicit time, no

@@ -12,7 +12,9 @@
 //! 3. `reduce`: a derived scene's reductions (modes dropped, coordinates
 //!    frozen);
 //! 4. `derive`: Lagrange's equations ([`Equations`]);
-//! 5. `prune`: negligible summands dropped where the scene asks for it; an
+//! 5. `prune`: negligible summands dropped where the scene asks for it;
+//!    `checks` refuses a derivation whose constants overflow `f64` and
+//!    `energy` components with a negative mass or dissipation; an
 //!    `f32` module is refused where `resolution` finds a stiffness spread
 //!    beyond f32's resolution (unless [`Builder::allow_unresolved_f32`]);
 //! 6. `schedule`: the table of emitted functions ([`interpret::Function`]:
@@ -33,7 +35,8 @@
 //! Each stage imports only from earlier ones. `export` writes a model's
 //! symbolic inputs as JSON ([`export_json`]); `import` writes scene text
 //! from a URDF robot description ([`import_urdf`]), which is then loaded
-//! like any scene.
+//! like any scene; `files` writes outputs all or nothing, devices and FIFOs
+//! through ([`OutputFiles`]).
 //!
 //! The public API is the builder and its results, the symbolic model of a
 //! scene ([`Model::load`], [`Model::equations`]; the types of its fields,
@@ -43,6 +46,7 @@
 //! and errors with their position ([`Error`], [`Source`]).
 
 mod builder;
+mod checks;
 mod derive;
 mod emit;
 mod emit_c;
@@ -50,8 +54,10 @@ mod error;
 mod export;
 mod expr;
 mod fem;
+mod files;
 mod geometry;
 mod import;
+mod inertia;
 pub mod interpret;
 mod load;
 mod model;
@@ -63,12 +69,13 @@ mod schedule;
 mod tests;
 mod time_function;
 
-pub use builder::{generate_scene, write_if_changed, Builder, Generated, Report};
+pub use builder::{generate_scene, Builder, Generated, Report};
 pub use derive::Equations;
 pub use emit::FunctionReport;
 pub use error::{Error, Source};
 pub use export::export_json;
 pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
+pub use files::{check_output, read_limited, write_atomic, OutputFiles};
 pub use import::{import_urdf, UrdfOptions};
 pub use model::{
     Actuator, Body, Component, Constraint, Coordinate, FlexibleLink, Model, Outputs, Precision,

@@ -211,10 +211,11 @@ pub enum ErrorKind {
         /// name the offending mode and the largest step that could be stable
         /// (`limit / rate`). Within a step (adaptive RK4) it is `value / dt`
         /// from the stages, which see only the modes the state excites;
-        /// [`crate::Rk4`] and [`crate::SemiImplicitEuler`] refine it by a
-        /// bounded power iteration on the model linearised at the state,
-        /// which finds the fastest mode even when it is not excited. `None`
-        /// for the `max_step` check.
+        /// [`crate::Rk4`] and [`crate::SemiImplicitEuler`] take the larger
+        /// of it and a bounded power iteration's on the model linearised at
+        /// the state, which finds the fastest mode even when it is not
+        /// excited, and report `value = dt * rate` from that one number.
+        /// `None` for the `max_step` check.
         rate: Option<f64>,
     },
     /// The adaptive integrator would need a step below its minimum step size.
@@ -565,11 +566,29 @@ impl fmt::Display for ErrorKind {
     }
 }
 
+/// A time (or any number) as messages print it: in plain decimal between
+/// `1e-4` and `1e9` (and zero), in exponent form elsewhere, so that a time
+/// of `1e300` is 6 characters, not 301 digits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Time(pub f64);
+
+impl fmt::Display for Time {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let size = self.0.abs();
+        if size == 0.0 || (1e-4..1e9).contains(&size) || !size.is_finite() {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let t = Time(self.t);
         match self.stage {
-            Some(stage) => write!(f, "at t = {} s: {}: {}", self.t, stage, self.kind),
-            None => write!(f, "at t = {} s: {}", self.t, self.kind),
+            Some(stage) => write!(f, "at t = {} s: {}: {}", t, stage, self.kind),
+            None => write!(f, "at t = {} s: {}", t, self.kind),
         }
     }
 }

@@ -42,7 +42,7 @@ mod scalar;
 mod state;
 
 pub use dynamics::{accelerations, Accelerations, Baumgarte, DynamicsConfig};
-pub use error::{Error, ErrorKind, Quantity, Stage, GAUSS_LEGENDRE_CONTRACTION_LIMIT};
+pub use error::{Error, ErrorKind, Quantity, Stage, Time, GAUSS_LEGENDRE_CONTRACTION_LIMIT};
 pub use input::{FromFn, Input, Linear};
 pub use integrate::{
     run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GaussLegendre4, GeneralizedAlpha,

@@ -698,3 +698,19 @@ fn invalid_configuration() {
         "{e}"
     );
 }
+
+#[test]
+fn times_are_printed_with_bounded_digits() {
+    for (t, shown) in [
+        (0.0, "0"),
+        (0.5, "0.5"),
+        (4.5, "4.5"),
+        (1e300, "1e300"),
+        (-2.5e-7, "-2.5e-7"),
+        (f64::MAX, "1.7976931348623157e308"),
+    ] {
+        assert_eq!(std::format!("{}", flexdyn_runtime::Time(t)), shown);
+    }
+    let e = Error::new(ErrorKind::InvalidStepSize { dt: 0.0 }, 1e300);
+    assert_eq!(std::format!("{e}"), "at t = 1e300 s: invalid step size 0e0");
+}

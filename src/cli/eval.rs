@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use crate::dynamic::DynModel;
 use crate::eval::{check_state, evaluate, States};
-use crate::table::write_atomic;
+use crate::table::{read_input, write_atomic};
 
 /// Evaluate every generated term of a scene at states read from
 /// JSON (`{"states": [{"q": [..], "qd": [..], "t": 0.0}]}`) and write them
@@ -144,8 +144,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         }
     };
     let mut model = fresh(&parsed.name)?;
-    let text = std::fs::read_to_string(&args.states)
-        .map_err(|e| format!("cannot read {}: {e}", args.states.display()))?;
+    let text = read_input(&args.states, "states file")?;
     let input: States =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", args.states.display()))?;
     let mut results = Vec::with_capacity(input.states.len());

@@ -7,6 +7,7 @@
 use std::path::PathBuf;
 
 use crate::codegen::{import_urdf, Model, Source, UrdfOptions};
+use crate::table::read_input;
 
 /// Import a robot description from another format as a scene file.
 #[derive(Debug, clap::Args)]
@@ -41,8 +42,7 @@ pub struct UrdfArgs {
 /// Run the command.
 pub fn run(args: &Args) -> Result<(), String> {
     let Format::Urdf(args) = &args.format;
-    let text = std::fs::read_to_string(&args.urdf)
-        .map_err(|e| format!("cannot read {}: {e}", args.urdf.display()))?;
+    let text = read_input(&args.urdf, "URDF file")?;
     let options = UrdfOptions {
         fix: args.fix.clone(),
     };

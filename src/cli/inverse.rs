@@ -25,7 +25,7 @@ use crate::codegen::TimeFunction;
 use crate::inverse::{solve, FreeRates, Prescribed, Problem, Solution};
 use crate::sized::{with_padding, Padded, Sized, LADDER};
 use crate::spline::Spline;
-use crate::table::{Outputs, Table};
+use crate::table::{check_output, read_input, OutputFiles, Table};
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
 use flexdyn_runtime::Model;
 
@@ -69,14 +69,20 @@ pub struct Args {
     /// the constraints ask for).
     #[arg(long, value_enum, default_value_t = FreeRates::LeastEnergy)]
     pub free_rates: FreeRates,
-    /// Output CSV: `t`, the actuators, the coordinates, `lambda_<k>` for each
-    /// constraint `k`.
+    /// Output CSV: `t`, the actuators (an actuator named like a coordinate
+    /// as `tau_<name>`), the coordinates, `lambda_<k>` for each constraint
+    /// `k`.
     #[arg(long)]
     pub csv: PathBuf,
+    /// Nothing on stderr unless it fails, as `simulate --quiet` (the
+    /// command prints no notes of its own).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// Run the command on the scenes of `compiled`.
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
+    check_output(&args.csv)?;
     let scene = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
     let times = output_times(args.duration, args.dt)?;
     let prescribed = prescriptions(
@@ -124,7 +130,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         row.extend(&solution.lambda[k]);
         table.push(row);
     }
-    let mut outputs = Outputs::default();
+    let mut outputs = OutputFiles::default();
     outputs.write(&args.csv, |path| table.write(path))?;
     outputs.commit()
 }
@@ -183,8 +189,7 @@ pub fn prescriptions(
     let mut texts = BTreeMap::<String, (Source, String)>::new();
     if let Some(path) = motion {
         let where_ = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read motion file {where_}: {e}"))?;
+        let text = read_input(path, "motion file")?;
         let file: toml::Table = text
             .parse()
             .map_err(|e| format!("motion file {where_}: {e}"))?;
@@ -253,8 +258,7 @@ pub fn prescriptions(
 
 /// `q` of a state file in the `eval` format, checked against the scene.
 fn initial_guess(path: &Path, nq: usize) -> Result<Vec<f64>, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let text = read_input(path, "state file")?;
     let state: crate::eval::State =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     if state.q.len() != nq || state.q.iter().any(|x| !x.is_finite()) {
@@ -280,11 +284,24 @@ struct Job {
 
 impl Job {
     /// The CSV's columns.
+    /// `t`, the actuators, the coordinates, the multipliers: unique names,
+    /// an actuator named like a coordinate or a multiplier (a URDF import
+    /// names both after the joint) as `tau_<name>` (prefixed again while
+    /// that is taken too).
     fn columns(&self) -> Vec<String> {
+        let others: Vec<String> = std::iter::once("t".to_owned())
+            .chain(self.coordinates.iter().cloned())
+            .chain((0..self.constraints.len()).map(|k| format!("lambda_{k}")))
+            .collect();
         let mut columns = vec!["t".to_owned()];
-        columns.extend(self.actuators.iter().cloned());
-        columns.extend(self.coordinates.iter().cloned());
-        columns.extend((0..self.constraints.len()).map(|k| format!("lambda_{k}")));
+        for a in &self.actuators {
+            let mut name = a.clone();
+            while others.contains(&name) || columns.contains(&name) {
+                name = format!("tau_{name}");
+            }
+            columns.push(name);
+        }
+        columns.extend(others.into_iter().skip(1));
         columns
     }
 }

@@ -18,7 +18,7 @@ use flexdyn_runtime::control::{Feedback, JointPd, Target};
 use flexdyn_runtime::{
     project, AdaptiveRk4, ErrorKind, FromFn, GaussLegendre4, GeneralizedAlpha,
     GeneralizedAlphaConfig, Integrator, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State,
-    StepSettings,
+    StepSettings, Time,
 };
 use nalgebra::SVector;
 
@@ -29,7 +29,7 @@ use crate::eval::check_state;
 use crate::plot::{line_plot, Labels, Series};
 use crate::progress::Progress;
 use crate::sized::{with_padding, Padded, Sized};
-use crate::table::{Outputs, Table};
+use crate::table::{check_output, read_input, OutputFiles, Table};
 
 /// The integrators `--integrator` accepts.
 pub const INTEGRATORS: [&str; 5] = [
@@ -180,6 +180,11 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
             args.tolerance
         ));
     }
+    // The outputs' directories before the run, not after it.
+    check_output(&args.csv)?;
+    if let Some(plot) = &args.plot {
+        check_output(plot)?;
+    }
     let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
     let mut model = compiled.load(&args.scene, &parsed.name, args.interpret)?;
     let state = initial_state(args, &parsed, model.as_mut())?;
@@ -206,7 +211,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         quiet: args.quiet,
     };
     let table = with_padding(model, setup)??;
-    let mut outputs = Outputs::default();
+    let mut outputs = OutputFiles::default();
     outputs.write(&args.csv, |tmp| table.write(tmp))?;
     if let Some(plot) = &args.plot {
         let series: Vec<Series> = plotted
@@ -254,8 +259,7 @@ fn initial_state(
             params: Default::default(),
         });
     };
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let text = read_input(path, "state file")?;
     let s: crate::eval::State =
         serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     check_state(model, &s, 0).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -331,6 +335,13 @@ fn drives(
         let table = Table::read(path)?;
         let file = path.display();
         let t = table.times(path)?;
+        if table.columns.len() == 1 {
+            return Err(format!(
+                "{file}: no column besides `t`: give one per actuator driven (actuators: {}) \
+                 or per coordinate targeted",
+                list(&actuators)
+            ));
+        }
         for name in table.columns.iter().filter(|c| *c != "t") {
             let v = table.column(name)?;
             let signal = Signal::Column { t: t.clone(), v };
@@ -619,7 +630,11 @@ impl Run<'_> {
                         .unwrap_or_default(),
                     _ => String::new(),
                 };
-                format!("step {k} (t = {} s, dt = {h} s): {e}{hint}", state.t)
+                format!(
+                    "step {k} (t = {} s, dt = {} s): {e}{hint}",
+                    Time(state.t),
+                    Time(h)
+                )
             })?;
             state.t = end;
             table.push(self.row(&state));

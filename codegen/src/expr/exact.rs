@@ -71,9 +71,10 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
 }
 
 /// `sum` set to zero when it is the round-off of cancelling parts whose
-/// magnitudes add up to `magnitude`.
+/// magnitudes add up to `magnitude`; a sum that is not finite is kept (an
+/// overflow, which the graph records, is not a cancellation).
 pub fn cancel(sum: f64, magnitude: f64) -> f64 {
-    if sum.abs() <= CANCEL_ULPS * f64::EPSILON * magnitude {
+    if sum.is_finite() && sum.abs() <= CANCEL_ULPS * f64::EPSILON * magnitude {
         0.0
     } else {
         sum

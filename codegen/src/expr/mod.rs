@@ -227,8 +227,9 @@ impl Graph {
             .flatten()
     }
 
-    /// Whether constant folding overflowed (a non-finite value was clamped)
-    /// since the last call; resets the flag.
+    /// Whether a constant overflowed (a non-finite value, folded or given
+    /// to [`Graph::constant`], was saturated) since the last call; resets
+    /// the flag.
     pub fn take_overflow(&mut self) -> bool {
         std::mem::take(&mut self.overflow)
     }
@@ -246,11 +247,16 @@ impl Graph {
         self.as_const(id) == Some(value)
     }
 
-    /// A constant. Non-finite values are not representable: callers check
-    /// finiteness first ([`Graph::try_constant`]).
+    /// A constant. Non-finite values are not representable: one is
+    /// saturated like an overflowing fold (NaN to 0) and recorded in the
+    /// overflow flag, which the stages check after each component,
+    /// constraint and derivation ([`Graph::take_overflow`]); callers that
+    /// report the value itself use [`Graph::try_constant`].
     pub fn constant(&mut self, value: f64) -> Id {
-        self.try_constant(value)
-            .expect("non-finite constant in expression graph")
+        if !value.is_finite() {
+            self.overflow = true;
+        }
+        self.intern(Node::Const(Real::new(clamp_finite(value))))
     }
 
     /// A constant, or `None` when `value` is not finite.
@@ -338,7 +344,8 @@ impl Graph {
         if !constant.is_finite() || merged.iter().any(|(_, c)| !c.is_finite()) {
             // Overflow while folding: keep the operation unfolded is not
             // possible in canonical form, so saturate to the largest finite
-            // value. Scene validation rejects such inputs before this point.
+            // value and record it: the stages refuse the scene, naming the
+            // component, constraint or derivation ([`Graph::take_overflow`]).
             self.overflow = true;
             constant = clamp_finite(constant);
             for (_, c) in merged.iter_mut() {

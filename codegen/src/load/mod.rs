@@ -15,8 +15,9 @@ use std::path::Path;
 use toml::Spanned;
 
 use crate::error::{Error, Source};
+use crate::files::read_limited;
 use parse::RESERVED;
-use scene::{parse_scene_file, DerivedSceneDef, SceneDef, SceneFile};
+use scene::{parse_scene_file, DerivedSceneDef, SceneDef, SceneFile, MAX_SCENE_BYTES};
 
 /// A scene file read and resolved.
 #[derive(Debug, Clone)]
@@ -31,13 +32,8 @@ pub struct LoadedScene {
 
 /// Read a scene file.
 pub fn load(path: &Path) -> Result<LoadedScene, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        Error::unplaced(
-            path.to_path_buf(),
-            None,
-            format!("cannot read scene file: {e}"),
-        )
-    })?;
+    let text = read_limited(path, MAX_SCENE_BYTES as u64, "scene file")
+        .map_err(|e| Error::unplaced(path.to_path_buf(), None, e))?;
     resolve(Source::new(path, text))
 }
 
@@ -76,11 +72,11 @@ fn resolve_derived(source: Source, def: DerivedSceneDef) -> Result<LoadedScene, 
         ));
     }
     let path = source.path().with_file_name(base);
-    let text = std::fs::read_to_string(&path).map_err(|e| {
+    let text = read_limited(&path, MAX_SCENE_BYTES as u64, "base scene").map_err(|e| {
         source.error_at(
             def.base.span().start,
             None,
-            format!("cannot read base scene {}: {e}", path.display()),
+            format!("{}: {e}", path.display()),
         )
     })?;
     let base_source = Source::new(&path, text);

@@ -18,6 +18,16 @@ impl Context<'_> {
         let mut actuators = Vec::new();
         for a in &def.actuators {
             check_ident(self.source, &a.name, "actuator")?;
+            if actuators
+                .iter()
+                .any(|b: &Actuator| b.name == *a.name.get_ref())
+            {
+                return Err(self.err(
+                    a.name.span().start,
+                    Some(&format!("actuator `{}`", a.name.get_ref())),
+                    "an actuator of this name is declared above (inputs are given by name)",
+                ));
+            }
             let Some(coordinate) = coordinates
                 .iter()
                 .position(|c| c.name == *a.coordinate.get_ref())

@@ -15,7 +15,11 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
     let mut coordinates = cx.coordinates(def)?;
     let runtime_parameters = cx.parameters(def)?;
     cx.gravity = match &def.gravity {
-        Some(v) => cx.vector(v, None, false)?,
+        Some(v) => {
+            let g = cx.vector(v, None, false)?;
+            cx.check_overflow(v.span().start, None, "gravity")?;
+            g
+        }
         None => {
             let zero = cx.graph.constant(0.0);
             let g = cx.graph.constant(-9.81);
@@ -31,6 +35,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         if components::adds_coordinates(c) {
             let mut read = components::read(&cx, i, c)?;
             read.value.prepare(&mut cx, &mut coordinates, &read.ctx)?;
+            cx.check_overflow(c.kind.span().start, Some(&read.ctx), "the component")?;
             cx.flexible.extend(read.value.flexible_link().cloned());
             early.push(Some(read));
         } else {
@@ -44,7 +49,23 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
             Some(read) => read,
             None => components::read(&cx, i, c)?,
         };
+        if component_energies
+            .iter()
+            .any(|e: &Component| e.name == read.name)
+        {
+            let at = c
+                .name
+                .as_ref()
+                .map_or(c.kind.span().start, |n| n.span().start);
+            return Err(cx.err(
+                at,
+                Some(&read.ctx),
+                "a component of this name is declared above (components are named in \
+                 messages, reductions and exports)",
+            ));
+        }
         let terms = read.value.energies(&mut cx, &read.ctx)?;
+        cx.check_overflow(c.kind.span().start, Some(&read.ctx), "the component")?;
         let [kinetic, potential, dissipation] = terms.energies;
         component_energies.push(Component {
             name: read.name,

@@ -96,6 +96,7 @@ impl Context<'_> {
                 }
             }
             let residual = self.scalar(expression, Some(&ctx), false)?;
+            self.check_overflow(expression.span().start, Some(&ctx), "the constraint")?;
             out.push(Constraint { name, residual });
             return Ok(());
         };
@@ -120,16 +121,28 @@ impl Context<'_> {
                 ))
             }
         };
-        let (Some(a), Some(b)) = (&c.a, &c.b) else {
-            let missing = if c.a.is_none() { "a" } else { "b" };
-            return Err(self.err(
+        let needs = |missing: &str| {
+            self.err(
                 kind.span().start,
                 Some(&ctx),
                 format!("a `{}` constraint needs `{missing}`", kind.get_ref()),
-            ));
+            )
+        };
+        let Some(a) = &c.a else {
+            return Err(needs("a"));
+        };
+        // A `coincident` constraint's `b` defaults to the world's origin; a
+        // `perpendicular` one needs a direction at both ends.
+        let b = match (&c.b, point) {
+            (Some(b), _) => Some(b),
+            (None, true) => None,
+            (None, false) => return Err(needs("b")),
         };
         let pa = self.constraint_end(a, &ctx, point)?;
-        let pb = self.constraint_end(b, &ctx, point)?;
+        let pb = match b {
+            Some(b) => self.constraint_end(b, &ctx, point)?,
+            None => self.graph.world_frame().origin,
+        };
         if point {
             for (k, axis) in ["x", "y", "z"].iter().enumerate() {
                 let residual = self.graph.sub(pa[k], pb[k]);
@@ -142,6 +155,6 @@ impl Context<'_> {
             let residual = self.graph.dot(pa, pb);
             out.push(Constraint { name, residual });
         }
-        Ok(())
+        self.check_overflow(kind.span().start, Some(&ctx), "the constraint")
     }
 }

@@ -57,6 +57,22 @@ impl<'a> Context<'a> {
         self.source.error_at(offset, ctx, msg)
     }
 
+    /// An error at byte `offset` when a constant built since the last
+    /// check overflowed `f64` ([`Graph::take_overflow`]): `what` (a
+    /// component, a constraint, gravity) has a derived constant beyond
+    /// `f64`'s range.
+    pub(super) fn check_overflow(
+        &mut self,
+        offset: usize,
+        ctx: Option<&str>,
+        what: &str,
+    ) -> Result<(), Error> {
+        if !self.graph.take_overflow() {
+            return Ok(());
+        }
+        Err(self.err(offset, ctx, overflow_message(what)))
+    }
+
     /// Offset in the file of byte `offset` of the (decoded) text of the
     /// string whose token starts at `span_start`: skips the opening quotes,
     /// the newline a multi-line string drops after them, and escapes.
@@ -382,4 +398,14 @@ impl<'a> Context<'a> {
         let mgp = self.graph.mul(m, gp);
         self.graph.neg(mgp)
     }
+}
+
+/// What an overflowing constant of `what` means: the scene's numbers are
+/// beyond double precision, and the limit.
+pub(crate) fn overflow_message(what: &str) -> String {
+    format!(
+        "{what} gives a constant beyond f64's range (|x| <= {:e}) or not a number: the \
+         scene's numbers are too large or too small for double precision (choose other units)",
+        f64::MAX
+    )
 }

@@ -34,6 +34,7 @@ impl Context<'_> {
                 rotations.push((axis, angle));
             }
             let frame = self.graph.child_frame(&parent, translation, &rotations);
+            self.check_overflow(f.name.span().start, Some(&ctx), "the frame")?;
             self.frames.insert(f.name.get_ref().clone(), frame);
         }
         Ok(())

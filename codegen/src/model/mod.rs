@@ -31,6 +31,7 @@ use crate::expr::{Graph, Id};
 use crate::fem::{FeModel, Invariants, ModalBasis};
 
 pub(crate) use assemble::build;
+pub(crate) use context::overflow_message;
 
 /// A generalized coordinate.
 #[derive(Debug, Clone, PartialEq)]

@@ -16,7 +16,12 @@
 //! ```
 //!
 //! (100000 cases for each property). `FLEXDYN_FUZZ_SEED` (a
-//! number) picks another fixed seed. A failure prints the offending input.
+//! number) picks another fixed seed; `FLEXDYN_FUZZ_SEED=fresh` a new one
+//! from the clock, printed first (`fuzzing with FLEXDYN_FUZZ_SEED=N`) so
+//! that setting it replays the run. CI sets neither: a landing never depends
+//! on luck. A failure, a panic included, prints the offending input: the
+//! scene or URDF text itself, of the smallest failing case proptest's
+//! shrinking finds.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -25,7 +30,6 @@ use std::path::Path;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
 
-use crate::derive::derive;
 use crate::emit::emit;
 use crate::error::{Error, Source};
 use crate::expr::{Graph, Symbol};
@@ -43,15 +47,57 @@ fn cases() -> u32 {
     }
 }
 
-/// A runner with a fixed seed (varied by `FLEXDYN_FUZZ_SEED`, a number) and
-/// no failure files.
+/// The seed variation `FLEXDYN_FUZZ_SEED` asks for: a number, or `fresh`
+/// for a new one from the clock, printed first so that the run can be
+/// replayed with it (CI sets nothing: the fixed seed).
+fn seed_variation() -> Option<u64> {
+    let v = std::env::var("FLEXDYN_FUZZ_SEED").ok()?;
+    if v.trim() == "fresh" {
+        let clock = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64);
+        let fresh = clock ^ u64::from(std::process::id()).rotate_left(32);
+        eprintln!("fuzzing with FLEXDYN_FUZZ_SEED={fresh} (set it to replay this run)");
+        return Some(fresh);
+    }
+    Some(
+        v.trim()
+            .parse()
+            .unwrap_or_else(|_| panic!("FLEXDYN_FUZZ_SEED must be a number or `fresh`, not `{v}`")),
+    )
+}
+
+/// Runs `property` on the input `text` (a scene or URDF), turning a panic
+/// into a failure that prints the text, so that proptest's report (after
+/// shrinking, of the minimal failing case) shows the input itself, not
+/// only the value it was generated from.
+pub(super) fn showing(
+    text: &str,
+    property: impl FnOnce() -> Result<(), TestCaseError>,
+) -> Result<(), TestCaseError> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(property)) {
+        Ok(Err(TestCaseError::Fail(why))) => Err(TestCaseError::fail(format!(
+            "{why}\n--- failing input ---\n{text}\n---"
+        ))),
+        Ok(result) => result,
+        Err(panic) => {
+            let why = panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("a panic");
+            Err(TestCaseError::fail(format!(
+                "panicked: {why}\n--- failing input ---\n{text}\n---"
+            )))
+        }
+    }
+}
+
+/// A runner with a fixed seed (varied by `FLEXDYN_FUZZ_SEED`: a number, or
+/// `fresh`) and no failure files.
 pub(super) fn runner(property: u8) -> TestRunner {
     let mut seed = [property; 32];
-    if let Ok(v) = std::env::var("FLEXDYN_FUZZ_SEED") {
-        let extra: u64 = v
-            .trim()
-            .parse()
-            .unwrap_or_else(|_| panic!("FLEXDYN_FUZZ_SEED must be a number, not `{v}`"));
+    if let Some(extra) = seed_variation() {
         for (s, e) in seed.iter_mut().zip(extra.to_le_bytes()) {
             *s ^= e;
         }
@@ -498,17 +544,19 @@ fn mutated_scenes_never_panic_and_errors_are_located() {
     runner(9)
         .run(&input, |(scene, mutations)| {
             let text = mutate(scene, &mutations);
-            let (source, result) = load(&text);
-            if let Err(e) = result {
-                check_scene_error(&text, &e)?;
-                // An error from reading the TOML is the model's error too,
-                // and is always located.
-                if let Err(toml_error) = parse_scene_file(&source) {
-                    prop_assert_eq!(&toml_error, &e);
-                    prop_assert!(toml_error.line >= 1, "{}", toml_error);
+            showing(&text, || {
+                let (source, result) = load(&text);
+                if let Err(e) = result {
+                    check_scene_error(&text, &e)?;
+                    // An error from reading the TOML is the model's error too,
+                    // and is always located.
+                    if let Err(toml_error) = parse_scene_file(&source) {
+                        prop_assert_eq!(&toml_error, &e);
+                        prop_assert!(toml_error.line >= 1, "{}", toml_error);
+                    }
                 }
-            }
-            Ok(())
+                Ok(())
+            })
         })
         .unwrap();
 }
@@ -1065,25 +1113,27 @@ fn generated_scenes_never_panic_the_loader_or_the_generator() {
     runner(10)
         .run(&any::<u64>(), |seed| {
             let text = scene_document(&mut Gen::new(seed));
-            let (_, result) = load(&text);
-            match result {
-                Err(e) => check_scene_error(&text, &e)?,
-                Ok(mut model) => {
-                    accepted.set(accepted.get() + 1);
-                    // A scene the loader accepts is derived and emitted, or
-                    // refused with a message; never a panic.
-                    match derive(&mut model) {
-                        Ok(eq) => {
-                            let runtime = syn::parse_str("flexdyn_runtime").expect("a path");
-                            let functions = crate::schedule::functions(&model, &eq);
-                            let (emitted, _) = emit(&model, functions, &runtime, None);
-                            prop_assert!(!emitted.source.is_empty());
+            showing(&text, || {
+                let (_, result) = load(&text);
+                match result {
+                    Err(e) => check_scene_error(&text, &e)?,
+                    Ok(mut model) => {
+                        accepted.set(accepted.get() + 1);
+                        // A scene the loader accepts is derived and emitted,
+                        // or refused with a message; never a panic.
+                        match model.equations() {
+                            Ok(eq) => {
+                                let runtime = syn::parse_str("flexdyn_runtime").expect("a path");
+                                let functions = crate::schedule::functions(&model, &eq);
+                                let (emitted, _) = emit(&model, functions, &runtime, None);
+                                prop_assert!(!emitted.source.is_empty());
+                            }
+                            Err(e) => prop_assert!(!e.message.trim().is_empty()),
                         }
-                        Err(e) => prop_assert!(!e.message.trim().is_empty(), "{text}"),
                     }
                 }
-            }
-            Ok(())
+                Ok(())
+            })
         })
         .unwrap();
     // The generator must reach the derivation, not only the error paths.
@@ -1107,4 +1157,17 @@ fn unreadable_scene_files_are_errors_without_a_position() {
         assert_eq!((e.line, e.column), (0, 0), "{e}");
         assert!(e.message.starts_with("cannot read scene file"), "{e}");
     }
+}
+
+#[test]
+fn a_failing_case_prints_its_input() {
+    let text = "name = \"boom\"";
+    for e in [
+        showing(text, || panic!("non-finite constant")).unwrap_err(),
+        showing(text, || Err(TestCaseError::fail("refused"))).unwrap_err(),
+    ] {
+        let e = e.to_string();
+        assert!(e.contains("--- failing input ---\nname = \"boom\""), "{e}");
+    }
+    assert!(showing(text, || Ok(())).is_ok());
 }

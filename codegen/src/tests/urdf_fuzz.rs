@@ -9,7 +9,7 @@ use std::path::Path;
 
 use proptest::prelude::*;
 
-use super::parser_fuzz::{mutate, mutation, runner};
+use super::parser_fuzz::{mutate, mutation, runner, showing};
 use crate::error::Source;
 use crate::import::{import_urdf, UrdfOptions};
 use crate::model::Model;
@@ -76,20 +76,22 @@ fn mutated_urdf_never_panics_and_imports_load() {
     runner(21)
         .run(&input, |mutations| {
             let text = mutate(ROBOT, &mutations);
-            match import(&text) {
-                Ok(scene) => {
-                    let loaded =
-                        Model::from_source(&Source::new(Path::new("fuzz.toml"), scene.clone()));
-                    prop_assert!(loaded.is_ok(), "{:?}\n{}", loaded.err(), scene);
+            showing(&text, || {
+                match import(&text) {
+                    Ok(scene) => {
+                        let loaded =
+                            Model::from_source(&Source::new(Path::new("fuzz.toml"), scene.clone()));
+                        prop_assert!(loaded.is_ok(), "{:?}\n{}", loaded.err(), scene);
+                    }
+                    Err(e) => {
+                        prop_assert!(!e.message.trim().is_empty());
+                        prop_assert_eq!(e.file.as_path(), Path::new("fuzz.urdf"));
+                        let lines = text.split('\n').count();
+                        prop_assert!(e.line <= lines, "line past the end: {}", e);
+                    }
                 }
-                Err(e) => {
-                    prop_assert!(!e.message.trim().is_empty());
-                    prop_assert_eq!(e.file.as_path(), Path::new("fuzz.urdf"));
-                    let lines = text.split('\n').count();
-                    prop_assert!(e.line <= lines, "line past the end: {}", e);
-                }
-            }
-            Ok(())
+                Ok(())
+            })
         })
         .unwrap();
 }

@@ -34,8 +34,10 @@ const A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
 /// stage error by `(omega dt)^2 / 12` (the eigenvalues of the Butcher matrix
 /// have `|lambda|^2 = 1/12`), so the iteration contracts only for
 /// `dt * omega < sqrt(12)` ([`crate::GAUSS_LEGENDRE_CONTRACTION_LIMIT`]).
-/// When the scaled increment grows in two sweeps in a row, or a stage value
-/// becomes non-finite (checked before any model call sees it), the step
+/// When the scaled increment grows in two sweeps in a row, a stage value
+/// becomes non-finite (checked before any model call sees it), or the model
+/// cannot be evaluated at the stage values after a sweep whose increment
+/// grew (a mass matrix no longer positive definite), the step
 /// fails at once with [`ErrorKind::StageIterationFailed`] marked
 /// `diverged`, naming the step, the fastest mode of the model linearised at
 /// the state (power iteration, as [`super::Rk4`] does on refusal) and a step
@@ -138,8 +140,15 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
                 if !all_finite(&qi) || !all_finite(&vel[i]) {
                     return Err(failed(iterations, T::INFINITY, true));
                 }
-                new[i] = qdd_at(model, dyn_cfg, &qi, &vel[i], t + T::of(C[i]) * h, input)
-                    .map_err(in_sweep(iterations))?;
+                new[i] = match qdd_at(model, dyn_cfg, &qi, &vel[i], t + T::of(C[i]) * h, input) {
+                    Ok(a) => a,
+                    // A growing iteration that reaches stage values the
+                    // model cannot evaluate (a mass matrix no longer
+                    // positive definite) has diverged: say so, with the
+                    // fastest mode and a step that converges.
+                    Err(_) if growing >= 1 => return Err(failed(iterations, err, true)),
+                    Err(e) => return Err(in_sweep(iterations)(e)),
+                };
             }
             let previous = err;
             err = T::zero();

@@ -309,10 +309,13 @@ where
 }
 
 /// A stability refusal ([`ErrorKind::StepTooLarge`] with a rate) or a
-/// diverged Gauss–Legendre stage iteration, with its rate replaced by the
-/// fastest mode of the model linearised at `s` ([`spectral_radius`]): the
-/// stages see only the modes the state excites (and, far beyond the limit,
-/// their estimate is no longer accurate). Other errors pass unchanged.
+/// diverged Gauss–Legendre stage iteration, naming the fastest mode of the
+/// model linearised at `s` ([`spectral_radius`]): the stages see only the
+/// modes the state excites (and, far beyond the limit, their estimate is no
+/// longer accurate). A refusal keeps the larger of the two rates, and its
+/// `value` becomes `dt` times that rate, so that the reported `dt * rho(J)`
+/// and the suggested step `limit / rate` come from one number (and that
+/// step satisfies both estimates). Other errors pass unchanged.
 pub(crate) fn name_fastest_mode<
     M,
     I,
@@ -331,20 +334,24 @@ where
     M: Model<NQ, NC, NU, T>,
     I: Input<NU, T> + ?Sized,
 {
-    let rate = match &mut e.kind {
-        ErrorKind::StepTooLarge { rate: Some(r), .. } => r,
+    match &mut e.kind {
+        ErrorKind::StepTooLarge {
+            dt,
+            value,
+            rate: Some(rate),
+            ..
+        } => {
+            if let Some(rho) = spectral_radius(model, dynamics, s, input) {
+                *rate = rate.max(rho.into());
+                *value = *dt * *rate;
+            }
+        }
         ErrorKind::StageIterationFailed {
             diverged: true,
             rate,
             ..
-        } => {
-            *rate = spectral_radius(model, dynamics, s, input).map(Into::into);
-            return e;
-        }
-        _ => return e,
-    };
-    if let Some(rho) = spectral_radius(model, dynamics, s, input) {
-        *rate = rho.into();
+        } => *rate = spectral_radius(model, dynamics, s, input).map(Into::into),
+        _ => {}
     }
     e
 }

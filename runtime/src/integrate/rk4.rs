@@ -235,6 +235,71 @@ mod tests {
         }
     }
 
+    /// Two uncoupled oscillators, `x_k'' = -w_k^2 x_k`.
+    struct TwoOscillators {
+        w: [f64; 2],
+    }
+
+    impl Model<2, 0, 0> for TwoOscillators {
+        const NAME: &'static str = "two_oscillators";
+        const COORDINATES: [&'static str; 2] = ["x1", "x2"];
+        const ACTUATORS: [&'static str; 0] = [];
+        fn mass_matrix(&self, _: &SVector<f64, 2>, _: f64, m: &mut SMatrix<f64, 2, 2>) {
+            *m = SMatrix::identity();
+        }
+        fn bias(&self, q: &SVector<f64, 2>, _: &SVector<f64, 2>, _: f64, h: &mut SVector<f64, 2>) {
+            *h = SVector::from([self.w[0].powi(2) * q[0], self.w[1].powi(2) * q[1]]);
+        }
+        fn constraints(&self, _: &SVector<f64, 2>, _: f64, _: &mut SVector<f64, 0>) {}
+        fn constraint_jacobian(&self, _: &SVector<f64, 2>, _: f64, _: &mut SMatrix<f64, 0, 2>) {}
+        fn constraint_time_derivative(&self, _: &SVector<f64, 2>, _: f64, _: &mut SVector<f64, 0>) {
+        }
+        fn constraint_rhs(
+            &self,
+            _: &SVector<f64, 2>,
+            _: &SVector<f64, 2>,
+            _: f64,
+            _: &mut SVector<f64, 0>,
+        ) {
+        }
+        fn actuator_map(&self, _: &mut SMatrix<f64, 2, 0>) {}
+        fn kinetic_energy(&self, _: &SVector<f64, 2>, qd: &SVector<f64, 2>, _: f64) -> f64 {
+            0.5 * qd.norm_squared()
+        }
+        fn potential_energy(&self, q: &SVector<f64, 2>, _: f64) -> f64 {
+            0.5 * (self.w[0].powi(2) * q[0].powi(2) + self.w[1].powi(2) * q[1].powi(2))
+        }
+    }
+
+    #[test]
+    fn a_refusal_reports_one_rate_for_the_product_and_the_stable_step() {
+        // The state excites only the 3000 rad/s mode (dt w = 3 > 2.8, so the
+        // stages refuse the step); the power iteration finds the 6000 rad/s
+        // one. The message's dt * rho(J) and its stable step come from the
+        // same (larger) rate: 6.0 and 2.8 / 6000 = 4.667e-4 s.
+        let model = TwoOscillators {
+            w: [3000.0, 6000.0],
+        };
+        let mut s = State::new(SVector::from([1e-3, 0.0]), SVector::from([0.5, 0.0]), 0.0);
+        let e = Rk4::default()
+            .step(&model, &mut s, &SVector::<f64, 0>::zeros(), 1e-3)
+            .unwrap_err();
+        let ErrorKind::StepTooLarge {
+            value,
+            rate: Some(rate),
+            ..
+        } = e.kind
+        else {
+            panic!("expected the stability check, got {e}");
+        };
+        assert!((rate / 6000.0 - 1.0).abs() < 1e-6, "{rate}");
+        assert_eq!(value, 1e-3 * rate);
+        let msg = std::format!("{e}");
+        for part in ["dt * rho(J) = 6.000e0", "6.000e3 rad/s", "4.667e-4 s"] {
+            assert!(msg.contains(part), "`{part}` not in: {msg}");
+        }
+    }
+
     #[test]
     fn refused_step_names_the_fastest_mode() {
         // 1 kHz oscillator (w = 2 pi 1000 rad/s) at 1 ms: dt w = 6.28 > 2.8.

@@ -125,6 +125,14 @@ pub fn import_urdf(source: &Source, options: &UrdfOptions) -> Result<String, Err
     }
     let (links, joints) = read_robot(source, robot, options)?;
     let tree = Tree::new(source, robot, &links, &joints)?;
+    if !tree.order.iter().any(|&j| Tree::moves(&joints, j)) {
+        return Err(at(
+            source,
+            robot,
+            "the robot has no moving joint (revolute, continuous or prismatic, not fixed by \
+             --fix): a scene needs at least one coordinate",
+        ));
+    }
     Ok(write_scene(source, robot, &links, &joints, &tree))
 }
 

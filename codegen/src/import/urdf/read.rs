@@ -5,6 +5,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use super::tree::tensor;
 use super::{at, Inertial, Joint, Kind, Link, Origin, UrdfOptions, ABSURD, MAX_LINKS};
 use crate::error::{Error, Source};
+use crate::inertia::inertia_problem;
 
 /// A required attribute.
 fn attribute<'a>(
@@ -248,14 +249,8 @@ fn read_inertial(source: &Source, node: roxmltree::Node, link: &str) -> Result<I
     {
         inertia[k] = number(source, i, name)?;
     }
-    let tensor = tensor(&inertia);
-    let scale = tensor.abs().max();
-    if tensor.symmetric_eigenvalues().min() < -1e-12 * scale {
-        return Err(at(
-            source,
-            i,
-            format!("{ctx}: the inertia tensor is not positive semi-definite"),
-        ));
+    if let Some(problem) = inertia_problem(&tensor(&inertia)) {
+        return Err(at(source, i, format!("{ctx}: {problem}")));
     }
     Ok(Inertial {
         origin: origin(source, node)?,

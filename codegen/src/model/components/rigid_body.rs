@@ -4,7 +4,8 @@
 //! `I = R I0 R^T` in frame axes, `R = Rz(yaw) Ry(pitch) Rx(roll)` from
 //! `inertia_rpy` (the URDF convention; identity by default). The mass may be
 //! zero and the tensor singular (massless and point-like bodies): the mass
-//! must be non-negative and `I0` symmetric positive semi-definite.
+//! must be non-negative and `I0` symmetric positive semi-definite, its
+//! principal moments obeying the triangle inequality.
 
 use toml::Spanned;
 
@@ -12,6 +13,7 @@ use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
 use crate::expr::Id;
 use crate::geometry::{Frame, Point};
+use crate::inertia::inertia_problem;
 use crate::load::scene::{ComponentDef, InertiaEntry, SScalar, Scalar};
 use crate::model::context::Context;
 use crate::model::Body;
@@ -163,17 +165,8 @@ fn inertia(
     if asymmetric {
         return Err(cx.err(at, Some(ctx), "inertia tensor is not symmetric"));
     }
-    let smallest = nalgebra::Matrix3::from_fn(|i, j| val[i][j])
-        .symmetric_eigenvalues()
-        .min();
-    if smallest.is_nan() || smallest < -1e-12 * scale {
-        return Err(cx.err(
-            at,
-            Some(ctx),
-            format!(
-                "inertia tensor is not positive semi-definite (smallest principal moment {smallest:e})"
-            ),
-        ));
+    if let Some(problem) = inertia_problem(&nalgebra::Matrix3::from_fn(|i, j| val[i][j])) {
+        return Err(cx.err(at, Some(ctx), problem));
     }
     Ok(ids)
 }
