@@ -209,7 +209,7 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
     let perturbation = perturbations.iter().find(|c| c.scene == model.name);
     let functions = functions(&model, &eq);
     if model.precision == Precision::F32 {
-        f32_literals(&model.graph, &functions)
+        f32_literals(&functions)
             .map_err(|f| Error::unplaced(path.to_path_buf(), Some(&f.context), f.message))?;
     }
     let c = options

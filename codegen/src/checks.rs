@@ -7,7 +7,7 @@
 use crate::expr::{Graph, Id, Node, Symbol};
 use crate::model::{Component, Model};
 use crate::prune::Samples;
-use crate::schedule::Function;
+use crate::schedule::{Code, Scheduled, Stmt};
 
 /// A check that failed: the component (or part of the model) and what is
 /// wrong.
@@ -101,21 +101,42 @@ pub(crate) fn energy_signs(model: &mut Model) -> Result<(), Failure> {
     Ok(())
 }
 
-/// An `f32` module's literals: every constant of every emitted function's
-/// terms must be a normal `f32` or zero (beyond `f32::MAX` the literal does
+/// The literals of `code`, coefficients and constants of sums included.
+fn literals(code: &Code, out: &mut Vec<f64>) {
+    match code {
+        Code::Var(_) | Code::Sym(_) => {}
+        Code::Lit(x) => out.push(*x),
+        Code::Sum { constant, terms } => {
+            out.push(*constant);
+            for (c, t) in terms {
+                out.push(*c);
+                literals(t, out);
+            }
+        }
+        Code::Prod { num, den } => num.iter().chain(den).for_each(|f| literals(f, out)),
+        Code::Call(_, a) => literals(a, out),
+        Code::Atan2(y, x) => {
+            literals(y, out);
+            literals(x, out);
+        }
+    }
+}
+
+/// An `f32` module's literals: every literal of every emitted function's
+/// program must be a normal `f32` or zero (beyond `f32::MAX` the literal does
 /// not compile; below `f32::MIN_POSITIVE` it becomes subnormal or zero).
-pub(crate) fn f32_literals(g: &Graph, functions: &[Function]) -> Result<(), Failure> {
+pub(crate) fn f32_literals(functions: &[Scheduled]) -> Result<(), Failure> {
     for f in functions {
-        let constants = g
-            .reachable(&f.ids)
-            .into_iter()
-            .flat_map(|id| match g.node(id) {
-                Node::Const(c) => vec![c.get()],
-                Node::Sum(ts, k) => std::iter::once(k.get())
-                    .chain(ts.iter().map(|(_, c)| c.get()))
-                    .collect(),
-                _ => Vec::new(),
-            });
+        let mut constants = Vec::new();
+        for st in &f.program.stmts {
+            match st {
+                Stmt::Let { value, .. } => literals(value, &mut constants),
+                Stmt::SinCos { arg, .. } => literals(arg, &mut constants),
+            }
+        }
+        for o in &f.program.outputs {
+            literals(o, &mut constants);
+        }
         for c in constants {
             let why = if c.abs() > f64::from(f32::MAX) {
                 format!(
@@ -131,7 +152,7 @@ pub(crate) fn f32_literals(g: &Graph, functions: &[Function]) -> Result<(), Fail
                 continue;
             };
             return Err(Failure {
-                context: format!("function `{}`", f.sig.name),
+                context: format!("function `{}`", f.function.name()),
                 message: format!(
                     "its constant {c:e} is {why}; generate the scene in f64 or choose other units"
                 ),

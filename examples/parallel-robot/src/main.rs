@@ -280,7 +280,7 @@ fn inverse(
         }
         table.push(row);
     }
-    let mut outputs = flexdyn::table::Outputs::default();
+    let mut outputs = flexdyn::table::OutputFiles::default();
     if let Some(path) = &files.csv {
         outputs.write(path, |tmp| table.write(tmp))?;
     }
@@ -435,7 +435,7 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
             r.tau[2], d[0], d[1], d[2],
         ]);
     }
-    let mut outputs = flexdyn::table::Outputs::default();
+    let mut outputs = flexdyn::table::OutputFiles::default();
     if let Some(path) = &a.csv {
         outputs.write(path, |tmp| out.write(tmp))?;
     }

@@ -613,7 +613,7 @@ fn points(ms: &[Measurement]) -> (Vec<usize>, Vec<(f64, f64)>) {
 pub fn write(results: &Results, ops: &[(usize, usize)], files: &Files) -> Result<(), String> {
     std::fs::create_dir_all(&files.dir)
         .map_err(|e| format!("cannot create {}: {e}", files.dir.display()))?;
-    let mut out = flexdyn::table::Outputs::default();
+    let mut out = flexdyn::table::OutputFiles::default();
     let dir_name = files
         .dir
         .file_name()
