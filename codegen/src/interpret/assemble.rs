@@ -1,7 +1,7 @@
 //! A lowered function ([`crate::schedule::lower`]) assembled into a tape:
 //! its operations become instructions over slots (inputs, literals, then
-//! intermediates, whose slots are reused once they are dead), operations on
-//! two literals are folded (the compiler folds them in the emitted code,
+//! intermediates, whose slots are reused once they are dead), arithmetic on
+//! literals is folded (the compiler folds them in the emitted code,
 //! with the same IEEE result), program variables and stored values become
 //! the slots holding them, and the stores become writes to the output
 //! buffer (matrices column-major, nalgebra's layout).
@@ -85,22 +85,28 @@ pub(super) fn assemble(lowered: &Lowered, nq: usize, params: usize) -> Tape {
                 b: y,
             } => {
                 let (x, y) = (a.operand(*x), a.operand(*y));
-                let v = a.op(Instruction::Binary(*op), x, y);
+                let v = match (a.constant(x), a.constant(y)) {
+                    (Some(x), Some(y)) => a.literal(op.apply(x, y)),
+                    _ => a.push(Instruction::from(*op), x, y),
+                };
                 a.temps[*dst as usize] = Some(v);
             }
             Op::Neg { dst, a: x } => {
                 let x = a.operand(*x);
-                let v = a.op(Instruction::Neg, x, x);
+                let v = match a.constant(x) {
+                    Some(c) => a.literal(-c),
+                    None => a.push(Instruction::Neg, x, x),
+                };
                 a.temps[*dst as usize] = Some(v);
             }
             Op::Call { dst, f, a: x } => {
                 let x = a.operand(*x);
-                let v = a.op(Instruction::Call(*f), x, x);
+                let v = a.push(Instruction::Call(*f), x, x);
                 a.temps[*dst as usize] = Some(v);
             }
             Op::Atan2 { dst, y, x } => {
                 let (y, x) = (a.operand(*y), a.operand(*x));
-                let v = a.op(Instruction::Atan2, y, x);
+                let v = a.push(Instruction::Atan2, y, x);
                 a.temps[*dst as usize] = Some(v);
             }
             Op::Bind { var, value } => {
@@ -193,19 +199,16 @@ impl Assembler {
         }
     }
 
-    /// `op(a, b)`, folded when both are literals (calls are not folded).
-    fn op(&mut self, op: Instruction, a: Ref, b: Ref) -> Ref {
-        if let (Ref::Literal(x), Ref::Literal(y)) = (a, b) {
-            let (x, y) = (self.literals[x as usize], self.literals[y as usize]);
-            let folded = match op {
-                Instruction::Binary(op) => Some(op.apply(x, y)),
-                Instruction::Neg => Some(-x),
-                _ => None,
-            };
-            if let Some(v) = folded {
-                return self.literal(v);
-            }
+    /// The value of a literal.
+    fn constant(&self, r: Ref) -> Option<f64> {
+        match r {
+            Ref::Literal(k) => Some(self.literals[k as usize]),
+            _ => None,
         }
+    }
+
+    /// The instruction `op(a, b)`.
+    fn push(&mut self, op: Instruction, a: Ref, b: Ref) -> Ref {
         let dst = self.temp();
         self.code.push(Pre { op, dst, a, b });
         dst

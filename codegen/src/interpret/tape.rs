@@ -9,11 +9,26 @@ use flexdyn_runtime::math;
 use crate::expr::Func;
 use crate::schedule::Binary;
 
-/// Tape operations. Unary operations read `a`; `SinCos` writes the sine to
-/// `dst` and the cosine to `b`.
+impl From<Binary> for Instruction {
+    fn from(op: Binary) -> Instruction {
+        match op {
+            Binary::Add => Instruction::Add,
+            Binary::Sub => Instruction::Sub,
+            Binary::Mul => Instruction::Mul,
+            Binary::Div => Instruction::Div,
+        }
+    }
+}
+
+/// Tape operations, one flat enum (one dispatch per instruction). Unary
+/// operations read `a`; `SinCos` writes the sine to `dst` and the cosine to
+/// `b`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Instruction {
-    Binary(Binary),
+    Add,
+    Sub,
+    Mul,
+    Div,
     Neg,
     Call(Func),
     SinCos,
@@ -157,7 +172,10 @@ impl Tape {
             let x = s[i.a as usize];
             let y = s[i.b as usize];
             let v = match i.op {
-                Instruction::Binary(op) => op.apply(x, y),
+                Instruction::Add => x + y,
+                Instruction::Sub => x - y,
+                Instruction::Mul => x * y,
+                Instruction::Div => x / y,
                 Instruction::Neg => -x,
                 Instruction::Call(f) => call(f, x),
                 Instruction::Atan2 => math::atan2(x, y),
