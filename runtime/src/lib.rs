@@ -41,19 +41,19 @@ mod projection;
 mod scalar;
 mod state;
 
-pub use dynamics::{accelerations, Accelerations, Baumgarte, DynamicsConfig};
+pub use dynamics::{accelerations, Accelerations, AccelerationsOf, Baumgarte, DynamicsConfig};
 pub use error::{Error, ErrorKind, Quantity, Stage, GAUSS_LEGENDRE_CONTRACTION_LIMIT};
-pub use input::{FromFn, Input, Linear};
+pub use input::{FromFn, Input, InputOf, Linear};
 pub use integrate::{
     run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, Integrator, Rk4, RunSummary, SemiImplicitEuler, StepReport,
+    GeneralizedAlphaConfig, GeneralizedAlphaOf, Integrator, IntegratorOf, Rk4, RunSummary, SemiImplicitEuler, StepReport,
     StepSettings,
 };
 pub use inverse::{
     forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution, SolvePath,
 };
-pub use model::{FiniteDifferenceJacobians, Model};
+pub use model::{Equations, FiniteDifferenceJacobians, Model, Sizes};
 pub use nalgebra;
 pub use projection::{project, ProjectionConfig, ProjectionReport};
 pub use scalar::Scalar;
-pub use state::{constraint_drift, total_energy, Drift, State};
+pub use state::{constraint_drift, total_energy, Drift, State, StateOf};

@@ -8,7 +8,7 @@
 mod models;
 
 use flexdyn_runtime::{
-    total_energy, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, Model, Rk4,
+    total_energy, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, IntegratorOf, Model, Rk4,
     SemiImplicitEuler, State, StepSettings,
 };
 use models::*;

@@ -17,7 +17,7 @@ use std::path::PathBuf;
 use flexdyn_runtime::control::{Feedback, JointPd, Target};
 use flexdyn_runtime::{
     project, AdaptiveRk4, ErrorKind, FromFn, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, Integrator, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State,
+    GeneralizedAlphaConfig, Integrator, IntegratorOf, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State,
     StepSettings,
 };
 use nalgebra::SVector;

@@ -701,7 +701,7 @@ where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
     use flexdyn_runtime::integrate::{GeneralizedAlpha, Rk4, SemiImplicitEuler, StepSettings};
-    use flexdyn_runtime::{FromFn, Integrator};
+    use flexdyn_runtime::{FromFn, Integrator, IntegratorOf};
     let input = FromFn(|t: f64| flexdyn_runtime::nalgebra::SVector::<f64, 3>::from(torques.at(t)));
     let settings = StepSettings::with_projection();
     let mut out = vec![state];

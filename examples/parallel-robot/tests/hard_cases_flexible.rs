@@ -16,7 +16,7 @@ use flexdyn::runtime::control::Feedback;
 use flexdyn::runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
 use flexdyn::runtime::{
     constraint_drift, AdaptiveRk4, ErrorKind, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, Integrator, Model, Rk4, SemiImplicitEuler, State, StepSettings,
+    GeneralizedAlphaConfig, Integrator, IntegratorOf, Model, Rk4, SemiImplicitEuler, State, StepSettings,
 };
 use flexdyn_parallel_robot::robot::{
     initial_state, inverse_rows, output_times, simulate, simulate_rows, Circle, Geometry,

@@ -16,7 +16,7 @@ use flexdyn::codegen::{powi_f64, Equations, Graph, Id, Node, Source, Symbol};
 use flexdyn::runtime::integrate::{GeneralizedAlpha, StepSettings};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::{
-    total_energy, ErrorKind, GeneralizedAlphaConfig, Integrator, Model, Rk4, State,
+    total_energy, ErrorKind, GeneralizedAlphaConfig, Integrator, IntegratorOf, Model, Rk4, State,
 };
 use flexdyn_parallel_robot::robot::{
     flexible_inverse, initial_state, inverse_along, output_times, simulate, Circle, Geometry,
