@@ -9,7 +9,7 @@ use flexdyn::runtime::integrate::{
 };
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::{
-    FiniteDifferenceJacobians, Integrator, IntegratorOf, InverseConfig, InverseDynamics, InverseSolution, Model,
+    FiniteDifferenceJacobians, Integrator, InverseConfig, InverseDynamics, InverseSolution, Model,
     State,
 };
 use flexdyn::scenes::{five_bar::FiveBar, slider_crank::SliderCrank};

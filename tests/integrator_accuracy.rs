@@ -19,7 +19,7 @@
 
 use flexdyn::runtime::{
     AdaptiveRk4, Error, ErrorKind, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig,
-    Integrator, IntegratorOf, Rk4, SemiImplicitEuler, State, StepSettings,
+    Integrator, Rk4, SemiImplicitEuler, State, StepSettings,
 };
 use flexdyn::scenes::spring_pendulum::SpringPendulum;
 use nalgebra::SVector;

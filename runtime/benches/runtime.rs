@@ -6,7 +6,8 @@ mod models;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use flexdyn_runtime::{
-    accelerations, DynamicsConfig, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, IntegratorOf, InverseConfig, InverseDynamics, InverseSolution, Rk4, State, StepSettings,
+    accelerations, DynamicsConfig, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig,
+    IntegratorOf, InverseConfig, InverseDynamics, InverseSolution, Rk4, State, StepSettings,
 };
 use models::*;
 use std::hint::black_box;

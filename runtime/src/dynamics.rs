@@ -83,7 +83,10 @@ where
     pub condition: T,
 }
 
-impl<T: Scalar, const NQ: usize, const NC: usize> Copy for AccelerationsOf<T, Const<NQ>, Const<NC>> {}
+impl<T: Scalar, const NQ: usize, const NC: usize> Copy
+    for AccelerationsOf<T, Const<NQ>, Const<NC>>
+{
+}
 
 /// [`AccelerationsOf`] of a model of fixed size.
 pub type Accelerations<const NQ: usize, const NC: usize, T = f64> =

@@ -140,10 +140,7 @@ where
 }
 
 /// Checks every term of `o` (evaluated at time `t`).
-pub(crate) fn check_terms<T: Scalar, Q: Dim, C: Dim>(
-    o: &Terms<T, Q, C>,
-    t: T,
-) -> Result<(), Error>
+pub(crate) fn check_terms<T: Scalar, Q: Dim, C: Dim>(o: &Terms<T, Q, C>, t: T) -> Result<(), Error>
 where
     DefaultAllocator: Allocator<Q, Q> + Allocator<Q> + Allocator<C, Q> + Allocator<C>,
 {

@@ -46,8 +46,8 @@ pub use error::{Error, ErrorKind, Quantity, Stage, GAUSS_LEGENDRE_CONTRACTION_LI
 pub use input::{FromFn, Input, InputOf, Linear};
 pub use integrate::{
     run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, GeneralizedAlphaOf, Integrator, IntegratorOf, Rk4, RunSummary, SemiImplicitEuler, StepReport,
-    StepSettings,
+    GeneralizedAlphaConfig, GeneralizedAlphaOf, Integrator, IntegratorOf, Rk4, RunSummary,
+    SemiImplicitEuler, StepReport, StepSettings,
 };
 pub use inverse::{
     forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution, SolvePath,

@@ -8,8 +8,8 @@ mod models;
 
 use flexdyn_runtime::nalgebra::SymmetricEigen;
 use flexdyn_runtime::{
-    AdaptiveRk4, FromFn, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, IntegratorOf,
-    Linear, Model, Rk4, SemiImplicitEuler, State, StepSettings,
+    AdaptiveRk4, FromFn, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator,
+    IntegratorOf, Linear, Model, Rk4, SemiImplicitEuler, State, StepSettings,
 };
 use models::*;
 

@@ -12,8 +12,9 @@ use flexdyn_runtime::control::{
     servo_run, Coordinates, Feedback, JointPd, Servo, ServoConfig, Target,
 };
 use flexdyn_runtime::{
-    run, AdaptiveRk4, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, IntegratorOf,
-    InverseConfig, InverseDynamics, InverseSolution, Rk4, SemiImplicitEuler, State, StepSettings,
+    run, AdaptiveRk4, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator,
+    IntegratorOf, InverseConfig, InverseDynamics, InverseSolution, Rk4, SemiImplicitEuler, State,
+    StepSettings,
 };
 use models::*;
 

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::dynamic::DynModel;
+use crate::dynamic::{matrix, DynModel};
 use crate::eval::{check_state, evaluate, States};
 use crate::table::write_atomic;
 
@@ -101,11 +101,15 @@ fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
     let qd: Vec<f64> = (0..a.nq()).map(|i| -0.4 + 0.23 * i as f64).collect();
     let qdd: Vec<f64> = (0..a.nq()).map(|i| 0.8 - 0.31 * i as f64).collect();
     let t = 0.37;
-    a.mass_matrix(&q, t) == b.mass_matrix(&q, t)
-        && a.bias(&q, &qd, t) == b.bias(&q, &qd, t)
-        && a.inverse_dynamics(&q, &qd, &qdd, t) == b.inverse_dynamics(&q, &qd, &qdd, t)
-        && a.constraints(&q, t) == b.constraints(&q, t)
-        && a.actuator_map() == b.actuator_map()
+    let (nq, nc, nu) = (a.nq(), a.nc(), a.nu());
+    let same = |n: usize, f: &dyn Fn(&dyn DynModel, &mut [f64])| {
+        matrix(n, 1, |o| f(a, o)) == matrix(n, 1, |o| f(b, o))
+    };
+    same(nq * nq, &|m, o| m.mass_matrix(&q, t, o))
+        && same(nq, &|m, o| m.bias(&q, &qd, t, o))
+        && same(nq, &|m, o| m.inverse_dynamics(&q, &qd, &qdd, t, o))
+        && same(nc, &|m, o| m.constraints(&q, t, o))
+        && same(nq * nu, &|m, o| m.actuator_map(o))
         && a.potential_energy(&q, t) == b.potential_energy(&q, t)
 }
 

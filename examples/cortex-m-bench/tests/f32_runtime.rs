@@ -20,7 +20,7 @@
 
 use flexdyn_runtime::nalgebra::SVector;
 use flexdyn_runtime::{
-    ErrorKind, GaussLegendre4, Integrator, IntegratorOf, InverseConfig, InverseDynamics, InverseReport,
+    ErrorKind, GaussLegendre4, Integrator, InverseConfig, InverseDynamics, InverseReport,
     InverseSolution, Model, Rk4, Scalar, State,
 };
 
