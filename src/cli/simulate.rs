@@ -23,8 +23,8 @@ use flexdyn_runtime::{
 };
 use nalgebra::{DVector, Dyn};
 
-use crate::cli::eval::Compiled;
 use crate::codegen::TimeFunction;
+use crate::compiled::Compiled;
 use crate::dynamic::{matrix, vector, DynModel};
 use crate::eval::check_state;
 use crate::plot::{line_plot, Labels, Series};
