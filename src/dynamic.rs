@@ -367,3 +367,53 @@ impl Equations<Dyn, Dyn, Dyn> for dyn DynModel + '_ {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use flexdyn_runtime::{
+        accelerations, project, DynamicsConfig, GeneralizedAlpha, GeneralizedAlphaConfig,
+        GeneralizedAlphaOf, IntegratorOf, ProjectionConfig, State, StateOf, StepSettings,
+    };
+    use nalgebra::SVector;
+
+    use super::*;
+
+    /// The runtime's solvers over run-time sizes (`dyn DynModel`, `Dyn`)
+    /// give bitwise the numbers they give over the compiled model's fixed
+    /// sizes: the accelerations at a state, the projection onto the
+    /// constraints and 50 generalized-alpha steps of the slider-crank (3
+    /// coordinates, 2 constraints, 1 actuator).
+    #[test]
+    fn run_time_sizes_give_the_fixed_sizes_bits() {
+        let model = crate::scenes::slider_crank::SliderCrank;
+        let dynamic = erase(model);
+        let dynamic: &dyn DynModel = &*dynamic;
+        let (q, qd) = ([0.4, 0.1, 0.3], [1.0, -0.5, 0.2]);
+        let cfg = DynamicsConfig::default();
+        let tau = SVector::<f64, 1>::new(0.3);
+        let fixed = accelerations(&model, &cfg, &q.into(), &qd.into(), 0.2, &tau).unwrap();
+        let (dq, dqd) = (DVector::from_row_slice(&q), DVector::from_row_slice(&qd));
+        let dtau = DVector::from_element(1, 0.3);
+        let run_time = accelerations(dynamic, &cfg, &dq, &dqd, 0.2, &dtau).unwrap();
+        assert_eq!(fixed.qdd.as_slice(), run_time.qdd.as_slice());
+        assert_eq!(fixed.lambda.as_slice(), run_time.lambda.as_slice());
+
+        let mut s = State::<3>::new(q.into(), qd.into(), 0.0);
+        let mut d = StateOf::new(dq, dqd, 0.0);
+        let pc = ProjectionConfig::default();
+        project(&model, &mut s, &pc).unwrap();
+        project(dynamic, &mut d, &pc).unwrap();
+        let settings = StepSettings::with_projection();
+        let mut g = GeneralizedAlpha::<3, 2>::new(settings, GeneralizedAlphaConfig::default());
+        let mut h = GeneralizedAlphaOf::new(settings, GeneralizedAlphaConfig::default());
+        for _ in 0..50 {
+            g.step(&model, &mut s, &tau, 1e-3).unwrap();
+            h.step(dynamic, &mut d, &dtau, 1e-3).unwrap();
+        }
+        assert!(s.q.as_slice() != q.as_slice(), "the crank moves");
+        assert_eq!(
+            (s.q.as_slice(), s.qd.as_slice()),
+            (d.q.as_slice(), d.qd.as_slice())
+        );
+    }
+}
