@@ -3,7 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::dynamic::DynModel;
+use crate::dynamic::{matrix, vector, DynModel, Fused};
+use nalgebra::{DMatrix, DVector};
 
 /// One state to evaluate at.
 #[derive(Debug, Clone, Deserialize)]
@@ -132,39 +133,64 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
             ));
         }
     }
-    let vec = |v: nalgebra::DVector<f64>| v.as_slice().to_vec();
-    let jacobians = model.bias_jacobians(&s.q, &s.qd, s.t);
-    let (fused_phi, fused_position_phi_q) = model.constraints_and_jacobian(&s.q, s.t);
-    let (fused_m, fused_h, fused_phi_q, fused_gamma) = model.dynamics_terms(&s.q, &s.qd, s.t);
+    let (q, qd, t) = (&s.q, &s.qd, s.t);
+    let (nq, nc, nu) = (model.nq(), model.nc(), model.nu());
+    let model = &*model;
+    let vec = |n: usize, f: &dyn Fn(&mut [f64])| vector(n, f).as_slice().to_vec();
+    // An optional output: `None` when the scene does not generate it.
+    let optional = |rows: usize, cols: usize, f: &dyn Fn(&mut [f64]) -> bool| {
+        let mut given = false;
+        let m = matrix(rows, cols, |o| given = f(o));
+        given.then_some(m)
+    };
+    let (mut h_q, mut h_qd) = (DMatrix::zeros(nq, nq), DMatrix::zeros(nq, nq));
+    let jacobians = model
+        .bias_jacobians(q, qd, t, h_q.as_mut_slice(), h_qd.as_mut_slice())
+        .then_some((h_q, h_qd));
+    let (mut fused_phi, mut fused_position_phi_q) = (DVector::zeros(nc), DMatrix::zeros(nc, nq));
+    model.constraints_and_jacobian(
+        q,
+        t,
+        fused_phi.as_mut_slice(),
+        fused_position_phi_q.as_mut_slice(),
+    );
+    let (mut fused_m, mut fused_h) = (DMatrix::zeros(nq, nq), DVector::zeros(nq));
+    let (mut fused_phi_q, mut fused_gamma) = (DMatrix::zeros(nc, nq), DVector::zeros(nc));
+    let fused = Fused {
+        m: fused_m.as_mut_slice(),
+        h: fused_h.as_mut_slice(),
+        phi_q: fused_phi_q.as_mut_slice(),
+        gamma: fused_gamma.as_mut_slice(),
+    };
+    model.dynamics_terms(q, qd, t, fused);
     let qdd = if s.qdd.is_empty() {
         vec![0.0; s.q.len()]
     } else {
         s.qdd.clone()
     };
+    let column = |m: DMatrix<f64>| m.as_slice().to_vec();
     let terms = Terms {
-        mass_matrix: rows(&model.mass_matrix(&s.q, s.t)),
-        bias: model.bias(&s.q, &s.qd, s.t).as_slice().to_vec(),
-        constraints: model.constraints(&s.q, s.t).as_slice().to_vec(),
-        constraint_jacobian: rows(&model.constraint_jacobian(&s.q, s.t)),
-        constraint_time_derivative: model
-            .constraint_time_derivative(&s.q, s.t)
-            .as_slice()
-            .to_vec(),
-        constraint_rhs: model.constraint_rhs(&s.q, &s.qd, s.t).as_slice().to_vec(),
-        actuator_map: rows(&model.actuator_map()),
-        fused_constraints: vec(fused_phi),
+        mass_matrix: rows(&matrix(nq, nq, |o| model.mass_matrix(q, t, o))),
+        bias: vec(nq, &|o| model.bias(q, qd, t, o)),
+        constraints: vec(nc, &|o| model.constraints(q, t, o)),
+        constraint_jacobian: rows(&matrix(nc, nq, |o| model.constraint_jacobian(q, t, o))),
+        constraint_time_derivative: vec(nc, &|o| model.constraint_time_derivative(q, t, o)),
+        constraint_rhs: vec(nc, &|o| model.constraint_rhs(q, qd, t, o)),
+        actuator_map: rows(&matrix(nq, nu, |o| model.actuator_map(o))),
+        fused_constraints: fused_phi.as_slice().to_vec(),
         fused_position_constraint_jacobian: rows(&fused_position_phi_q),
         fused_mass_matrix: rows(&fused_m),
-        fused_bias: vec(fused_h),
+        fused_bias: fused_h.as_slice().to_vec(),
         fused_constraint_jacobian: rows(&fused_phi_q),
-        fused_constraint_rhs: vec(fused_gamma),
-        inverse_dynamics: vec(model.inverse_dynamics(&s.q, &s.qd, &qdd, s.t)),
-        kinetic_energy: model.kinetic_energy(&s.q, &s.qd, s.t),
-        potential_energy: model.potential_energy(&s.q, s.t),
-        coriolis_forces: model.coriolis_forces(&s.q, &s.qd, s.t).map(vec),
-        potential_forces: model.potential_forces(&s.q, s.t).map(vec),
-        damping_forces: model.damping_forces(&s.q, &s.qd, s.t).map(vec),
-        coriolis_matrix: model.coriolis_matrix(&s.q, &s.qd, s.t).map(|m| rows(&m)),
+        fused_constraint_rhs: fused_gamma.as_slice().to_vec(),
+        inverse_dynamics: vec(nq, &|o| model.inverse_dynamics(q, qd, &qdd, t, o)),
+        kinetic_energy: model.kinetic_energy(q, qd, t),
+        potential_energy: model.potential_energy(q, t),
+        coriolis_forces: optional(nq, 1, &|o| model.coriolis_forces(q, qd, t, o)).map(column),
+        potential_forces: optional(nq, 1, &|o| model.potential_forces(q, t, o)).map(column),
+        damping_forces: optional(nq, 1, &|o| model.damping_forces(q, qd, t, o)).map(column),
+        coriolis_matrix: optional(nq, nq, &|o| model.coriolis_matrix(q, qd, t, o))
+            .map(|m| rows(&m)),
         bias_jacobian_q: jacobians.as_ref().map(|(h_q, _)| rows(h_q)),
         bias_jacobian_qd: jacobians.as_ref().map(|(_, h_qd)| rows(h_qd)),
     };

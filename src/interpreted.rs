@@ -8,7 +8,6 @@ use std::path::Path;
 use std::rc::Rc;
 
 use flexdyn_codegen::interpret::{Function, Interpreted};
-use nalgebra::{DMatrix, DVector};
 
 use crate::dynamic::{DynModel, Fused};
 
@@ -18,7 +17,13 @@ use crate::dynamic::{DynModel, Fused};
 pub struct InterpretedModel {
     scene: Rc<Interpreted>,
     params: Vec<f64>,
+    /// `q = 0`, where the actuator map is evaluated.
+    origin: Vec<f64>,
+    /// The tapes' slots, sized on first use.
     scratch: RefCell<Vec<f64>>,
+    /// The outputs of a function with several, before they go to the
+    /// caller's storage; sized on first use.
+    outputs: RefCell<Vec<f64>>,
 }
 
 impl InterpretedModel {
@@ -34,79 +39,63 @@ impl InterpretedModel {
     pub fn new(scene: Interpreted) -> InterpretedModel {
         let params = scene.parameters().iter().map(|(_, v)| *v).collect();
         InterpretedModel {
+            origin: vec![0.0; scene.nq()],
             scene: Rc::new(scene),
             params,
             scratch: RefCell::new(Vec::new()),
+            outputs: RefCell::new(Vec::new()),
         }
     }
 
-    /// The scene's tapes.
+    /// The interpreted scene.
     pub fn scene(&self) -> &Interpreted {
         &self.scene
     }
 
-    /// The outputs of `f` (vectors as one-column matrices), `None` when the
-    /// scene does not generate it.
-    fn outputs(&self, f: Function, q: &[f64], qd: &[f64], t: f64) -> Option<Vec<DMatrix<f64>>> {
-        self.outputs_with_accelerations(f, q, qd, &[], t)
-    }
-
-    /// [`InterpretedModel::outputs`] of a function that reads the
-    /// accelerations `qdd` too.
-    fn outputs_with_accelerations(
+    /// Runs `f` at `(q, qd, qdd, t)` and writes its outputs, in order, to
+    /// `outs` (each as long as its output); `false` (nothing written) when
+    /// the scene has no such function. One output is written in place, several
+    /// through one buffer reused from call to call: no allocation once
+    /// warm.
+    fn run(
         &self,
         f: Function,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &[f64],
-        t: f64,
-    ) -> Option<Vec<DMatrix<f64>>> {
-        let tape = self.scene.tape(f)?;
-        let mut out = vec![0.0; tape.output_len()];
-        tape.eval_with_accelerations(
-            q,
-            qd,
-            qdd,
-            t,
-            &self.params,
-            &mut self.scratch.borrow_mut(),
-            &mut out,
-        );
-        let mut rest = out.as_slice();
-        Some(
-            tape.shapes()
-                .iter()
-                .map(|&(r, c)| {
-                    let (this, tail) = rest.split_at(r * c);
-                    rest = tail;
-                    DMatrix::from_column_slice(r, c, this)
-                })
-                .collect(),
-        )
+        (q, qd, qdd, t): (&[f64], &[f64], &[f64], f64),
+        outs: &mut [&mut [f64]],
+    ) -> bool {
+        let Some(tape) = self.scene.tape(f) else {
+            return false;
+        };
+        let scratch = &mut self.scratch.borrow_mut();
+        if let [out] = outs {
+            tape.eval_with_accelerations(q, qd, qdd, t, &self.params, scratch, out);
+            return true;
+        }
+        let mut buffer = self.outputs.borrow_mut();
+        buffer.resize(tape.output_len(), 0.0);
+        tape.eval_with_accelerations(q, qd, qdd, t, &self.params, scratch, &mut buffer);
+        let mut rest = buffer.as_slice();
+        for out in outs {
+            let (this, tail) = rest.split_at(out.len());
+            out.copy_from_slice(this);
+            rest = tail;
+        }
+        true
     }
 
-    /// The first output of `f`.
-    fn first(&self, f: Function, q: &[f64], qd: &[f64], t: f64) -> Option<DMatrix<f64>> {
-        self.outputs(f, q, qd, t).map(|mut o| o.swap_remove(0))
+    /// [`InterpretedModel::run`] of a function every scene has.
+    fn core(&self, f: Function, at: (&[f64], &[f64], &[f64], f64), outs: &mut [&mut [f64]]) {
+        if !self.run(f, at, outs) {
+            unreachable!("`{}` is lowered for every scene", f.name())
+        }
     }
 
-    /// The outputs of a function every scene has.
-    fn core(&self, f: Function, q: &[f64], qd: &[f64], t: f64) -> Vec<DMatrix<f64>> {
-        self.outputs(f, q, qd, t)
-            .unwrap_or_else(|| panic!("`{}` is lowered for every scene", f.name()))
+    /// The value of a scalar function every scene has.
+    fn scalar(&self, f: Function, q: &[f64], qd: &[f64], t: f64) -> f64 {
+        let mut v = [0.0];
+        self.core(f, (q, qd, &[], t), &mut [&mut v]);
+        v[0]
     }
-
-    fn core_matrix(&self, f: Function, q: &[f64], qd: &[f64], t: f64) -> DMatrix<f64> {
-        self.core(f, q, qd, t).swap_remove(0)
-    }
-
-    fn core_vector(&self, f: Function, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
-        vector(self.core_matrix(f, q, qd, t))
-    }
-}
-
-fn vector(m: DMatrix<f64>) -> DVector<f64> {
-    DVector::from_column_slice(m.as_slice())
 }
 
 impl DynModel for InterpretedModel {
@@ -126,54 +115,45 @@ impl DynModel for InterpretedModel {
     fn nc(&self) -> usize {
         self.scene.nc()
     }
-    fn mass_matrix(&self, q: &[f64], t: f64) -> DMatrix<f64> {
-        self.core_matrix(Function::MassMatrix, q, &[], t)
+    fn mass_matrix(&self, q: &[f64], t: f64, m: &mut [f64]) {
+        self.core(Function::MassMatrix, (q, &[], &[], t), &mut [m])
     }
-    fn bias(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
-        self.core_vector(Function::Bias, q, qd, t)
+    fn bias(&self, q: &[f64], qd: &[f64], t: f64, h: &mut [f64]) {
+        self.core(Function::Bias, (q, qd, &[], t), &mut [h])
     }
-    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64) -> DVector<f64> {
-        let f = Function::InverseDynamics;
-        let mut o = self
-            .outputs_with_accelerations(f, q, qd, qdd, t)
-            .unwrap_or_else(|| panic!("`{}` is lowered for every scene", f.name()));
-        vector(o.swap_remove(0))
+    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64, tau: &mut [f64]) {
+        self.core(Function::InverseDynamics, (q, qd, qdd, t), &mut [tau])
     }
-    fn constraints(&self, q: &[f64], t: f64) -> DVector<f64> {
-        self.core_vector(Function::Constraints, q, &[], t)
+    fn constraints(&self, q: &[f64], t: f64, phi: &mut [f64]) {
+        self.core(Function::Constraints, (q, &[], &[], t), &mut [phi])
     }
-    fn constraint_jacobian(&self, q: &[f64], t: f64) -> DMatrix<f64> {
-        self.core_matrix(Function::ConstraintJacobian, q, &[], t)
+    fn constraint_jacobian(&self, q: &[f64], t: f64, phi_q: &mut [f64]) {
+        self.core(Function::ConstraintJacobian, (q, &[], &[], t), &mut [phi_q])
     }
-    fn constraint_time_derivative(&self, q: &[f64], t: f64) -> DVector<f64> {
-        self.core_vector(Function::ConstraintTimeDerivative, q, &[], t)
+    fn constraint_time_derivative(&self, q: &[f64], t: f64, phi_t: &mut [f64]) {
+        let f = Function::ConstraintTimeDerivative;
+        self.core(f, (q, &[], &[], t), &mut [phi_t])
     }
-    fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
-        self.core_vector(Function::ConstraintRhs, q, qd, t)
+    fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64, gamma: &mut [f64]) {
+        self.core(Function::ConstraintRhs, (q, qd, &[], t), &mut [gamma])
     }
-    fn constraints_and_jacobian(&self, q: &[f64], t: f64) -> (DVector<f64>, DMatrix<f64>) {
-        let mut o = self
-            .core(Function::ConstraintsAndJacobian, q, &[], t)
-            .into_iter();
-        let phi = vector(o.next().expect("Phi"));
-        (phi, o.next().expect("Phi_q"))
+    fn constraints_and_jacobian(&self, q: &[f64], t: f64, phi: &mut [f64], phi_q: &mut [f64]) {
+        let f = Function::ConstraintsAndJacobian;
+        self.core(f, (q, &[], &[], t), &mut [phi, phi_q])
     }
-    fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64) -> Fused {
-        let mut o = self.core(Function::DynamicsTerms, q, qd, t).into_iter();
-        let m = o.next().expect("M");
-        let h = vector(o.next().expect("h"));
-        let phi_q = o.next().expect("Phi_q");
-        (m, h, phi_q, vector(o.next().expect("gamma")))
+    fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64, out: Fused<'_>) {
+        let outs: &mut [&mut [f64]] = &mut [out.m, out.h, out.phi_q, out.gamma];
+        self.core(Function::DynamicsTerms, (q, qd, &[], t), outs)
     }
-    fn actuator_map(&self) -> DMatrix<f64> {
-        let q = vec![0.0; self.scene.nq()];
-        self.core_matrix(Function::ActuatorMap, &q, &[], 0.0)
+    fn actuator_map(&self, b: &mut [f64]) {
+        let at = (self.origin.as_slice(), &[][..], &[][..], 0.0);
+        self.core(Function::ActuatorMap, at, &mut [b])
     }
     fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64 {
-        self.core_matrix(Function::KineticEnergy, q, qd, t)[0]
+        self.scalar(Function::KineticEnergy, q, qd, t)
     }
     fn potential_energy(&self, q: &[f64], t: f64) -> f64 {
-        self.core_matrix(Function::PotentialEnergy, q, &[], t)[0]
+        self.scalar(Function::PotentialEnergy, q, &[], t)
     }
     fn parameters(&self) -> Vec<&str> {
         self.scene
@@ -189,25 +169,26 @@ impl DynModel for InterpretedModel {
         }
         found.is_some()
     }
-    fn coriolis_forces(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>> {
-        self.first(Function::CoriolisForces, q, qd, t).map(vector)
+    fn coriolis_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.run(Function::CoriolisForces, (q, qd, &[], t), &mut [out])
     }
-    fn potential_forces(&self, q: &[f64], t: f64) -> Option<DVector<f64>> {
-        self.first(Function::PotentialForces, q, &[], t).map(vector)
+    fn potential_forces(&self, q: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.run(Function::PotentialForces, (q, &[], &[], t), &mut [out])
     }
-    fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>> {
-        self.first(Function::DampingForces, q, qd, t).map(vector)
+    fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.run(Function::DampingForces, (q, qd, &[], t), &mut [out])
     }
-    fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64) -> Option<DMatrix<f64>> {
-        self.first(Function::CoriolisMatrix, q, qd, t)
+    fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.run(Function::CoriolisMatrix, (q, qd, &[], t), &mut [out])
     }
     fn bias_jacobians(
         &self,
         q: &[f64],
         qd: &[f64],
         t: f64,
-    ) -> Option<(DMatrix<f64>, DMatrix<f64>)> {
-        let mut o = self.outputs(Function::BiasJacobians, q, qd, t)?.into_iter();
-        Some((o.next()?, o.next()?))
+        h_q: &mut [f64],
+        h_qd: &mut [f64],
+    ) -> bool {
+        self.run(Function::BiasJacobians, (q, qd, &[], t), &mut [h_q, h_qd])
     }
 }

@@ -8,6 +8,7 @@
 //! their own (see `examples/`).
 
 pub mod cli;
+pub mod compiled;
 pub mod dynamic;
 pub mod eval;
 pub mod interpreted;

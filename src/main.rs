@@ -29,9 +29,9 @@ fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Generate(args) => cli::generate::run(&args),
         Command::Export(args) => cli::export::run(&args),
-        Command::Eval(args) => cli::eval::run(&args, &cli::eval::COMPILED_SCENES),
-        Command::Simulate(args) => cli::simulate::run(&args, &cli::eval::COMPILED_SCENES),
-        Command::Inverse(args) => cli::inverse::run(&args, &cli::eval::COMPILED_SCENES),
+        Command::Eval(args) => cli::eval::run(&args, &flexdyn::compiled::COMPILED_SCENES),
+        Command::Simulate(args) => cli::simulate::run(&args, &flexdyn::compiled::COMPILED_SCENES),
+        Command::Inverse(args) => cli::inverse::run(&args, &flexdyn::compiled::COMPILED_SCENES),
         Command::Import(args) => cli::import::run(&args),
     };
     match result {

@@ -18,9 +18,9 @@
 //! one monomorphisation of that code, so the ladder is kept short.
 
 use flexdyn_runtime::Model;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
-use crate::dynamic::DynModel;
+use crate::dynamic::{matrix, vector, DynModel, Fused};
 
 /// `model` padded to `NQ` coordinates, `NC` constraints, `NU` inputs.
 pub struct Padded<'a, const NQ: usize, const NC: usize, const NU: usize> {
@@ -100,14 +100,11 @@ fn fits((nq, nc, nu): (usize, usize, usize), (cq, cc, cu): (usize, usize, usize)
     nc <= cc && nu <= cu && nq + (cc - nc) + (cu - nu) <= cq
 }
 
-fn copy_vector<const N: usize>(from: &nalgebra::DVector<f64>, to: &mut SVector<f64, N>) {
+fn copy_vector<const N: usize>(from: &DVector<f64>, to: &mut SVector<f64, N>) {
     to.rows_mut(0, from.len()).copy_from(from);
 }
 
-fn copy_matrix<const R: usize, const C: usize>(
-    from: &nalgebra::DMatrix<f64>,
-    to: &mut SMatrix<f64, R, C>,
-) {
+fn copy_matrix<const R: usize, const C: usize>(from: &DMatrix<f64>, to: &mut SMatrix<f64, R, C>) {
     to.view_mut((0, 0), from.shape()).copy_from(from);
 }
 
@@ -121,12 +118,19 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
 
     fn mass_matrix(&self, q: &SVector<f64, NQ>, t: f64, m: &mut SMatrix<f64, NQ, NQ>) {
         m.fill_with_identity();
-        copy_matrix(&self.model.mass_matrix(self.real(q), t), m);
+        let n = self.nq;
+        copy_matrix(
+            &matrix(n, n, |o| self.model.mass_matrix(self.real(q), t, o)),
+            m,
+        );
     }
 
     fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
         h.fill(0.0);
-        copy_vector(&self.model.bias(self.real(q), self.real(qd), t), h);
+        let real = vector(self.nq, |o| {
+            self.model.bias(self.real(q), self.real(qd), t, o)
+        });
+        copy_vector(&real, h);
     }
 
     /// The real coordinates' from the inner model; a pad's is its
@@ -140,20 +144,27 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
         tau: &mut SVector<f64, NQ>,
     ) {
         tau.copy_from(qdd);
-        let real = self
-            .model
-            .inverse_dynamics(self.real(q), self.real(qd), self.real(qdd), t);
+        let real = vector(self.nq, |o| {
+            let (q, qd, qdd) = (self.real(q), self.real(qd), self.real(qdd));
+            self.model.inverse_dynamics(q, qd, qdd, t, o)
+        });
         copy_vector(&real, tau);
     }
 
     fn constraints(&self, q: &SVector<f64, NQ>, t: f64, phi: &mut SVector<f64, NC>) {
-        copy_vector(&self.model.constraints(self.real(q), t), phi);
+        copy_vector(
+            &vector(self.nc, |o| self.model.constraints(self.real(q), t, o)),
+            phi,
+        );
         self.pad_constraints(q, phi);
     }
 
     fn constraint_jacobian(&self, q: &SVector<f64, NQ>, t: f64, phi_q: &mut SMatrix<f64, NC, NQ>) {
         phi_q.fill(0.0);
-        copy_matrix(&self.model.constraint_jacobian(self.real(q), t), phi_q);
+        let real = matrix(self.nc, self.nq, |o| {
+            self.model.constraint_jacobian(self.real(q), t, o)
+        });
+        copy_matrix(&real, phi_q);
         self.pad_jacobian(phi_q);
     }
 
@@ -164,10 +175,10 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
         phi_t: &mut SVector<f64, NC>,
     ) {
         phi_t.fill(0.0);
-        copy_vector(
-            &self.model.constraint_time_derivative(self.real(q), t),
-            phi_t,
-        );
+        let real = vector(self.nc, |o| {
+            self.model.constraint_time_derivative(self.real(q), t, o)
+        });
+        copy_vector(&real, phi_t);
     }
 
     fn constraint_rhs(
@@ -178,15 +189,15 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
         gamma: &mut SVector<f64, NC>,
     ) {
         gamma.fill(0.0);
-        copy_vector(
-            &self.model.constraint_rhs(self.real(q), self.real(qd), t),
-            gamma,
-        );
+        let real = vector(self.nc, |o| {
+            self.model.constraint_rhs(self.real(q), self.real(qd), t, o)
+        });
+        copy_vector(&real, gamma);
     }
 
     fn actuator_map(&self, b: &mut SMatrix<f64, NQ, NU>) {
         b.fill(0.0);
-        copy_matrix(&self.model.actuator_map(), b);
+        copy_matrix(&matrix(self.nq, self.nu, |o| self.model.actuator_map(o)), b);
         for (j, i) in self.pad_input_coordinates().into_iter().enumerate() {
             b[(i, self.nu + j)] = 1.0;
         }
@@ -209,9 +220,17 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
         h_q: &mut SMatrix<f64, NQ, NQ>,
         h_qd: &mut SMatrix<f64, NQ, NQ>,
     ) -> bool {
-        let Some((a, b)) = self.model.bias_jacobians(self.real(q), self.real(qd), t) else {
+        let (mut a, mut b) = (
+            DMatrix::zeros(self.nq, self.nq),
+            DMatrix::zeros(self.nq, self.nq),
+        );
+        let (sq, sqd) = (self.real(q), self.real(qd));
+        if !self
+            .model
+            .bias_jacobians(sq, sqd, t, a.as_mut_slice(), b.as_mut_slice())
+        {
             return false;
-        };
+        }
         h_q.fill(0.0);
         h_qd.fill(0.0);
         copy_matrix(&a, h_q);
@@ -226,7 +245,10 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
         phi: &mut SVector<f64, NC>,
         phi_q: &mut SMatrix<f64, NC, NQ>,
     ) {
-        let (p, j) = self.model.constraints_and_jacobian(self.real(q), t);
+        let (mut p, mut j) = (DVector::zeros(self.nc), DMatrix::zeros(self.nc, self.nq));
+        let sq = self.real(q);
+        self.model
+            .constraints_and_jacobian(sq, t, p.as_mut_slice(), j.as_mut_slice());
         copy_vector(&p, phi);
         self.pad_constraints(q, phi);
         phi_q.fill(0.0);
@@ -244,7 +266,17 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
         phi_q: &mut SMatrix<f64, NC, NQ>,
         gamma: &mut SVector<f64, NC>,
     ) {
-        let (mm, hh, j, g) = self.model.dynamics_terms(self.real(q), self.real(qd), t);
+        let (nq, nc) = (self.nq, self.nc);
+        let (mut mm, mut hh) = (DMatrix::zeros(nq, nq), DVector::zeros(nq));
+        let (mut j, mut g) = (DMatrix::zeros(nc, nq), DVector::zeros(nc));
+        let out = Fused {
+            m: mm.as_mut_slice(),
+            h: hh.as_mut_slice(),
+            phi_q: j.as_mut_slice(),
+            gamma: g.as_mut_slice(),
+        };
+        self.model
+            .dynamics_terms(self.real(q), self.real(qd), t, out);
         m.fill_with_identity();
         copy_matrix(&mm, m);
         h.fill(0.0);

@@ -7,7 +7,7 @@
 use flexdyn::runtime::nalgebra::{DMatrix, SMatrix, SVector};
 use flexdyn::runtime::{
     accelerations, run, total_energy, DynamicsConfig, ErrorKind, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, Integrator, Model, Rk4, State, StepSettings,
+    GeneralizedAlphaConfig, Integrator, IntegratorOf, Model, Rk4, State, StepSettings,
 };
 use flexdyn::scenes::extreme_ratios::ExtremeRatios;
 use flexdyn::scenes::flyball_governor::FlyballGovernor;

@@ -7,7 +7,7 @@
 //! equals its closed form `lambda = (mc + m) x'' + m l (phi'' cos(phi) -
 //! phi'^2 sin(phi))`.
 
-use flexdyn::runtime::{accelerations, DynamicsConfig, GaussLegendre4, Integrator, Model, State};
+use flexdyn::runtime::{accelerations, DynamicsConfig, GaussLegendre4, IntegratorOf, Model, State};
 use flexdyn::scenes::driven_cart_pendulum::DrivenCartPendulum;
 use nalgebra::SVector;
 

@@ -7,7 +7,7 @@ mod models;
 use criterion::{criterion_group, criterion_main, Criterion};
 use flexdyn_runtime::{
     accelerations, DynamicsConfig, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig,
-    Integrator, InverseConfig, InverseDynamics, InverseSolution, Rk4, State, StepSettings,
+    IntegratorOf, InverseConfig, InverseDynamics, InverseSolution, Rk4, State, StepSettings,
 };
 use models::*;
 use std::hint::black_box;

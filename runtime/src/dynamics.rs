@@ -13,9 +13,10 @@
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
 use crate::linalg::{cholesky, solve_lower, solve_lower_transpose, SpdSolver};
-use crate::model::Model;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector};
 
 /// Baumgarte stabilisation gains: the acceleration constraint becomes
 /// `Phi_q qdd = gamma - 2 alpha dPhi/dt - beta^2 Phi`, which makes the
@@ -66,31 +67,55 @@ impl<T: Scalar> Default for DynamicsConfig<T> {
     }
 }
 
-/// Result of a forward-dynamics solve.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Accelerations<const NQ: usize, const NC: usize, T: Scalar = f64> {
+/// Result of a forward-dynamics solve, `Q` coordinates and `C`
+/// constraints of fixed or run-time size ([`Accelerations`]: fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct AccelerationsOf<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<C>,
+{
     /// Generalized accelerations `qdd`.
-    pub qdd: SVector<T, NQ>,
+    pub qdd: OVector<T, Q>,
     /// Constraint forces (Lagrange multipliers) `lambda`; the generalized
     /// constraint force is `Phi_q^T lambda`.
-    pub lambda: SVector<T, NC>,
+    pub lambda: OVector<T, C>,
     /// Condition estimate of `Phi_q M^-1 Phi_q^T` (1 when unconstrained).
     pub condition: T,
 }
 
+impl<T: Scalar, const NQ: usize, const NC: usize> Copy
+    for AccelerationsOf<T, Const<NQ>, Const<NC>>
+{
+}
+
+/// [`AccelerationsOf`] of a model of fixed size.
+pub type Accelerations<const NQ: usize, const NC: usize, T = f64> =
+    AccelerationsOf<T, Const<NQ>, Const<NC>>;
+
 /// Factored saddle-point matrix `[[M, Phi_q^T], [Phi_q, 0]]`.
-pub(crate) struct Kkt<const NQ: usize, const NC: usize, T: Scalar = f64> {
-    l: SMatrix<T, NQ, NQ>,
-    y: SMatrix<T, NQ, NC>,
-    s: SpdSolver<NC, T>,
+pub(crate) struct Kkt<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Allocator<Q, Q> + Allocator<Q, C> + Allocator<C, C> + Allocator<C>,
+{
+    l: OMatrix<T, Q, Q>,
+    y: OMatrix<T, Q, C>,
+    s: SpdSolver<T, C>,
     pub(crate) condition: T,
 }
 
-impl<T: Scalar, const NQ: usize, const NC: usize> Kkt<NQ, NC, T> {
+impl<T: Scalar, Q: Dim, C: Dim> Kkt<T, Q, C>
+where
+    DefaultAllocator: Allocator<Q, Q>
+        + Allocator<Q, C>
+        + Allocator<C, C>
+        + Allocator<C>
+        + Allocator<C, Q>
+        + Allocator<Q>,
+{
     /// Factors the KKT matrix; errors are reported at time `t`.
     pub(crate) fn new(
-        mut m: SMatrix<T, NQ, NQ>,
-        phi_q: &SMatrix<T, NC, NQ>,
+        mut m: OMatrix<T, Q, Q>,
+        phi_q: &OMatrix<T, C, Q>,
         max_condition: T,
         t: T,
     ) -> Result<Self, Error> {
@@ -105,7 +130,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize> Kkt<NQ, NC, T> {
         }
         let mut y = phi_q.transpose();
         solve_lower(&m, &mut y);
-        let s_mat = y.transpose() * y;
+        let s_mat = y.transpose() * &y;
         match SpdSolver::factor(&s_mat, max_condition) {
             Ok((s, condition)) => Ok(Kkt {
                 l: m,
@@ -124,8 +149,8 @@ impl<T: Scalar, const NQ: usize, const NC: usize> Kkt<NQ, NC, T> {
     }
 
     /// `sqrt(v^T M^-1 v)`.
-    pub(crate) fn inverse_mass_norm(&self, v: &SVector<T, NQ>) -> T {
-        let mut z = *v;
+    pub(crate) fn inverse_mass_norm(&self, v: &OVector<T, Q>) -> T {
+        let mut z = v.clone();
         solve_lower(&self.l, &mut z);
         z.norm()
     }
@@ -133,14 +158,14 @@ impl<T: Scalar, const NQ: usize, const NC: usize> Kkt<NQ, NC, T> {
     /// Solves `M x - Phi_q^T mu = f`, `Phi_q x = c`.
     pub(crate) fn solve(
         &self,
-        f: &SVector<T, NQ>,
-        c: &SVector<T, NC>,
-    ) -> (SVector<T, NQ>, SVector<T, NC>) {
-        let mut z = *f;
+        f: &OVector<T, Q>,
+        c: &OVector<T, C>,
+    ) -> (OVector<T, Q>, OVector<T, C>) {
+        let mut z = f.clone();
         solve_lower(&self.l, &mut z);
-        let mut mu = c - self.y.transpose() * z;
+        let mut mu = c - self.y.transpose() * &z;
         self.s.solve(&mut mu);
-        let mut x = z + self.y * mu;
+        let mut x = z + &self.y * &mu;
         solve_lower_transpose(&self.l, &mut x);
         (x, mu)
     }
@@ -153,16 +178,17 @@ impl<T: Scalar, const NQ: usize, const NC: usize> Kkt<NQ, NC, T> {
 /// are checked. Errors: [`ErrorKind::NonFiniteModelOutput`],
 /// [`ErrorKind::MassMatrixNotPositiveDefinite`],
 /// [`ErrorKind::SingularConstraintJacobian`], [`ErrorKind::NonFiniteResult`].
-pub fn accelerations<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn accelerations<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     config: &DynamicsConfig<T>,
-    q: &SVector<T, NQ>,
-    qd: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
     t: T,
-    tau: &SVector<T, NU>,
-) -> Result<Accelerations<NQ, NC, T>, Error>
+    tau: &OVector<T, U>,
+) -> Result<AccelerationsOf<T, Q, C>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
     let b = eval::actuator_map(model, t)?;
@@ -172,7 +198,7 @@ where
     let (qdd, lambda) = kkt.solve(&f, &c);
     eval::check_result(&qdd, Quantity::Acceleration, t)?;
     eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
-    Ok(Accelerations {
+    Ok(AccelerationsOf {
         qdd,
         lambda,
         condition: kkt.condition,
@@ -181,20 +207,21 @@ where
 
 /// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` from the given `Phi_q`
 /// and `gamma` (zero-sized when `NC == 0`).
-pub(crate) fn stabilised_rhs<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn stabilised_rhs<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     gains: &Baumgarte,
-    q: &SVector<T, NQ>,
-    qd: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
     t: T,
-    phi_q: &SMatrix<T, NC, NQ>,
-    gamma: SVector<T, NC>,
-) -> Result<SVector<T, NC>, Error>
+    phi_q: &OMatrix<T, C, Q>,
+    gamma: OVector<T, C>,
+) -> Result<OVector<T, C>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
-    if NC == 0 {
-        return Ok(SVector::zeros());
+    if gamma.nrows() == 0 {
+        return Ok(gamma);
     }
     let mut c = gamma;
     if gains.alpha != 0.0 || gains.beta != 0.0 {

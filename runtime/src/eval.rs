@@ -4,16 +4,20 @@
 
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::linalg::all_finite;
-use crate::model::Model;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector};
 
 #[inline]
-pub(crate) fn check<T: Scalar, const R: usize, const C: usize>(
-    m: &SMatrix<T, R, C>,
+pub(crate) fn check<T: Scalar, R: Dim, C: Dim>(
+    m: &OMatrix<T, R, C>,
     quantity: Quantity,
     t: T,
-) -> Result<(), Error> {
+) -> Result<(), Error>
+where
+    DefaultAllocator: Allocator<R, C>,
+{
     if all_finite(m) {
         Ok(())
     } else {
@@ -22,125 +26,124 @@ pub(crate) fn check<T: Scalar, const R: usize, const C: usize>(
 }
 
 /// `M(q, t)`.
-pub(crate) fn mass<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn mass<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
     t: T,
-) -> Result<SMatrix<T, NQ, NQ>, Error> {
-    let mut m = SMatrix::<T, NQ, NQ>::zeros();
+) -> Result<OMatrix<T, Q, Q>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, _, _) = model.sizes();
+    let mut m = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
     model.mass_matrix(q, t, &mut m);
     check(&m, Quantity::MassMatrix, t)?;
     Ok(m)
 }
 
 /// `M qdd + h` at `(q, qd, qdd, t)`, from the model's
-/// [`Model::inverse_dynamics`], written into `r`.
-pub(crate) fn inverse_dynamics_into<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+/// [`crate::Model::inverse_dynamics`], written into `r`.
+pub(crate) fn inverse_dynamics_into<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
-    qd: &SVector<T, NQ>,
-    qdd: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
+    qdd: &OVector<T, Q>,
     t: T,
-    r: &mut SVector<T, NQ>,
-) -> Result<(), Error> {
+    r: &mut OVector<T, Q>,
+) -> Result<(), Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
     model.inverse_dynamics(q, qd, qdd, t, r);
     check(r, Quantity::InverseDynamics, t)
 }
 
 /// `gamma(q, qd, t)`.
-pub(crate) fn constraint_rhs<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn constraint_rhs<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
-    qd: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
     t: T,
-) -> Result<SVector<T, NC>, Error> {
-    let mut gamma = SVector::<T, NC>::zeros();
+) -> Result<OVector<T, C>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (_, nc, _) = model.sizes();
+    let mut gamma = OVector::<T, C>::zeros_generic(nc, nalgebra::U1);
     model.constraint_rhs(q, qd, t, &mut gamma);
     check(&gamma, Quantity::ConstraintRhs, t)?;
     Ok(gamma)
 }
 
 /// `M`, `h`, `Phi_q` and `gamma` at one state, from the model's fused
-/// [`Model::dynamics_terms`] (one program sharing every common
+/// [`crate::Model::dynamics_terms`] (one program sharing every common
 /// subexpression in generated models).
-pub(crate) struct Terms<const NQ: usize, const NC: usize, T: Scalar = f64> {
-    pub m: SMatrix<T, NQ, NQ>,
-    pub h: SVector<T, NQ>,
-    pub phi_q: SMatrix<T, NC, NQ>,
-    pub gamma: SVector<T, NC>,
+pub(crate) struct Terms<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Allocator<Q, Q> + Allocator<Q> + Allocator<C, Q> + Allocator<C>,
+{
+    pub m: OMatrix<T, Q, Q>,
+    pub h: OVector<T, Q>,
+    pub phi_q: OMatrix<T, C, Q>,
+    pub gamma: OVector<T, C>,
 }
 
-impl<const NQ: usize, const NC: usize, T: Scalar> Terms<NQ, NC, T> {
-    /// All zero.
-    pub(crate) fn zeros() -> Self {
+impl<T: Scalar, Q: Dim, C: Dim> Terms<T, Q, C>
+where
+    DefaultAllocator: Allocator<Q, Q> + Allocator<Q> + Allocator<C, Q> + Allocator<C>,
+{
+    /// All zero, for `nq` coordinates and `nc` constraints.
+    pub(crate) fn zeros(nq: Q, nc: C) -> Self {
         Terms {
-            m: SMatrix::zeros(),
-            h: SVector::zeros(),
-            phi_q: SMatrix::zeros(),
-            gamma: SVector::zeros(),
+            m: OMatrix::zeros_generic(nq, nq),
+            h: OVector::zeros_generic(nq, nalgebra::U1),
+            phi_q: OMatrix::zeros_generic(nc, nq),
+            gamma: OVector::zeros_generic(nc, nalgebra::U1),
         }
     }
 }
 
 /// [`Terms`] with every output checked.
-pub(crate) fn dynamics_terms<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn dynamics_terms<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
-    qd: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
     t: T,
-) -> Result<Terms<NQ, NC, T>, Error> {
-    let mut o = Terms::zeros();
+) -> Result<Terms<T, Q, C>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, nc, _) = model.sizes();
+    let mut o = Terms::zeros(nq, nc);
     dynamics_terms_into(model, q, qd, t, &mut o)?;
     Ok(o)
 }
 
 /// [`dynamics_terms`] written into `o` (no copy of the terms on return).
-pub(crate) fn dynamics_terms_into<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn dynamics_terms_into<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
-    qd: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
     t: T,
-    o: &mut Terms<NQ, NC, T>,
-) -> Result<(), Error> {
+    o: &mut Terms<T, Q, C>,
+) -> Result<(), Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
     model.dynamics_terms(q, qd, t, &mut o.m, &mut o.h, &mut o.phi_q, &mut o.gamma);
     check_terms(o, t)
 }
 
 /// Checks every term of `o` (evaluated at time `t`).
-pub(crate) fn check_terms<T: Scalar, const NQ: usize, const NC: usize>(
-    o: &Terms<NQ, NC, T>,
-    t: T,
-) -> Result<(), Error> {
+pub(crate) fn check_terms<T: Scalar, Q: Dim, C: Dim>(o: &Terms<T, Q, C>, t: T) -> Result<(), Error>
+where
+    DefaultAllocator: Allocator<Q, Q> + Allocator<Q> + Allocator<C, Q> + Allocator<C>,
+{
     check(&o.m, Quantity::MassMatrix, t)?;
     check(&o.h, Quantity::Bias, t)?;
     check(&o.phi_q, Quantity::ConstraintJacobian, t)?;
@@ -148,36 +151,34 @@ pub(crate) fn check_terms<T: Scalar, const NQ: usize, const NC: usize>(
 }
 
 /// `B`.
-pub(crate) fn actuator_map<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn actuator_map<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     t: T,
-) -> Result<SMatrix<T, NQ, NU>, Error> {
-    let mut b = SMatrix::<T, NQ, NU>::zeros();
+) -> Result<OMatrix<T, Q, U>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, _, nu) = model.sizes();
+    let mut b = OMatrix::<T, Q, U>::zeros_generic(nq, nu);
     model.actuator_map(&mut b);
     check(&b, Quantity::ActuatorMap, t)?;
     Ok(b)
 }
 
 /// `Phi(q, t)`.
-pub(crate) fn constraints<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn constraints<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
     t: T,
-) -> Result<SVector<T, NC>, Error> {
-    let mut phi = SVector::<T, NC>::zeros();
-    if NC > 0 {
+) -> Result<OVector<T, C>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (_, nc, _) = model.sizes();
+    let mut phi = OVector::<T, C>::zeros_generic(nc, nalgebra::U1);
+    if nc.value() > 0 {
         model.constraints(q, t, &mut phi);
         check(&phi, Quantity::Constraints, t)?;
     }
@@ -185,37 +186,34 @@ pub(crate) fn constraints<
 }
 
 /// `Phi_q(q, t)`.
-pub(crate) fn constraint_jacobian<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn constraint_jacobian<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
     t: T,
-) -> Result<SMatrix<T, NC, NQ>, Error> {
-    let mut j = SMatrix::<T, NC, NQ>::zeros();
+) -> Result<OMatrix<T, C, Q>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, nc, _) = model.sizes();
+    let mut j = OMatrix::<T, C, Q>::zeros_generic(nc, nq);
     constraint_jacobian_into(model, q, t, &mut j)?;
     Ok(j)
 }
 
 /// [`constraint_jacobian`] written into `phi_q`.
-pub(crate) fn constraint_jacobian_into<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn constraint_jacobian_into<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
     t: T,
-    phi_q: &mut SMatrix<T, NC, NQ>,
-) -> Result<(), Error> {
+    phi_q: &mut OMatrix<T, C, Q>,
+) -> Result<(), Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
     phi_q.as_mut_slice().fill(T::zero());
-    if NC > 0 {
+    if phi_q.nrows() > 0 {
         model.constraint_jacobian(q, t, phi_q);
         check(phi_q, Quantity::ConstraintJacobian, t)?;
     }
@@ -223,23 +221,21 @@ pub(crate) fn constraint_jacobian_into<
 }
 
 /// `Phi(q, t)` and `Phi_q(q, t)` from the model's fused
-/// [`Model::constraints_and_jacobian`], written into `phi` and `phi_q`.
-pub(crate) fn constraints_and_jacobian<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+/// [`crate::Model::constraints_and_jacobian`], written into `phi` and `phi_q`.
+pub(crate) fn constraints_and_jacobian<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
     t: T,
-    phi: &mut SVector<T, NC>,
-    phi_q: &mut SMatrix<T, NC, NQ>,
-) -> Result<(), Error> {
+    phi: &mut OVector<T, C>,
+    phi_q: &mut OMatrix<T, C, Q>,
+) -> Result<(), Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
     phi.as_mut_slice().fill(T::zero());
     phi_q.as_mut_slice().fill(T::zero());
-    if NC > 0 {
+    if phi.nrows() > 0 {
         model.constraints_and_jacobian(q, t, phi, phi_q);
         check(phi, Quantity::Constraints, t)?;
         check(phi_q, Quantity::ConstraintJacobian, t)?;
@@ -248,19 +244,18 @@ pub(crate) fn constraints_and_jacobian<
 }
 
 /// `Phi_t(q, t)`.
-pub(crate) fn constraint_time_derivative<
-    M: Model<NQ, NC, NU, T>,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn constraint_time_derivative<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    q: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
     t: T,
-) -> Result<SVector<T, NC>, Error> {
-    let mut p = SVector::<T, NC>::zeros();
-    if NC > 0 {
+) -> Result<OVector<T, C>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (_, nc, _) = model.sizes();
+    let mut p = OVector::<T, C>::zeros_generic(nc, nalgebra::U1);
+    if nc.value() > 0 {
         model.constraint_time_derivative(q, t, &mut p);
         check(&p, Quantity::ConstraintTimeDerivative, t)?;
     }
@@ -268,10 +263,10 @@ pub(crate) fn constraint_time_derivative<
 }
 
 /// Checks an actuator input vector.
-pub(crate) fn check_input<T: Scalar, const NU: usize>(
-    tau: &SVector<T, NU>,
-    t: T,
-) -> Result<(), Error> {
+pub(crate) fn check_input<T: Scalar, U: Dim>(tau: &OVector<T, U>, t: T) -> Result<(), Error>
+where
+    DefaultAllocator: Allocator<U>,
+{
     match crate::linalg::first_non_finite(tau) {
         None => Ok(()),
         Some(index) => Err(Error::new(
@@ -285,11 +280,14 @@ pub(crate) fn check_input<T: Scalar, const NU: usize>(
 }
 
 /// Checks a solver result.
-pub(crate) fn check_result<T: Scalar, const R: usize, const C: usize>(
-    m: &SMatrix<T, R, C>,
+pub(crate) fn check_result<T: Scalar, R: Dim, C: Dim>(
+    m: &OMatrix<T, R, C>,
     quantity: Quantity,
     t: T,
-) -> Result<(), Error> {
+) -> Result<(), Error>
+where
+    DefaultAllocator: Allocator<R, C>,
+{
     if all_finite(m) {
         Ok(())
     } else {

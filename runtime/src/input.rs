@@ -3,22 +3,37 @@
 //! Integrators evaluate the input at the times their stages need. A plain
 //! vector is a zero-order hold; [`Linear`] interpolates between two samples;
 //! [`FromFn`] wraps any `Fn(f64) -> SVector` (e.g. a controller or a lookup
-//! table).
+//! table). `U` is the number of inputs, fixed (`Const<NU>`) or known at run
+//! time (`Dyn`).
 
 use crate::scalar::Scalar;
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OVector, SVector};
 
-/// Actuator input `tau(t)`.
-pub trait Input<const NU: usize, T: Scalar = f64> {
+/// Actuator input `tau(t)` of `U` inputs, fixed (`Const<NU>`, see
+/// [`Input`]) or known at run time (`Dyn`).
+pub trait InputOf<U: Dim, T: Scalar = f64>
+where
+    DefaultAllocator: Allocator<U>,
+{
     /// The input at time `t`.
-    fn at(&self, t: T) -> SVector<T, NU>;
+    fn at(&self, t: T) -> OVector<T, U>;
 }
 
+/// [`InputOf`] of `NU` inputs (fixed size): what firmware code names.
+/// Implemented for every [`InputOf`] of that size.
+pub trait Input<const NU: usize, T: Scalar = f64>: InputOf<Const<NU>, T> {}
+
+impl<I, T: Scalar, const NU: usize> Input<NU, T> for I where I: InputOf<Const<NU>, T> + ?Sized {}
+
 /// A constant vector: zero-order hold over the step.
-impl<T: Scalar, const NU: usize> Input<NU, T> for SVector<T, NU> {
+impl<T: Scalar, U: Dim> InputOf<U, T> for OVector<T, U>
+where
+    DefaultAllocator: Allocator<U>,
+{
     #[inline]
-    fn at(&self, _t: T) -> SVector<T, NU> {
-        *self
+    fn at(&self, _t: T) -> OVector<T, U> {
+        self.clone()
     }
 }
 
@@ -36,7 +51,7 @@ pub struct Linear<const NU: usize, T: Scalar = f64> {
     pub tau1: SVector<T, NU>,
 }
 
-impl<T: Scalar, const NU: usize> Input<NU, T> for Linear<NU, T> {
+impl<T: Scalar, const NU: usize> InputOf<Const<NU>, T> for Linear<NU, T> {
     fn at(&self, t: T) -> SVector<T, NU> {
         let span = self.t1 - self.t0;
         if !(span > T::zero()) || t <= self.t0 {
@@ -54,12 +69,13 @@ impl<T: Scalar, const NU: usize> Input<NU, T> for Linear<NU, T> {
 #[derive(Clone, Copy, Debug)]
 pub struct FromFn<F>(pub F);
 
-impl<F, T: Scalar, const NU: usize> Input<NU, T> for FromFn<F>
+impl<F, T: Scalar, U: Dim> InputOf<U, T> for FromFn<F>
 where
-    F: Fn(T) -> SVector<T, NU>,
+    F: Fn(T) -> OVector<T, U>,
+    DefaultAllocator: Allocator<U>,
 {
     #[inline]
-    fn at(&self, t: T) -> SVector<T, NU> {
+    fn at(&self, t: T) -> OVector<T, U> {
         (self.0)(t)
     }
 }

@@ -3,6 +3,10 @@
 //!
 //! * [`Model`]: the interface generated code implements, in `f64` or `f32`
 //!   (every solver is generic over the [`Scalar`] type, `f64` by default).
+//! * [`Equations`]: the same equations over nalgebra dimensions, fixed
+//!   (`Const<N>`: every [`Model`]) or known only at run time (`Dyn`, with
+//!   nalgebra's `alloc` feature): the forward-dynamics solvers, projection,
+//!   integrators and [`control::Feedback`] take it, written once for both.
 //! * [`accelerations`]: constrained forward dynamics (KKT system by a Schur
 //!   complement on the stack, Baumgarte stabilisation).
 //! * [`project`]: coordinate projection onto the constraint manifold.
@@ -16,7 +20,8 @@
 //!
 //! Every fallible call returns [`Error`], a small `Copy` value saying what went
 //! wrong ([`ErrorKind`]) and at which time. Loops are bounded by iteration
-//! caps in the configuration structs; all storage is fixed-size on the stack.
+//! caps in the configuration structs; at fixed sizes all storage is
+//! fixed-size on the stack.
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -41,19 +46,19 @@ mod projection;
 mod scalar;
 mod state;
 
-pub use dynamics::{accelerations, Accelerations, Baumgarte, DynamicsConfig};
+pub use dynamics::{accelerations, Accelerations, AccelerationsOf, Baumgarte, DynamicsConfig};
 pub use error::{Error, ErrorKind, Quantity, Stage, Time, GAUSS_LEGENDRE_CONTRACTION_LIMIT};
-pub use input::{FromFn, Input, Linear};
+pub use input::{FromFn, Input, InputOf, Linear};
 pub use integrate::{
     run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, Integrator, Rk4, RunSummary, SemiImplicitEuler, StepReport,
-    StepSettings,
+    GeneralizedAlphaConfig, GeneralizedAlphaOf, Integrator, IntegratorOf, Rk4, RunSummary,
+    SemiImplicitEuler, StepReport, StepSettings,
 };
 pub use inverse::{
     forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution, SolvePath,
 };
-pub use model::{FiniteDifferenceJacobians, Model};
+pub use model::{Equations, FiniteDifferenceJacobians, Model, Sizes};
 pub use nalgebra;
 pub use projection::{project, ProjectionConfig, ProjectionReport};
 pub use scalar::Scalar;
-pub use state::{constraint_drift, total_energy, Drift, State};
+pub use state::{constraint_drift, total_energy, Drift, State, StateOf};

@@ -5,10 +5,14 @@
 //! bounds, and generic code needs no extra dimension trait bounds.
 
 use crate::scalar::Scalar;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
 
 /// Largest absolute entry; NaN if any entry is NaN.
-pub(crate) fn max_abs<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<T, R, C>) -> T {
+pub(crate) fn max_abs<T: Scalar, R: Dim, C: Dim>(a: &OMatrix<T, R, C>) -> T
+where
+    DefaultAllocator: Allocator<R, C>,
+{
     let mut m = T::zero();
     for x in a.as_slice() {
         let ax = x.abs();
@@ -26,7 +30,10 @@ pub(crate) fn max_abs<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<T, 
 /// otherwise; eight independent accumulators over the contiguous storage
 /// vectorise, where a short-circuiting scan over nalgebra's generic iterator
 /// cost more than evaluating some of the generated terms.)
-pub(crate) fn all_finite<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<T, R, C>) -> bool {
+pub(crate) fn all_finite<T: Scalar, R: Dim, C: Dim>(a: &OMatrix<T, R, C>) -> bool
+where
+    DefaultAllocator: Allocator<R, C>,
+{
     let mut acc = [T::zero(); 8];
     let mut chunks = a.as_slice().chunks_exact(8);
     for c in &mut chunks {
@@ -41,7 +48,10 @@ pub(crate) fn all_finite<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<
 }
 
 /// Squared Frobenius norm (four independent accumulators).
-pub(crate) fn norm_squared<T: Scalar, const R: usize, const C: usize>(a: &SMatrix<T, R, C>) -> T {
+pub(crate) fn norm_squared<T: Scalar, R: Dim, C: Dim>(a: &OMatrix<T, R, C>) -> T
+where
+    DefaultAllocator: Allocator<R, C>,
+{
     let mut acc = [T::zero(); 4];
     let mut chunks = a.as_slice().chunks_exact(4);
     for c in &mut chunks {
@@ -83,7 +93,10 @@ pub(crate) fn tr_mul_vec_acc<T: Scalar, const R: usize, const C: usize>(
 }
 
 /// Index of the first non-finite entry (column-major for matrices).
-pub(crate) fn first_non_finite<T: Scalar, const R: usize>(a: &SVector<T, R>) -> Option<usize> {
+pub(crate) fn first_non_finite<T: Scalar, R: Dim>(a: &OVector<T, R>) -> Option<usize>
+where
+    DefaultAllocator: Allocator<R>,
+{
     a.as_slice().iter().position(|x| !x.is_finite())
 }
 
@@ -93,10 +106,12 @@ pub(crate) fn first_non_finite<T: Scalar, const R: usize>(a: &SVector<T, R>) -> 
 ///
 /// Fails with `(pivot index, pivot value)` when a pivot is not positive, or
 /// is below `eps * A_jj` (numerically singular), or is not finite.
-pub(crate) fn cholesky<T: Scalar, const N: usize>(
-    a: &mut SMatrix<T, N, N>,
-) -> Result<(), (usize, T)> {
-    for j in 0..N {
+pub(crate) fn cholesky<T: Scalar, N: Dim>(a: &mut OMatrix<T, N, N>) -> Result<(), (usize, T)>
+where
+    DefaultAllocator: Allocator<N, N>,
+{
+    let n = a.nrows();
+    for j in 0..n {
         let ajj = a[(j, j)];
         let mut d = ajj;
         for k in 0..j {
@@ -107,7 +122,7 @@ pub(crate) fn cholesky<T: Scalar, const N: usize>(
         }
         let l = Scalar::square_root(d);
         a[(j, j)] = l;
-        for i in (j + 1)..N {
+        for i in (j + 1)..n {
             let mut s = a[(i, j)];
             for k in 0..j {
                 s -= a[(i, k)] * a[(j, k)];
@@ -122,12 +137,13 @@ pub(crate) fn cholesky<T: Scalar, const N: usize>(
 }
 
 /// Solves `L x = b` in place (forward substitution) for every column of `b`.
-pub(crate) fn solve_lower<T: Scalar, const N: usize, const K: usize>(
-    l: &SMatrix<T, N, N>,
-    b: &mut SMatrix<T, N, K>,
-) {
-    for c in 0..K {
-        for i in 0..N {
+pub(crate) fn solve_lower<T: Scalar, N: Dim, K: Dim>(l: &OMatrix<T, N, N>, b: &mut OMatrix<T, N, K>)
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, K>,
+{
+    let n = l.nrows();
+    for c in 0..b.ncols() {
+        for i in 0..n {
             let mut s = b[(i, c)];
             for k in 0..i {
                 s -= l[(i, k)] * b[(k, c)];
@@ -138,14 +154,17 @@ pub(crate) fn solve_lower<T: Scalar, const N: usize, const K: usize>(
 }
 
 /// Solves `L^T x = b` in place (backward substitution) for every column of `b`.
-pub(crate) fn solve_lower_transpose<T: Scalar, const N: usize, const K: usize>(
-    l: &SMatrix<T, N, N>,
-    b: &mut SMatrix<T, N, K>,
-) {
-    for c in 0..K {
-        for i in (0..N).rev() {
+pub(crate) fn solve_lower_transpose<T: Scalar, N: Dim, K: Dim>(
+    l: &OMatrix<T, N, N>,
+    b: &mut OMatrix<T, N, K>,
+) where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, K>,
+{
+    let n = l.nrows();
+    for c in 0..b.ncols() {
+        for i in (0..n).rev() {
             let mut s = b[(i, c)];
-            for k in (i + 1)..N {
+            for k in (i + 1)..n {
                 s -= l[(k, i)] * b[(k, c)];
             }
             b[(i, c)] = s / l[(i, i)];
@@ -156,44 +175,49 @@ pub(crate) fn solve_lower_transpose<T: Scalar, const N: usize, const K: usize>(
 /// Symmetric positive semi-definite solver: Jacobi equilibration followed by a
 /// diagonally pivoted Cholesky factorisation, which reveals (near) rank
 /// deficiency through its pivots.
-pub(crate) struct SpdSolver<const N: usize, T: Scalar = f64> {
-    l: SMatrix<T, N, N>,
-    perm: [usize; N],
-    scale: SVector<T, N>,
+pub(crate) struct SpdSolver<T: Scalar, N: Dim>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    l: OMatrix<T, N, N>,
+    perm: OVector<usize, N>,
+    scale: OVector<T, N>,
 }
 
-impl<T: Scalar, const N: usize> SpdSolver<N, T> {
+impl<T: Scalar, N: Dim> SpdSolver<T, N>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     /// Factors `a` (symmetric, both triangles read). Returns the solver and a
     /// condition estimate of the equilibrated matrix (ratio of the largest to
     /// the smallest pivot; a lower bound of the 2-norm condition number).
     /// `Err(estimate)` when a pivot vanishes or the estimate exceeds `limit`
     /// (the estimate is `INFINITY` for an exactly singular matrix).
-    pub(crate) fn factor(a: &SMatrix<T, N, N>, limit: T) -> Result<(Self, T), T> {
-        let mut scale = SVector::<T, N>::zeros();
-        for i in 0..N {
+    pub(crate) fn factor(a: &OMatrix<T, N, N>, limit: T) -> Result<(Self, T), T> {
+        let (dim, _) = a.shape_generic();
+        let n = dim.value();
+        let mut scale = OVector::<T, N>::zeros_generic(dim, U1);
+        for i in 0..n {
             let d = a[(i, i)];
             if !(d > T::zero()) || !d.is_finite() {
                 return Err(T::INFINITY);
             }
             scale[i] = T::one() / Scalar::square_root(d);
         }
-        let mut w = SMatrix::<T, N, N>::zeros();
-        for j in 0..N {
-            for i in 0..N {
+        let mut w = OMatrix::<T, N, N>::zeros_generic(dim, dim);
+        for j in 0..n {
+            for i in 0..n {
                 w[(i, j)] = scale[i] * a[(i, j)] * scale[j];
             }
         }
-        let mut perm = [0usize; N];
-        for (i, p) in perm.iter_mut().enumerate() {
-            *p = i;
-        }
-        let mut l = SMatrix::<T, N, N>::zeros();
+        let mut perm = OVector::<usize, N>::from_fn_generic(dim, U1, |i, _| i);
+        let mut l = OMatrix::<T, N, N>::zeros_generic(dim, dim);
         let mut dmax = T::zero();
         let mut dmin = T::INFINITY;
-        for j in 0..N {
+        for j in 0..n {
             // Choose the largest remaining diagonal.
             let mut p = j;
-            for i in (j + 1)..N {
+            for i in (j + 1)..n {
                 if w[(i, i)] > w[(p, p)] {
                     p = i;
                 }
@@ -202,7 +226,7 @@ impl<T: Scalar, const N: usize> SpdSolver<N, T> {
                 w.swap_rows(j, p);
                 w.swap_columns(j, p);
                 l.swap_rows(j, p);
-                perm.swap(j, p);
+                perm.swap_rows(j, p);
             }
             let d = w[(j, j)];
             if j == 0 {
@@ -214,16 +238,16 @@ impl<T: Scalar, const N: usize> SpdSolver<N, T> {
             dmin = dmin.min(d);
             let ljj = Scalar::square_root(d);
             l[(j, j)] = ljj;
-            for i in (j + 1)..N {
+            for i in (j + 1)..n {
                 l[(i, j)] = w[(i, j)] / ljj;
             }
-            for k in (j + 1)..N {
-                for i in (j + 1)..N {
+            for k in (j + 1)..n {
+                for i in (j + 1)..n {
                     w[(i, k)] -= l[(i, j)] * l[(k, j)];
                 }
             }
         }
-        let estimate = if N == 0 { T::one() } else { dmax / dmin };
+        let estimate = if n == 0 { T::one() } else { dmax / dmin };
         if !(estimate <= limit) {
             return Err(estimate);
         }
@@ -231,16 +255,17 @@ impl<T: Scalar, const N: usize> SpdSolver<N, T> {
     }
 
     /// Solves `A x = b` in place.
-    pub(crate) fn solve(&self, b: &mut SVector<T, N>) {
+    pub(crate) fn solve(&self, b: &mut OVector<T, N>) {
         // (D A D) y = D b, x = D y, with P (D A D) P^T = L L^T.
-        let mut y = SVector::<T, N>::zeros();
-        for i in 0..N {
+        let n = b.nrows();
+        let mut y = OVector::<T, N>::zeros_generic(b.shape_generic().0, U1);
+        for i in 0..n {
             let pi = self.perm[i];
             y[i] = self.scale[pi] * b[pi];
         }
         solve_lower(&self.l, &mut y);
         solve_lower_transpose(&self.l, &mut y);
-        for i in 0..N {
+        for i in 0..n {
             let pi = self.perm[i];
             b[pi] = self.scale[pi] * y[i];
         }
@@ -248,52 +273,57 @@ impl<T: Scalar, const N: usize> SpdSolver<N, T> {
 }
 
 /// LU factorisation with partial pivoting, `P A = L U`.
-pub(crate) struct Lu<const N: usize, T: Scalar = f64> {
-    lu: SMatrix<T, N, N>,
-    perm: [usize; N],
+pub(crate) struct Lu<T: Scalar, N: Dim>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    lu: OMatrix<T, N, N>,
+    perm: OVector<usize, N>,
 }
 
-impl<T: Scalar, const N: usize> Lu<N, T> {
+impl<T: Scalar, N: Dim> Lu<T, N>
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     /// Factors `a`. Returns the factorisation and a condition estimate
     /// (largest entry of `A` over the smallest pivot magnitude); `Err(estimate)`
     /// when a pivot is zero / not finite or the estimate exceeds `limit`.
-    pub(crate) fn factor(a: &SMatrix<T, N, N>, limit: T) -> Result<(Self, T), T> {
+    pub(crate) fn factor(a: &OMatrix<T, N, N>, limit: T) -> Result<(Self, T), T> {
         let norm = max_abs(a);
         if !norm.is_finite() {
             return Err(T::INFINITY);
         }
-        let mut lu = *a;
-        let mut perm = [0usize; N];
-        for (i, p) in perm.iter_mut().enumerate() {
-            *p = i;
-        }
+        let (dim, _) = a.shape_generic();
+        let n = dim.value();
+        let mut lu = a.clone();
+        let mut perm = OVector::<usize, N>::from_fn_generic(dim, U1, |i, _| i);
         let mut pmin = T::INFINITY;
-        for j in 0..N {
+        for j in 0..n {
             let mut p = j;
-            for i in (j + 1)..N {
+            for i in (j + 1)..n {
                 if lu[(i, j)].abs() > lu[(p, j)].abs() {
                     p = i;
                 }
             }
             if p != j {
                 lu.swap_rows(j, p);
-                perm.swap(j, p);
+                perm.swap_rows(j, p);
             }
             let piv = lu[(j, j)];
             if piv == T::zero() || !piv.is_finite() {
                 return Err(T::INFINITY);
             }
             pmin = pmin.min(piv.abs());
-            for i in (j + 1)..N {
+            for i in (j + 1)..n {
                 let f = lu[(i, j)] / piv;
                 lu[(i, j)] = f;
-                for k in (j + 1)..N {
+                for k in (j + 1)..n {
                     let x = lu[(j, k)];
                     lu[(i, k)] -= f * x;
                 }
             }
         }
-        let estimate = if N == 0 { T::one() } else { norm / pmin };
+        let estimate = if n == 0 { T::one() } else { norm / pmin };
         if !(estimate <= limit) {
             return Err(estimate);
         }
@@ -301,21 +331,22 @@ impl<T: Scalar, const N: usize> Lu<N, T> {
     }
 
     /// Solves `A x = b` in place.
-    pub(crate) fn solve(&self, b: &mut SVector<T, N>) {
-        let mut y = SVector::<T, N>::zeros();
-        for i in 0..N {
+    pub(crate) fn solve(&self, b: &mut OVector<T, N>) {
+        let n = b.nrows();
+        let mut y = OVector::<T, N>::zeros_generic(b.shape_generic().0, U1);
+        for i in 0..n {
             y[i] = b[self.perm[i]];
         }
-        for i in 0..N {
+        for i in 0..n {
             let mut s = y[i];
             for k in 0..i {
                 s -= self.lu[(i, k)] * y[k];
             }
             y[i] = s;
         }
-        for i in (0..N).rev() {
+        for i in (0..n).rev() {
             let mut s = y[i];
-            for k in (i + 1)..N {
+            for k in (i + 1)..n {
                 s -= self.lu[(i, k)] * y[k];
             }
             y[i] = s / self.lu[(i, i)];

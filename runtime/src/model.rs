@@ -14,7 +14,8 @@
 //! non-finite inputs propagate as non-finite outputs for the solver to detect.
 
 use crate::scalar::Scalar;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector};
 
 /// Equations of motion of one scene: `NQ` generalized coordinates, `NC`
 /// holonomic constraints and `NU` actuator inputs, computed in `T`
@@ -320,5 +321,220 @@ where
         tau: &mut SVector<T, NQ>,
     ) {
         self.0.inverse_dynamics(q, qd, qdd, t, tau)
+    }
+}
+
+/// The allocations the solvers make for `Q` coordinates, `C` constraints
+/// and `U` inputs: every vector and matrix shape they use. Implemented by
+/// nalgebra's `DefaultAllocator` for any dimensions it can allocate: fixed
+/// ones (`Const<N>`, on the stack, no heap) always, run-time ones (`Dyn`)
+/// where nalgebra's `alloc` feature is on (the command line). Generic code
+/// states `where DefaultAllocator: Sizes<Q, C, U>` once for all of them.
+pub trait Sizes<Q: Dim, C: Dim, U: Dim>:
+    Allocator<Q>
+    + Allocator<C>
+    + Allocator<U>
+    + Allocator<Q, Q>
+    + Allocator<C, Q>
+    + Allocator<Q, C>
+    + Allocator<C, C>
+    + Allocator<Q, U>
+    + Allocator<U, Q>
+    + Allocator<U, U>
+    + Allocator<U, C>
+    + Allocator<C, U>
+{
+}
+
+impl<Q: Dim, C: Dim, U: Dim> Sizes<Q, C, U> for DefaultAllocator where
+    DefaultAllocator: Allocator<Q>
+        + Allocator<C>
+        + Allocator<U>
+        + Allocator<Q, Q>
+        + Allocator<C, Q>
+        + Allocator<Q, C>
+        + Allocator<C, C>
+        + Allocator<Q, U>
+        + Allocator<U, Q>
+        + Allocator<U, U>
+        + Allocator<U, C>
+        + Allocator<C, U>
+{
+}
+
+/// The equations of motion over dimensions `Q` (coordinates), `C`
+/// (constraints), `U` (inputs) that are either fixed (`Const<N>`) or known
+/// only at run time (`Dyn`): what every solver of this crate calls. A
+/// generated [`Model`] is one with fixed dimensions (the blanket
+/// implementation below forwards every method); a model of run-time size
+/// (the command line's interpreted scenes) implements it with `Dyn`. The
+/// methods mean what [`Model`]'s of the same name mean, and write into
+/// storage the caller sized ([`Equations::sizes`]).
+pub trait Equations<Q: Dim, C: Dim, U: Dim, T: Scalar = f64>
+where
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    /// The numbers of coordinates, constraints and inputs.
+    fn sizes(&self) -> (Q, C, U);
+    /// [`Model::mass_matrix`].
+    fn mass_matrix(&self, q: &OVector<T, Q>, t: T, m: &mut OMatrix<T, Q, Q>);
+    /// [`Model::bias`].
+    fn bias(&self, q: &OVector<T, Q>, qd: &OVector<T, Q>, t: T, h: &mut OVector<T, Q>);
+    /// [`Model::constraints`].
+    fn constraints(&self, q: &OVector<T, Q>, t: T, phi: &mut OVector<T, C>);
+    /// [`Model::constraint_jacobian`].
+    fn constraint_jacobian(&self, q: &OVector<T, Q>, t: T, phi_q: &mut OMatrix<T, C, Q>);
+    /// [`Model::constraint_time_derivative`].
+    fn constraint_time_derivative(&self, q: &OVector<T, Q>, t: T, phi_t: &mut OVector<T, C>);
+    /// [`Model::constraint_rhs`].
+    fn constraint_rhs(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        t: T,
+        gamma: &mut OVector<T, C>,
+    );
+    /// [`Model::actuator_map`].
+    fn actuator_map(&self, b: &mut OMatrix<T, Q, U>);
+    /// [`Model::kinetic_energy`].
+    fn kinetic_energy(&self, q: &OVector<T, Q>, qd: &OVector<T, Q>, t: T) -> T;
+    /// [`Model::potential_energy`].
+    fn potential_energy(&self, q: &OVector<T, Q>, t: T) -> T;
+    /// [`Model::bias_jacobians`].
+    fn bias_jacobians(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        t: T,
+        h_q: &mut OMatrix<T, Q, Q>,
+        h_qd: &mut OMatrix<T, Q, Q>,
+    ) -> bool;
+    /// [`Model::constraints_and_jacobian`].
+    fn constraints_and_jacobian(
+        &self,
+        q: &OVector<T, Q>,
+        t: T,
+        phi: &mut OVector<T, C>,
+        phi_q: &mut OMatrix<T, C, Q>,
+    );
+    /// [`Model::dynamics_terms`].
+    #[allow(clippy::too_many_arguments)]
+    fn dynamics_terms(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        t: T,
+        m: &mut OMatrix<T, Q, Q>,
+        h: &mut OVector<T, Q>,
+        phi_q: &mut OMatrix<T, C, Q>,
+        gamma: &mut OVector<T, C>,
+    );
+    /// [`Model::inverse_dynamics`].
+    fn inverse_dynamics(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        qdd: &OVector<T, Q>,
+        t: T,
+        tau: &mut OVector<T, Q>,
+    );
+}
+
+/// Every generated model is one of fixed size (stack storage only).
+impl<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>
+    Equations<Const<NQ>, Const<NC>, Const<NU>, T> for M
+where
+    M: Model<NQ, NC, NU, T>,
+{
+    #[inline]
+    fn sizes(&self) -> (Const<NQ>, Const<NC>, Const<NU>) {
+        (Const, Const, Const)
+    }
+    #[inline]
+    fn mass_matrix(&self, q: &SVector<T, NQ>, t: T, m: &mut SMatrix<T, NQ, NQ>) {
+        Model::mass_matrix(self, q, t, m)
+    }
+    #[inline]
+    fn bias(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T, h: &mut SVector<T, NQ>) {
+        Model::bias(self, q, qd, t, h)
+    }
+    #[inline]
+    fn constraints(&self, q: &SVector<T, NQ>, t: T, phi: &mut SVector<T, NC>) {
+        Model::constraints(self, q, t, phi)
+    }
+    #[inline]
+    fn constraint_jacobian(&self, q: &SVector<T, NQ>, t: T, phi_q: &mut SMatrix<T, NC, NQ>) {
+        Model::constraint_jacobian(self, q, t, phi_q)
+    }
+    #[inline]
+    fn constraint_time_derivative(&self, q: &SVector<T, NQ>, t: T, phi_t: &mut SVector<T, NC>) {
+        Model::constraint_time_derivative(self, q, t, phi_t)
+    }
+    #[inline]
+    fn constraint_rhs(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        gamma: &mut SVector<T, NC>,
+    ) {
+        Model::constraint_rhs(self, q, qd, t, gamma)
+    }
+    #[inline]
+    fn actuator_map(&self, b: &mut SMatrix<T, NQ, NU>) {
+        Model::actuator_map(self, b)
+    }
+    #[inline]
+    fn kinetic_energy(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T) -> T {
+        Model::kinetic_energy(self, q, qd, t)
+    }
+    #[inline]
+    fn potential_energy(&self, q: &SVector<T, NQ>, t: T) -> T {
+        Model::potential_energy(self, q, t)
+    }
+    #[inline]
+    fn bias_jacobians(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        h_q: &mut SMatrix<T, NQ, NQ>,
+        h_qd: &mut SMatrix<T, NQ, NQ>,
+    ) -> bool {
+        Model::bias_jacobians(self, q, qd, t, h_q, h_qd)
+    }
+    #[inline]
+    fn constraints_and_jacobian(
+        &self,
+        q: &SVector<T, NQ>,
+        t: T,
+        phi: &mut SVector<T, NC>,
+        phi_q: &mut SMatrix<T, NC, NQ>,
+    ) {
+        Model::constraints_and_jacobian(self, q, t, phi, phi_q)
+    }
+    #[inline]
+    fn dynamics_terms(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        m: &mut SMatrix<T, NQ, NQ>,
+        h: &mut SVector<T, NQ>,
+        phi_q: &mut SMatrix<T, NC, NQ>,
+        gamma: &mut SVector<T, NC>,
+    ) {
+        Model::dynamics_terms(self, q, qd, t, m, h, phi_q, gamma)
+    }
+    #[inline]
+    fn inverse_dynamics(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        qdd: &SVector<T, NQ>,
+        t: T,
+        tau: &mut SVector<T, NQ>,
+    ) {
+        Model::inverse_dynamics(self, q, qd, qdd, t, tau)
     }
 }

@@ -9,10 +9,11 @@
 use crate::dynamics::Kkt;
 use crate::error::{Error, ErrorKind, Quantity, Stage};
 use crate::eval;
-use crate::model::Model;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use crate::state::{inf_norm, Drift, State};
-use nalgebra::SVector;
+use crate::state::{inf_norm, Drift, StateOf};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OVector, U1};
 
 /// Configuration of [`project`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,13 +61,14 @@ pub struct ProjectionReport<T: Scalar = f64> {
 /// `position_tolerance`). Every error names the projection and its tolerance
 /// in [`Error::stage`] ([`Stage::PositionProjection`] or
 /// [`Stage::VelocityProjection`]).
-pub fn project<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn project<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    state: &mut State<NQ, T>,
+    state: &mut StateOf<T, Q>,
     config: &ProjectionConfig<T>,
 ) -> Result<ProjectionReport<T>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     project_with(model, state, config, T::zero(), false)
 }
@@ -76,17 +78,18 @@ where
 /// velocity projection (SHAKE-style consistency for schemes with
 /// `q_{n+1} = q_n + dt qd_{n+1}`); `after_step` marks the errors' stage as
 /// run by an integrator after its step.
-pub(crate) fn project_with<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn project_with<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    state: &mut State<NQ, T>,
+    state: &mut StateOf<T, Q>,
     config: &ProjectionConfig<T>,
     velocity_from_position_dt: T,
     after_step: bool,
 ) -> Result<ProjectionReport<T>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
-    if NC == 0 {
+    if model.sizes().1.value() == 0 {
         return Ok(ProjectionReport::default());
     }
     state.check_finite()?;
@@ -109,15 +112,16 @@ where
 /// or any change of the inlining (the same class of bug as LLVM's RISC-V
 /// issue 198699). Here the frame is set up on entry, before any branch.
 #[inline(never)]
-fn project_finite<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+fn project_finite<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    state: &mut State<NQ, T>,
+    state: &mut StateOf<T, Q>,
     config: &ProjectionConfig<T>,
     velocity_from_position_dt: T,
     after_step: bool,
 ) -> Result<ProjectionReport<T>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let positions = project_positions(model, state, config).map_err(|e| {
         e.in_stage(Stage::PositionProjection {
@@ -134,11 +138,14 @@ where
 }
 
 /// Result of the position part of [`project_with`].
-struct Positions<const NQ: usize, const NC: usize, T: Scalar> {
+struct Positions<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<C>,
+{
     /// Projected positions.
-    q: SVector<T, NQ>,
+    q: OVector<T, Q>,
     /// Constraint residuals there.
-    phi: SVector<T, NC>,
+    phi: OVector<T, C>,
     /// Newton iterations.
     iterations: u32,
     /// Drift before (the velocity part still 0).
@@ -146,18 +153,19 @@ struct Positions<const NQ: usize, const NC: usize, T: Scalar> {
 }
 
 /// The position part of [`project_with`].
-fn project_positions<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+fn project_positions<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    state: &State<NQ, T>,
+    state: &StateOf<T, Q>,
     config: &ProjectionConfig<T>,
-) -> Result<Positions<NQ, NC, T>, Error>
+) -> Result<Positions<T, Q, C>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let t = state.t;
-    let mut q = state.q;
+    let mut q = state.q.clone();
     let m0 = eval::mass(model, &q, t)?;
-    let zero_f = SVector::<T, NQ>::zeros();
+    let zero_f = OVector::<T, Q>::zeros_generic(q.shape_generic().0, U1);
     let mut iterations = 0u32;
     let mut phi = eval::constraints(model, &q, t)?;
     let before = Drift {
@@ -180,7 +188,7 @@ where
             ));
         }
         let phi_q = eval::constraint_jacobian(model, &q, t)?;
-        let kkt = Kkt::new(m0, &phi_q, config.max_condition, t)?;
+        let kkt = Kkt::new(m0.clone(), &phi_q, config.max_condition, t)?;
         let (dq, _) = kkt.solve(&zero_f, &(-phi));
         q += dq;
         eval::check_result(&q, Quantity::Position, t)?;
@@ -197,15 +205,16 @@ where
 
 /// The velocity part of [`project_with`], at the projected positions `q`;
 /// writes `state` only on success.
-fn project_velocities<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+fn project_velocities<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    state: &mut State<NQ, T>,
+    state: &mut StateOf<T, Q>,
     config: &ProjectionConfig<T>,
     velocity_from_position_dt: T,
-    positions: Positions<NQ, NC, T>,
+    positions: Positions<T, Q, C>,
 ) -> Result<ProjectionReport<T>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let Positions {
         q,
@@ -214,19 +223,19 @@ where
         mut before,
     } = positions;
     let t = state.t;
-    let zero_f = SVector::<T, NQ>::zeros();
+    let zero_f = OVector::<T, Q>::zeros_generic(q.shape_generic().0, U1);
     let phi_q = eval::constraint_jacobian(model, &q, t)?;
     let phi_t = eval::constraint_time_derivative(model, &q, t)?;
-    let mut qd = state.qd;
+    let mut qd = state.qd.clone();
     {
         let phi_q0 = eval::constraint_jacobian(model, &state.q, t)?;
         let phi_t0 = eval::constraint_time_derivative(model, &state.q, t)?;
-        before.velocity = inf_norm(&(phi_q0 * state.qd + phi_t0));
+        before.velocity = inf_norm(&(phi_q0 * &state.qd + phi_t0));
     }
     if velocity_from_position_dt > T::zero() {
-        qd += (q - state.q) / velocity_from_position_dt;
+        qd += (&q - &state.q) / velocity_from_position_dt;
     }
-    let vres = phi_q * qd + phi_t;
+    let vres = &phi_q * &qd + &phi_t;
     let mut velocity_projected = false;
     if inf_norm(&vres) > config.velocity_tolerance {
         let m = eval::mass(model, &q, t)?;
@@ -238,7 +247,7 @@ where
     }
     let after = Drift {
         position: inf_norm(&phi),
-        velocity: inf_norm(&(phi_q * qd + phi_t)),
+        velocity: inf_norm(&(phi_q * &qd + phi_t)),
     };
     state.q = q;
     state.qd = qd;

@@ -2,25 +2,38 @@
 
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::linalg::first_non_finite;
-use crate::model::Model;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OVector};
 
-/// State of a simulation: generalized coordinates, velocities and time.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct State<const NQ: usize, T: Scalar = f64> {
+/// State of a simulation: generalized coordinates, velocities and time, for
+/// `Q` coordinates of fixed or run-time size ([`State`]: fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct StateOf<T: Scalar, Q: Dim>
+where
+    DefaultAllocator: Allocator<Q>,
+{
     /// Generalized coordinates `q`.
-    pub q: SVector<T, NQ>,
+    pub q: OVector<T, Q>,
     /// Generalized velocities `qd`.
-    pub qd: SVector<T, NQ>,
+    pub qd: OVector<T, Q>,
     /// Time `t`.
     pub t: T,
 }
 
-impl<T: Scalar, const NQ: usize> State<NQ, T> {
+impl<T: Scalar, const NQ: usize> Copy for StateOf<T, Const<NQ>> {}
+
+/// [`StateOf`] of a model of fixed size: `NQ` coordinates on the stack.
+pub type State<const NQ: usize, T = f64> = StateOf<T, Const<NQ>>;
+
+impl<T: Scalar, Q: Dim> StateOf<T, Q>
+where
+    DefaultAllocator: Allocator<Q>,
+{
     /// Creates a state.
-    pub fn new(q: SVector<T, NQ>, qd: SVector<T, NQ>, t: T) -> Self {
-        State { q, qd, t }
+    pub fn new(q: OVector<T, Q>, qd: OVector<T, Q>, t: T) -> Self {
+        StateOf { q, qd, t }
     }
 
     /// Checks that `q`, `qd` and `t` are finite.
@@ -84,23 +97,25 @@ pub struct Drift<T: Scalar = f64> {
 
 /// Measures the constraint drift of `state`. Non-finite model outputs give a
 /// non-finite drift (no error: this is a diagnostic).
-pub fn constraint_drift<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn constraint_drift<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    state: &State<NQ, T>,
+    state: &StateOf<T, Q>,
 ) -> Drift<T>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
-    if NC == 0 {
+    let (nq, nc, _) = model.sizes();
+    if nc.value() == 0 {
         return Drift::default();
     }
-    let mut phi = SVector::<T, NC>::zeros();
-    let mut phi_q = SMatrix::<T, NC, NQ>::zeros();
-    let mut phi_t = SVector::<T, NC>::zeros();
+    let mut phi = OVector::<T, C>::zeros_generic(nc, nalgebra::U1);
+    let mut phi_q = nalgebra::OMatrix::<T, C, Q>::zeros_generic(nc, nq);
+    let mut phi_t = OVector::<T, C>::zeros_generic(nc, nalgebra::U1);
     model.constraints(&state.q, state.t, &mut phi);
     model.constraint_jacobian(&state.q, state.t, &mut phi_q);
     model.constraint_time_derivative(&state.q, state.t, &mut phi_t);
-    let vel = phi_q * state.qd + phi_t;
+    let vel = phi_q * &state.qd + phi_t;
     Drift {
         position: inf_norm(&phi),
         velocity: inf_norm(&vel),
@@ -108,18 +123,19 @@ where
 }
 
 /// Total mechanical energy `T + V` of `state`.
-pub fn total_energy<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
-    model: &M,
-    state: &State<NQ, T>,
-) -> T
+pub fn total_energy<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(model: &M, state: &StateOf<T, Q>) -> T
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     model.kinetic_energy(&state.q, &state.qd, state.t) + model.potential_energy(&state.q, state.t)
 }
 
 /// Infinity norm of a vector (NaN if any entry is NaN; 0 for an empty vector).
-pub(crate) fn inf_norm<T: Scalar, const N: usize>(v: &SVector<T, N>) -> T {
+pub(crate) fn inf_norm<T: Scalar, N: Dim>(v: &OVector<T, N>) -> T
+where
+    DefaultAllocator: Allocator<N>,
+{
     crate::linalg::max_abs(v)
 }
 

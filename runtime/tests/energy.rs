@@ -8,8 +8,8 @@
 mod models;
 
 use flexdyn_runtime::{
-    total_energy, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, Model, Rk4,
-    SemiImplicitEuler, State, StepSettings,
+    total_energy, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator,
+    IntegratorOf, Model, Rk4, SemiImplicitEuler, State, StepSettings,
 };
 use models::*;
 

@@ -9,7 +9,7 @@ mod models;
 use flexdyn_runtime::nalgebra::SymmetricEigen;
 use flexdyn_runtime::{
     AdaptiveRk4, FromFn, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator,
-    Linear, Model, Rk4, SemiImplicitEuler, State, StepSettings,
+    IntegratorOf, Linear, Model, Rk4, SemiImplicitEuler, State, StepSettings,
 };
 use models::*;
 

@@ -9,7 +9,7 @@ use flexdyn_runtime::{
     total_energy, FromFn, InverseConfig, InverseDynamics, InverseSolution, Model, Rk4, State,
     StepSettings,
 };
-use flexdyn_runtime::{Integrator, ProjectionConfig};
+use flexdyn_runtime::{IntegratorOf, ProjectionConfig};
 use models::*;
 
 /// Platform trajectory: a circle of radius 4 cm around (0, 0.32) traversed

@@ -13,7 +13,8 @@ use flexdyn_runtime::control::{
 };
 use flexdyn_runtime::{
     run, AdaptiveRk4, GaussLegendre4, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator,
-    InverseConfig, InverseDynamics, InverseSolution, Rk4, SemiImplicitEuler, State, StepSettings,
+    IntegratorOf, InverseConfig, InverseDynamics, InverseSolution, Rk4, SemiImplicitEuler, State,
+    StepSettings,
 };
 use models::*;
 

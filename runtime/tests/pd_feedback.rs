@@ -133,7 +133,7 @@ fn pd_input_is_the_gain_weighted_error_of_each_actuator_joint() {
     let carts = CrossedCarts::default();
     let closed = Feedback::new(&carts, pd);
     let mut h = V::<2>::zeros();
-    flexdyn_runtime::Model::bias(&closed, &q, &qd, t, &mut h);
+    flexdyn_runtime::Equations::bias(&closed, &q, &qd, t, &mut h);
     assert_eq!(h, -V::<2>::new(u[1], u[0]));
 }
 

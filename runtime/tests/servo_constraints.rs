@@ -211,7 +211,7 @@ fn matches_rigid<O, T>(
 ) -> (f64, f64)
 where
     O: Outputs<3, 1>,
-    T: Trajectory<1>,
+    T: Trajectory<flexdyn_runtime::nalgebra::Const<1>>,
 {
     let mut rigid = Rigid::new(index);
     let mut conditions = (f64::INFINITY, 0.0f64);

@@ -6,7 +6,7 @@ mod models;
 
 use flexdyn_runtime::nalgebra::SymmetricEigen;
 use flexdyn_runtime::{
-    total_energy, ErrorKind, GeneralizedAlpha, GeneralizedAlphaConfig, Integrator, Rk4, State,
+    total_energy, ErrorKind, GeneralizedAlpha, GeneralizedAlphaConfig, IntegratorOf, Rk4, State,
     StepSettings,
 };
 use models::*;

@@ -9,7 +9,7 @@
 mod models;
 
 use flexdyn_runtime::{
-    ErrorKind, FromFn, GaussLegendre4, Integrator, ProjectionConfig, SemiImplicitEuler, Stage,
+    ErrorKind, FromFn, GaussLegendre4, IntegratorOf, ProjectionConfig, SemiImplicitEuler, Stage,
     State, StepSettings, GAUSS_LEGENDRE_CONTRACTION_LIMIT,
 };
 use models::*;

@@ -5,8 +5,9 @@
 //! file is generated in memory and interpreted ([`crate::interpreted`]):
 //! bitwise the same numbers.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+use crate::compiled::{Choice, Compiled};
 use crate::dynamic::DynModel;
 use crate::eval::{check_state, evaluate, States};
 use crate::table::{read_input, write_atomic};
@@ -35,87 +36,6 @@ pub struct Args {
     #[arg(long, hide = true)]
     pub perturbed: bool,
 }
-
-/// The scenes a binary has compiled in: the index modules that
-/// `flexdyn_codegen::Builder::index` writes.
-#[derive(Debug, Clone, Copy)]
-pub struct Compiled {
-    /// Names of the compiled scenes.
-    pub scenes: &'static [&'static str],
-    /// The default model of a compiled scene, by name.
-    pub model: fn(&str) -> Option<Box<dyn DynModel>>,
-    /// Names of the test-only perturbed builds.
-    pub perturbed_scenes: &'static [&'static str],
-    /// The default model of a perturbed build, by name.
-    pub perturbed_model: fn(&str) -> Option<Box<dyn DynModel>>,
-}
-
-/// Which model answers for a scene file (see [`Compiled::choose`]).
-enum Choice {
-    /// The compiled-in module of the same terms.
-    Compiled(Box<dyn DynModel>),
-    /// The file, generated in memory and interpreted.
-    Interpreted(crate::interpreted::InterpretedModel),
-}
-
-impl Compiled {
-    /// The compiled-in model when the file describes it (same terms,
-    /// bitwise, at a sample state; so an edited copy of a shipped scene is
-    /// never answered by the stale compiled module), else the file
-    /// interpreted. `interpret` forces the latter.
-    fn choose(&self, scene: &Path, name: &str, interpret: bool) -> Result<Choice, String> {
-        let interpreted = crate::interpreted::InterpretedModel::load(scene)?;
-        match (self.model)(name).filter(|_| !interpret) {
-            Some(c) if same_terms(c.as_ref(), &interpreted) => Ok(Choice::Compiled(c)),
-            Some(_) => {
-                eprintln!(
-                    "note: {} differs from the compiled-in scene `{name}`: interpreting it",
-                    scene.display()
-                );
-                Ok(Choice::Interpreted(interpreted))
-            }
-            None => Ok(Choice::Interpreted(interpreted)),
-        }
-    }
-
-    /// The model of a scene file, chosen as [`Compiled::choose`] says.
-    pub fn load(
-        &self,
-        scene: &Path,
-        name: &str,
-        interpret: bool,
-    ) -> Result<Box<dyn DynModel>, String> {
-        Ok(match self.choose(scene, name, interpret)? {
-            Choice::Compiled(c) => c,
-            Choice::Interpreted(i) => Box::new(i),
-        })
-    }
-}
-
-/// Whether two models give the same terms at a sample state.
-fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
-    if a.coordinates() != b.coordinates() || a.actuators() != b.actuators() || a.nc() != b.nc() {
-        return false;
-    }
-    let q: Vec<f64> = (0..a.nq()).map(|i| 0.3 + 0.17 * i as f64).collect();
-    let qd: Vec<f64> = (0..a.nq()).map(|i| -0.4 + 0.23 * i as f64).collect();
-    let qdd: Vec<f64> = (0..a.nq()).map(|i| 0.8 - 0.31 * i as f64).collect();
-    let t = 0.37;
-    a.mass_matrix(&q, t) == b.mass_matrix(&q, t)
-        && a.bias(&q, &qd, t) == b.bias(&q, &qd, t)
-        && a.inverse_dynamics(&q, &qd, &qdd, t) == b.inverse_dynamics(&q, &qd, &qdd, t)
-        && a.constraints(&q, t) == b.constraints(&q, t)
-        && a.actuator_map() == b.actuator_map()
-        && a.potential_energy(&q, t) == b.potential_energy(&q, t)
-}
-
-/// The generic scenes of `scenes/`, compiled into this crate.
-pub const COMPILED_SCENES: Compiled = Compiled {
-    scenes: crate::scenes::SCENES,
-    model: crate::scenes::model,
-    perturbed_scenes: crate::perturbed_scenes::SCENES,
-    perturbed_model: crate::perturbed_scenes::model,
-};
 
 /// Run the command on the scenes of `compiled`.
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {

@@ -20,8 +20,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use crate::cli::eval::Compiled;
 use crate::codegen::TimeFunction;
+use crate::compiled::Compiled;
 use crate::inverse::{solve, FreeRates, Prescribed, Problem, Solution};
 use crate::sized::{with_padding, Padded, Sized, LADDER};
 use crate::spline::Spline;

@@ -1,7 +1,8 @@
 //! `flexdyn simulate`: forward dynamics of any scene file under given
 //! inputs, written as CSV (and optionally plotted).
 //!
-//! The scene runs as a fixed-size runtime model ([`crate::sized`]): a
+//! The scene runs at its own size (`dyn DynModel` is the runtime's
+//! `Equations` over run-time dimensions, [`crate::dynamic`]): a
 //! compiled-in scene by its compiled module (when the file describes the same
 //! model, checked bitwise at a sample state), any other by the interpreter.
 //! The initial state (the scene's `initial` / `initial_velocity`, or
@@ -14,21 +15,20 @@
 
 use std::path::PathBuf;
 
-use flexdyn_runtime::control::{Feedback, JointPd, Target};
+use flexdyn_runtime::control::{Feedback, JointPdOf, TargetOf};
 use flexdyn_runtime::{
-    project, AdaptiveRk4, ErrorKind, FromFn, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, Integrator, Model, ProjectionConfig, Rk4, SemiImplicitEuler, State,
+    project, AdaptiveRk4, Equations, ErrorKind, FromFn, GaussLegendre4, GeneralizedAlphaConfig,
+    GeneralizedAlphaOf, InputOf, IntegratorOf, ProjectionConfig, Rk4, SemiImplicitEuler, StateOf,
     StepSettings, Time,
 };
-use nalgebra::SVector;
+use nalgebra::{DVector, Dyn};
 
-use crate::cli::eval::Compiled;
 use crate::codegen::TimeFunction;
-use crate::dynamic::DynModel;
+use crate::compiled::Compiled;
+use crate::dynamic::{matrix, vector, DynModel};
 use crate::eval::check_state;
 use crate::plot::{line_plot, Labels, Series};
 use crate::progress::Progress;
-use crate::sized::{with_padding, Padded, Sized};
 use crate::table::{check_output, read_input, OutputFiles, Table};
 
 /// The integrators `--integrator` accepts.
@@ -210,7 +210,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         tolerance: args.tolerance,
         quiet: args.quiet,
     };
-    let table = with_padding(model, setup)??;
+    let table = setup.run()?;
     let mut outputs = OutputFiles::default();
     outputs.write(&args.csv, |tmp| table.write(tmp))?;
     if let Some(plot) = &args.plot {
@@ -379,7 +379,7 @@ fn drives(
             function(&format!("--target {name}"), expr)?,
         ));
     }
-    let b = model.actuator_map();
+    let b = matrix(model.nq(), model.nu(), |o| model.actuator_map(o));
     for text in &args.pd {
         let (name, gains) = assignment("--pd", text)?;
         let j = actuator(&format!("--pd `{text}`"), name)?;
@@ -446,23 +446,20 @@ fn output_columns(model: &dyn DynModel) -> Vec<String> {
     columns
 }
 
-impl Sized for Setup<'_> {
-    type Output = Result<Table, String>;
-
-    fn run<const NQ: usize, const NC: usize, const NU: usize>(
-        self,
-        padded: &Padded<'_, NQ, NC, NU>,
-    ) -> Result<Table, String> {
+impl Setup<'_> {
+    /// The simulation, on the model at its own size.
+    fn run(self) -> Result<Table, String> {
         let model = self.model;
-        let mut state = State::new(
-            padded.pad(&self.state.q),
-            padded.pad(&self.state.qd),
+        let (nq, nu) = (Dyn(model.nq()), Dyn(model.nu()));
+        let mut state = StateOf::new(
+            DVector::from_column_slice(&self.state.q),
+            DVector::from_column_slice(&self.state.qd),
             self.state.t,
         );
-        make_consistent(padded, &mut state, self.quiet)?;
+        make_consistent(model, &mut state, self.quiet)?;
         // Actuator j on coordinate joints[j]; actuators without PD get zero gains.
-        let mut joints = [0usize; NU];
-        let (mut kp, mut kd) = ([0.0; NU], [0.0; NU]);
+        let mut joints = DVector::<usize>::zeros(nu.0);
+        let (mut kp, mut kd) = (DVector::zeros(nu.0), DVector::zeros(nu.0));
         for (j, d) in self.drives.iter().enumerate() {
             if let Drive::Pd {
                 coordinate,
@@ -476,10 +473,10 @@ impl Sized for Setup<'_> {
         }
         let drives = &self.drives;
         let reference = |t: f64| {
-            let mut target = Target {
-                position: SVector::<f64, NU>::zeros(),
-                velocity: SVector::zeros(),
-                acceleration: SVector::zeros(),
+            let mut target = TargetOf {
+                position: DVector::zeros(nu.0),
+                velocity: DVector::zeros(nu.0),
+                acceleration: DVector::zeros(nu.0),
             };
             for (j, d) in drives.iter().enumerate() {
                 if let Drive::Pd { target: s, .. } = d {
@@ -488,11 +485,11 @@ impl Sized for Setup<'_> {
             }
             target
         };
-        let law = JointPd::<_, NQ, NU>::new(joints, kp, kd, reference)
-            .map_err(|e| format!("--pd: {e}"))?;
-        let closed = Feedback::new(padded, law);
+        let law =
+            JointPdOf::of_sizes(nq, joints, kp, kd, reference).map_err(|e| format!("--pd: {e}"))?;
+        let closed = Feedback::new(model, law);
         let open = FromFn(|t: f64| {
-            let mut u = SVector::<f64, NU>::zeros();
+            let mut u = DVector::zeros(nu.0);
             for (j, d) in drives.iter().enumerate() {
                 if let Drive::Open(s) = d {
                     u[j] = s.at(t).0;
@@ -517,7 +514,7 @@ impl Sized for Setup<'_> {
             }
             "gauss-legendre" => run.go(GaussLegendre4::new(settings), &closed, &open, state),
             "gen-alpha" => run.go(
-                GeneralizedAlpha::<NQ, NC>::new(settings, GeneralizedAlphaConfig::default()),
+                GeneralizedAlphaOf::new(settings, GeneralizedAlphaConfig::default()),
                 &closed,
                 &open,
                 state,
@@ -538,24 +535,23 @@ impl Sized for Setup<'_> {
     }
 }
 
+/// A state of a model of run-time size.
+type DynState = StateOf<f64, Dyn>;
+
 /// Project the initial state onto the constraints, reporting what changed
 /// (unless `quiet`); an error when it cannot be done.
-fn make_consistent<const NQ: usize, const NC: usize, const NU: usize>(
-    padded: &Padded<'_, NQ, NC, NU>,
-    state: &mut State<NQ>,
-    quiet: bool,
-) -> Result<(), String> {
-    if padded.nc() == 0 {
+fn make_consistent(model: &dyn DynModel, state: &mut DynState, quiet: bool) -> Result<(), String> {
+    if model.nc() == 0 {
         return Ok(());
     }
-    let before = *state;
-    let report = project(padded, state, &ProjectionConfig::default()).map_err(|e| {
+    let before = state.clone();
+    let report = project(model, state, &ProjectionConfig::default()).map_err(|e| {
         format!("the initial state cannot be made consistent with the constraints: {e}")
     })?;
     if quiet {
         return Ok(());
     }
-    let names = padded.model().coordinates();
+    let names = model.coordinates();
     for (what, suffix, a, b) in [
         ("position", "", &before.q, &state.q),
         ("velocity", "_dot", &before.qd, &state.qd),
@@ -593,17 +589,17 @@ struct Run<'a> {
 }
 
 impl Run<'_> {
-    fn go<G, M, I, const NQ: usize, const NC: usize, const NU: usize>(
+    fn go<G, M, I>(
         &self,
         mut integrator: G,
         model: &M,
         input: &I,
-        mut state: State<NQ>,
+        mut state: DynState,
     ) -> Result<Table, String>
     where
-        G: Integrator<NQ, NC, NU>,
-        M: Model<NQ, NC, NU>,
-        I: flexdyn_runtime::Input<NU>,
+        G: IntegratorOf<Dyn, Dyn, Dyn>,
+        M: Equations<Dyn, Dyn, Dyn>,
+        I: InputOf<Dyn>,
     {
         let columns = output_columns(self.model);
         let names: Vec<&str> = columns.iter().map(String::as_str).collect();
@@ -644,15 +640,14 @@ impl Run<'_> {
         Ok(table)
     }
 
-    fn row<const NQ: usize>(&self, s: &State<NQ>) -> Vec<f64> {
-        let nq = self.model.nq();
-        let (q, qd) = (&s.q.as_slice()[..nq], &s.qd.as_slice()[..nq]);
+    fn row(&self, s: &DynState) -> Vec<f64> {
+        let (q, qd) = (s.q.as_slice(), s.qd.as_slice());
         let mut row = vec![s.t];
         row.extend_from_slice(q);
         row.extend_from_slice(qd);
         row.push(self.model.kinetic_energy(q, qd, s.t));
         row.push(self.model.potential_energy(q, s.t));
-        row.push(self.model.constraints(q, s.t).norm());
+        row.push(vector(self.model.nc(), |o| self.model.constraints(q, s.t, o)).norm());
         row
     }
 }

@@ -7,10 +7,45 @@
 // residuals), never the derived terms themselves.
 
 use common::{max_abs, max_diff, random_state};
-use flexdyn::dynamic::DynModel;
-use flexdyn::runtime::nalgebra::DVector;
+use flexdyn::dynamic::{matrix, vector, DynModel};
+use flexdyn::runtime::nalgebra::{DMatrix, DVector};
 
 const STATES: usize = 40;
+
+// The model's terms as owned values (the model writes into storage its
+// caller sizes).
+fn mass_matrix(m: &dyn DynModel, q: &[f64], t: f64) -> DMatrix<f64> {
+    matrix(m.nq(), m.nq(), |o| m.mass_matrix(q, t, o))
+}
+fn bias(m: &dyn DynModel, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
+    vector(m.nq(), |o| m.bias(q, qd, t, o))
+}
+fn constraints(m: &dyn DynModel, q: &[f64], t: f64) -> DVector<f64> {
+    vector(m.nc(), |o| m.constraints(q, t, o))
+}
+fn constraint_jacobian(m: &dyn DynModel, q: &[f64], t: f64) -> DMatrix<f64> {
+    matrix(m.nc(), m.nq(), |o| m.constraint_jacobian(q, t, o))
+}
+fn constraint_time_derivative(m: &dyn DynModel, q: &[f64], t: f64) -> DVector<f64> {
+    vector(m.nc(), |o| m.constraint_time_derivative(q, t, o))
+}
+fn constraint_rhs(m: &dyn DynModel, q: &[f64], qd: &[f64], t: f64) -> DVector<f64> {
+    vector(m.nc(), |o| m.constraint_rhs(q, qd, t, o))
+}
+fn damping_forces(m: &dyn DynModel, q: &[f64], qd: &[f64], t: f64) -> Option<DVector<f64>> {
+    let mut d = DVector::zeros(m.nq());
+    m.damping_forces(q, qd, t, d.as_mut_slice()).then_some(d)
+}
+fn bias_jacobians(
+    m: &dyn DynModel,
+    q: &[f64],
+    qd: &[f64],
+    t: f64,
+) -> Option<(DMatrix<f64>, DMatrix<f64>)> {
+    let (mut h_q, mut h_qd) = (DMatrix::zeros(m.nq(), m.nq()), DMatrix::zeros(m.nq(), m.nq()));
+    m.bias_jacobians(q, qd, t, h_q.as_mut_slice(), h_qd.as_mut_slice())
+        .then_some((h_q, h_qd))
+}
 
 fn model_of(name: &str) -> Box<dyn DynModel> {
     compiled::model(name).unwrap_or_else(|| panic!("scene `{name}` is not compiled in"))
@@ -57,7 +92,7 @@ fn mass_matrix_is_symmetric_positive_definite() {
         let mut rng = common::rng(11);
         for _ in 0..STATES {
             let (q, _, t) = random_state(&scene, &mut rng);
-            let mm = m.mass_matrix(&q, t);
+            let mm = mass_matrix(&*m, &q, t);
             assert_eq!(mm, mm.transpose(), "{}: M not symmetric", scene.name);
             assert!(
                 mm.clone().cholesky().is_some(),
@@ -76,11 +111,11 @@ fn constraint_jacobian_and_time_derivative_match_differences() {
             continue;
         }
         let n = m.nq();
-        let phi = |q: &[f64], t: f64| m.constraints(q, t).as_slice().to_vec();
+        let phi = |q: &[f64], t: f64| constraints(&*m, q, t).as_slice().to_vec();
         let mut rng = common::rng(12);
         for _ in 0..STATES {
             let (q, _, t) = random_state(&scene, &mut rng);
-            let jac = m.constraint_jacobian(&q, t);
+            let jac = constraint_jacobian(&*m, &q, t);
             for j in 0..n {
                 let fd = along(&phi, &q, &unit(n, j), t, 0.0, 1e-6);
                 let col: Vec<f64> = jac.column(j).iter().copied().collect();
@@ -92,7 +127,7 @@ fn constraint_jacobian_and_time_derivative_match_differences() {
                 );
             }
             let fd_t = along(&phi, &q, &vec![0.0; n], t, 1.0, 1e-6);
-            let pt = m.constraint_time_derivative(&q, t);
+            let pt = constraint_time_derivative(&*m, &q, t);
             assert!(
                 max_diff(pt.as_slice(), &fd_t) < 1e-6 * max_abs(&fd_t, 1.0),
                 "{}: Phi_t",
@@ -115,14 +150,14 @@ fn gamma_matches_differences_of_velocity_residual() {
             let qdv = DVector::from_column_slice(&qd);
             // v(q, t) = Phi_q qd + Phi_t with qd held fixed; gamma = -dv/dt.
             let v = |q: &[f64], t: f64| {
-                let r = m.constraint_jacobian(q, t) * &qdv + m.constraint_time_derivative(q, t);
+                let r = constraint_jacobian(&*m, q, t) * &qdv + constraint_time_derivative(&*m, q, t);
                 r.as_slice().to_vec()
             };
             let fd: Vec<f64> = along(&v, &q, &qd, t, 1.0, 1e-6)
                 .iter()
                 .map(|x| -x)
                 .collect();
-            let gamma = m.constraint_rhs(&q, &qd, t);
+            let gamma = constraint_rhs(&*m, &q, &qd, t);
             assert!(
                 max_diff(gamma.as_slice(), &fd) < 1e-6 * max_abs(&fd, 1.0),
                 "{}: gamma {gamma} vs {fd:?}",
@@ -158,7 +193,7 @@ fn mass_matrix_and_bias_follow_from_the_energies() {
                     .collect()
             };
             // Mass matrix: differences of the momenta in qd.
-            let mm = m.mass_matrix(&q, t);
+            let mm = mass_matrix(&*m, &q, t);
             for j in 0..n {
                 let f = |qd: &[f64], _t: f64| -> Vec<f64> {
                     (0..n)
@@ -187,12 +222,12 @@ fn mass_matrix_and_bias_follow_from_the_energies() {
             // energies do not see: take them from the generated split (checked
             // against CasADi's gradient of D); a damped scene without that
             // split cannot be checked here.
-            let reference: Vec<f64> = match m.damping_forces(&q, &qd, t) {
+            let reference: Vec<f64> = match damping_forces(&*m, &q, &qd, t) {
                 Some(d) => reference.iter().zip(d.iter()).map(|(r, d)| r + d).collect(),
                 None if scene_is_damped(&scene) => break,
                 None => reference,
             };
-            let h = m.bias(&q, &qd, t);
+            let h = bias(&*m, &q, &qd, t);
             assert!(
                 max_diff(h.as_slice(), &reference) < 1e-6 * max_abs(&reference, 1.0),
                 "{}: bias {h} vs {reference:?}",
@@ -219,14 +254,14 @@ fn bias_jacobians_match_differences_of_bias() {
         let mut rng = common::rng(14);
         for _ in 0..STATES {
             let (q, qd, t) = random_state(&scene, &mut rng);
-            let Some((h_q, h_qd)) = m.bias_jacobians(&q, &qd, t) else {
+            let Some((h_q, h_qd)) = bias_jacobians(&*m, &q, &qd, t) else {
                 break;
             };
             checked += 1;
             let by_q: &dyn Fn(&[f64], f64) -> Vec<f64> =
-                &|x, t| m.bias(x, &qd, t).as_slice().to_vec();
+                &|x, t| bias(&*m, x, &qd, t).as_slice().to_vec();
             let by_qd: &dyn Fn(&[f64], f64) -> Vec<f64> =
-                &|x, t| m.bias(&q, x, t).as_slice().to_vec();
+                &|x, t| bias(&*m, &q, x, t).as_slice().to_vec();
             for j in 0..n {
                 for (jac, f, x, what) in [(&h_q, by_q, &q, "dh/dq"), (&h_qd, by_qd, &qd, "dh/dqd")]
                 {

@@ -5,7 +5,7 @@
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::{
-    accelerations, DynamicsConfig, Integrator, InverseConfig, InverseDynamics, InverseReport,
+    accelerations, DynamicsConfig, IntegratorOf, InverseConfig, InverseDynamics, InverseReport,
     InverseSolution, Model, Rk4, State,
 };
 use flexdyn_parallel_robot::robot::{inverse_kinematics, Circle, Geometry};

@@ -19,7 +19,7 @@ struct Cli {
 }
 
 /// The robot scenes compiled into this binary, for `eval`.
-const ROBOT_SCENES: cli::eval::Compiled = cli::eval::Compiled {
+const ROBOT_SCENES: flexdyn::compiled::Compiled = flexdyn::compiled::Compiled {
     scenes: robot_crate::scenes::SCENES,
     model: robot_crate::scenes::model,
     perturbed_scenes: robot_crate::perturbed_scenes::SCENES,

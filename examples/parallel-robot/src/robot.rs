@@ -683,12 +683,13 @@ where
 }
 
 /// Forward dynamics of a robot model (rigid or flexible; wrap it in
-/// [`flexdyn_runtime::control::Feedback`] for a control loop) from `state` under
+/// [`flexdyn_runtime::control::Feedback`] for a control loop; `name` for
+/// its messages) from `state` under
 /// `torques`, with steps of `dt`, recording the state every `every` steps
 /// (and at the start), for `steps` steps. `tick` is called after each step.
 #[allow(clippy::too_many_arguments)]
 pub fn simulate<M, const NQ: usize, const NC: usize>(
-    model: &M,
+    (name, model): (&str, &M),
     scheme: Scheme,
     mut state: flexdyn_runtime::State<NQ>,
     torques: &TorqueTable,
@@ -698,14 +699,18 @@ pub fn simulate<M, const NQ: usize, const NC: usize>(
     tick: &mut dyn FnMut(),
 ) -> Result<Vec<flexdyn_runtime::State<NQ>>, String>
 where
-    M: flexdyn_runtime::Model<NQ, NC, 3>,
+    M: flexdyn_runtime::Equations<
+        flexdyn_runtime::nalgebra::Const<NQ>,
+        flexdyn_runtime::nalgebra::Const<NC>,
+        flexdyn_runtime::nalgebra::Const<3>,
+    >,
 {
     use flexdyn_runtime::integrate::{GeneralizedAlpha, Rk4, SemiImplicitEuler, StepSettings};
-    use flexdyn_runtime::{FromFn, Integrator};
+    use flexdyn_runtime::nalgebra::Const;
+    use flexdyn_runtime::{FromFn, IntegratorOf};
     let input = FromFn(|t: f64| flexdyn_runtime::nalgebra::SVector::<f64, 3>::from(torques.at(t)));
     let settings = StepSettings::with_projection();
     let mut out = vec![state];
-    let name = M::NAME;
     let explain = |e: flexdyn_runtime::Error| match e.kind {
         flexdyn_runtime::ErrorKind::StepTooLarge { .. } if scheme == Scheme::Rk4 => format!(
             "{e}: the explicit RK4 scheme is unstable at this step for the stiffest motion \
@@ -738,11 +743,17 @@ where
     match scheme {
         Scheme::Rk4 => {
             let mut g = Rk4::new(settings);
-            run(&mut |s| Integrator::<NQ, NC, 3>::step(&mut g, model, s, &input, dt).map(|_| ()))?;
+            run(&mut |s| {
+                IntegratorOf::<Const<NQ>, Const<NC>, Const<3>>::step(&mut g, model, s, &input, dt)
+                    .map(|_| ())
+            })?;
         }
         Scheme::SemiImplicit => {
             let mut g = SemiImplicitEuler::new(settings);
-            run(&mut |s| Integrator::<NQ, NC, 3>::step(&mut g, model, s, &input, dt).map(|_| ()))?;
+            run(&mut |s| {
+                IntegratorOf::<Const<NQ>, Const<NC>, Const<3>>::step(&mut g, model, s, &input, dt)
+                    .map(|_| ())
+            })?;
         }
         Scheme::GeneralizedAlpha => {
             let config = flexdyn_runtime::GeneralizedAlphaConfig {
@@ -897,9 +908,27 @@ where
                 inner: model,
                 law: |q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64| pd.input(q, qd, t),
             };
-            simulate(&closed, scheme, start, torques, dt, steps, every, tick)?
+            simulate(
+                (M::NAME, &closed),
+                scheme,
+                start,
+                torques,
+                dt,
+                steps,
+                every,
+                tick,
+            )?
         }
-        None => simulate(model, scheme, start, torques, dt, steps, every, tick)?,
+        None => simulate(
+            (M::NAME, model),
+            scheme,
+            start,
+            torques,
+            dt,
+            steps,
+            every,
+            tick,
+        )?,
     };
     Ok(states
         .iter()

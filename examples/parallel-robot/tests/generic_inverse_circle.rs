@@ -9,8 +9,8 @@
 
 use std::path::{Path, PathBuf};
 
-use flexdyn::cli::eval::Compiled;
 use flexdyn::cli::inverse::{run, Args};
+use flexdyn::compiled::Compiled;
 use flexdyn::inverse::FreeRates;
 use flexdyn::table::Table;
 use flexdyn_parallel_robot::robot::{inverse_rows, Circle, Geometry};

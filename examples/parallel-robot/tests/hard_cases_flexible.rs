@@ -13,10 +13,11 @@
 use std::f64::consts::PI;
 
 use flexdyn::runtime::control::Feedback;
-use flexdyn::runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
+use flexdyn::runtime::nalgebra::{Const, DMatrix, DVector, SMatrix, SVector};
 use flexdyn::runtime::{
     constraint_drift, AdaptiveRk4, ErrorKind, GaussLegendre4, GeneralizedAlpha,
-    GeneralizedAlphaConfig, Integrator, Model, Rk4, SemiImplicitEuler, State, StepSettings,
+    GeneralizedAlphaConfig, Integrator, IntegratorOf, Model, Rk4, SemiImplicitEuler, State,
+    StepSettings,
 };
 use flexdyn_parallel_robot::robot::{
     initial_state, inverse_rows, output_times, simulate, simulate_rows, Circle, Geometry,
@@ -188,13 +189,17 @@ fn held_energy(
 
 /// Takes up to `steps` steps of `dt`; returns the steps taken and the error
 /// that stopped it, if any.
-fn steps_until_error<G: Integrator<NQ, NC, 3>, M: Model<NQ, NC, 3>>(
+fn steps_until_error<G, M>(
     integ: &mut G,
     model: &M,
     s: &mut State<NQ>,
     dt: f64,
     steps: usize,
-) -> (usize, Option<flexdyn::runtime::Error>) {
+) -> (usize, Option<flexdyn::runtime::Error>)
+where
+    G: Integrator<NQ, NC, 3>,
+    M: flexdyn::runtime::Equations<Const<NQ>, Const<NC>, Const<3>>,
+{
     let zero = SVector::<f64, 3>::zeros();
     for k in 0..steps {
         if let Err(e) = integ.step(model, s, &zero, dt) {
@@ -262,7 +267,17 @@ fn flexible_robot_explicit_schemes_fail_at_coarse_steps_as_the_spectrum_predicts
         println!("RK4 at {dt} s: {msg}");
         // Through the robot pipeline the same error, with the advice.
         let table = TorqueTable::from_samples(&[(0.0, tau_g)]).unwrap();
-        let msg = simulate(&held_model, Scheme::Rk4, s0, &table, dt, 2, 1, &mut || {}).unwrap_err();
+        let msg = simulate(
+            ("parallel_robot_flexible", &held_model),
+            Scheme::Rk4,
+            s0,
+            &table,
+            dt,
+            2,
+            1,
+            &mut || {},
+        )
+        .unwrap_err();
         assert!(msg.contains("Hz") && msg.contains("gen-alpha"), "{msg}");
     }
     // The limit itself: below it (0.9 x) RK4 runs 2000 steps conserving the
@@ -353,7 +368,7 @@ fn flexible_robot_explicit_schemes_fail_at_coarse_steps_as_the_spectrum_predicts
         assert!(s.q.iter().chain(s.qd.iter()).all(|x| x.is_finite()));
         let table = TorqueTable::from_samples(&[(0.0, tau_g)]).unwrap();
         let msg = simulate(
-            &held_model,
+            ("parallel_robot_flexible", &held_model),
             Scheme::SemiImplicit,
             s0,
             &table,

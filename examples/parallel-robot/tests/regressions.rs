@@ -2,7 +2,7 @@
 
 use flexdyn::runtime::integrate::{GeneralizedAlpha, StepSettings};
 use flexdyn::runtime::nalgebra::SVector;
-use flexdyn::runtime::{total_energy, Integrator};
+use flexdyn::runtime::{total_energy, IntegratorOf};
 use flexdyn_parallel_robot::robot::{initial_state, Circle, Geometry, Layout};
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible::ParallelRobotFlexible;
 

@@ -16,7 +16,7 @@ use flexdyn::codegen::{powi_f64, Equations, Graph, Id, Node, Source, Symbol};
 use flexdyn::runtime::integrate::{GeneralizedAlpha, StepSettings};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::{
-    total_energy, ErrorKind, GeneralizedAlphaConfig, Integrator, Model, Rk4, State,
+    total_energy, ErrorKind, GeneralizedAlphaConfig, IntegratorOf, Model, Rk4, State,
 };
 use flexdyn_parallel_robot::robot::{
     flexible_inverse, initial_state, inverse_along, output_times, simulate, Circle, Geometry,
@@ -457,7 +457,7 @@ fn flexible_torques_track_the_circle_open_loop_better_than_rigid_ones() {
     let replay = |tau: &[[f64; 3]]| {
         let start = initial_state(&model, &layout, &geometry(), 0.0, p, v).unwrap();
         let states = simulate(
-            &model,
+            ("parallel_robot_flexible", &model),
             Scheme::GeneralizedAlpha,
             start,
             &table(&times, tau),
@@ -723,7 +723,17 @@ fn explicit_rk4_is_reported_unstable_and_the_implicit_scheme_is_not() {
     assert!(matches!(err.kind, ErrorKind::StepTooLarge { .. }), "{err}");
     assert_eq!(s, start, "the state is left as it was");
     // Through the pipeline the message says what to do.
-    let msg = simulate(&model, Scheme::Rk4, start, &tau, DT, 10, 1, &mut || {}).unwrap_err();
+    let msg = simulate(
+        ("parallel_robot_flexible", &model),
+        Scheme::Rk4,
+        start,
+        &tau,
+        DT,
+        10,
+        1,
+        &mut || {},
+    )
+    .unwrap_err();
     assert!(
         msg.contains("unstable") && msg.contains("gen-alpha"),
         "{msg}"

@@ -69,8 +69,7 @@ fn no_stack_probe_overwrites_a_live_r11() {
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| std::env::current_exe().unwrap());
     // Keep the padded inverse-dynamics path in this executable.
-    type Run =
-        fn(&flexdyn::cli::inverse::Args, &flexdyn::cli::eval::Compiled) -> Result<(), String>;
+    type Run = fn(&flexdyn::cli::inverse::Args, &flexdyn::compiled::Compiled) -> Result<(), String>;
     std::hint::black_box(flexdyn::cli::inverse::run as Run);
     let out = Command::new("objdump")
         .args(["-d", "-M", "intel", "--no-show-raw-insn"])

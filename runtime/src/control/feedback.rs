@@ -7,23 +7,30 @@
 //! i.e. a model whose bias forces are `h - B law(q, qd, t)`, integrated under
 //! whatever feed-forward input `tau` the integrator is given.
 
-use crate::model::Model;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector};
 
-/// A state-feedback law `u(q, qd, t)` for `NU` actuator inputs. Any
-/// `Fn(&SVector<f64, NQ>, &SVector<f64, NQ>, f64) -> SVector<f64, NU>` is one.
-pub trait FeedbackLaw<const NQ: usize, const NU: usize> {
+/// A state-feedback law `u(q, qd, t)` for `U` actuator inputs of `Q`
+/// coordinates (fixed, `Const<N>`, or run-time, `Dyn`). Any
+/// `Fn(&OVector<f64, Q>, &OVector<f64, Q>, f64) -> OVector<f64, U>` is one
+/// (e.g. `Fn(&SVector<f64, NQ>, ..) -> SVector<f64, NU>`).
+pub trait FeedbackLaw<Q: Dim, U: Dim>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<U>,
+{
     /// The input at a state.
-    fn input(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> SVector<f64, NU>;
+    fn input(&self, q: &OVector<f64, Q>, qd: &OVector<f64, Q>, t: f64) -> OVector<f64, U>;
 }
 
-impl<F, const NQ: usize, const NU: usize> FeedbackLaw<NQ, NU> for F
+impl<F, Q: Dim, U: Dim> FeedbackLaw<Q, U> for F
 where
-    F: Fn(&SVector<f64, NQ>, &SVector<f64, NQ>, f64) -> SVector<f64, NU>,
+    F: Fn(&OVector<f64, Q>, &OVector<f64, Q>, f64) -> OVector<f64, U>,
+    DefaultAllocator: Allocator<Q> + Allocator<U>,
 {
     #[inline]
-    fn input(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> SVector<f64, NU> {
+    fn input(&self, q: &OVector<f64, Q>, qd: &OVector<f64, Q>, t: f64) -> OVector<f64, U> {
         self(q, qd, t)
     }
 }
@@ -33,14 +40,14 @@ where
 /// non-finite, which the solvers report
 /// ([`crate::ErrorKind::NonFiniteModelOutput`] of the bias).
 #[derive(Clone, Copy, Debug)]
-pub struct Feedback<'a, M, L> {
+pub struct Feedback<'a, M: ?Sized, L> {
     /// The wrapped model.
     pub inner: &'a M,
     /// The feedback law.
     pub law: L,
 }
 
-impl<'a, M, L> Feedback<'a, M, L> {
+impl<'a, M: ?Sized, L> Feedback<'a, M, L> {
     /// `inner` under the feedback `law`.
     pub fn new(inner: &'a M, law: L) -> Self {
         Feedback { inner, law }
@@ -48,40 +55,106 @@ impl<'a, M, L> Feedback<'a, M, L> {
 }
 
 /// `h -= B u`.
-pub(crate) fn subtract_input<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn subtract_input<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    u: &SVector<T, NU>,
-    h: &mut SVector<T, NQ>,
+    u: &OVector<T, U>,
+    h: &mut OVector<T, Q>,
 ) where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
-    let mut b = SMatrix::<T, NQ, NU>::zeros();
+    let (nq, _, nu) = model.sizes();
+    let mut b = OMatrix::<T, Q, U>::zeros_generic(nq, nu);
     model.actuator_map(&mut b);
     *h -= b * u;
 }
 
-impl<M, L, const NQ: usize, const NC: usize, const NU: usize> Model<NQ, NC, NU>
-    for Feedback<'_, M, L>
+impl<M, L, Q: Dim, C: Dim, U: Dim> Equations<Q, C, U> for Feedback<'_, M, L>
 where
-    M: Model<NQ, NC, NU>,
-    L: FeedbackLaw<NQ, NU>,
+    M: Equations<Q, C, U> + ?Sized,
+    L: FeedbackLaw<Q, U>,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
-    crate::forward_model!(inner: M, NQ, NC, NU);
-    fn bias(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64, h: &mut SVector<f64, NQ>) {
+    fn sizes(&self) -> (Q, C, U) {
+        self.inner.sizes()
+    }
+    fn mass_matrix(&self, q: &OVector<f64, Q>, t: f64, m: &mut OMatrix<f64, Q, Q>) {
+        self.inner.mass_matrix(q, t, m)
+    }
+    fn bias(&self, q: &OVector<f64, Q>, qd: &OVector<f64, Q>, t: f64, h: &mut OVector<f64, Q>) {
         self.inner.bias(q, qd, t, h);
         subtract_input(self.inner, &self.law.input(q, qd, t), h);
     }
+    fn constraints(&self, q: &OVector<f64, Q>, t: f64, phi: &mut OVector<f64, C>) {
+        self.inner.constraints(q, t, phi)
+    }
+    fn constraint_jacobian(&self, q: &OVector<f64, Q>, t: f64, phi_q: &mut OMatrix<f64, C, Q>) {
+        self.inner.constraint_jacobian(q, t, phi_q)
+    }
+    fn constraint_time_derivative(&self, q: &OVector<f64, Q>, t: f64, phi_t: &mut OVector<f64, C>) {
+        self.inner.constraint_time_derivative(q, t, phi_t)
+    }
+    fn constraint_rhs(
+        &self,
+        q: &OVector<f64, Q>,
+        qd: &OVector<f64, Q>,
+        t: f64,
+        gamma: &mut OVector<f64, C>,
+    ) {
+        self.inner.constraint_rhs(q, qd, t, gamma)
+    }
+    fn actuator_map(&self, b: &mut OMatrix<f64, Q, U>) {
+        self.inner.actuator_map(b)
+    }
+    fn kinetic_energy(&self, q: &OVector<f64, Q>, qd: &OVector<f64, Q>, t: f64) -> f64 {
+        self.inner.kinetic_energy(q, qd, t)
+    }
+    fn potential_energy(&self, q: &OVector<f64, Q>, t: f64) -> f64 {
+        self.inner.potential_energy(q, t)
+    }
+    /// Not provided (the law's derivatives are unknown).
+    fn bias_jacobians(
+        &self,
+        _: &OVector<f64, Q>,
+        _: &OVector<f64, Q>,
+        _: f64,
+        _: &mut OMatrix<f64, Q, Q>,
+        _: &mut OMatrix<f64, Q, Q>,
+    ) -> bool {
+        false
+    }
+    fn constraints_and_jacobian(
+        &self,
+        q: &OVector<f64, Q>,
+        t: f64,
+        phi: &mut OVector<f64, C>,
+        phi_q: &mut OMatrix<f64, C, Q>,
+    ) {
+        self.inner.constraints_and_jacobian(q, t, phi, phi_q)
+    }
     fn dynamics_terms(
         &self,
-        q: &SVector<f64, NQ>,
-        qd: &SVector<f64, NQ>,
+        q: &OVector<f64, Q>,
+        qd: &OVector<f64, Q>,
         t: f64,
-        m: &mut SMatrix<f64, NQ, NQ>,
-        h: &mut SVector<f64, NQ>,
-        phi_q: &mut SMatrix<f64, NC, NQ>,
-        gamma: &mut SVector<f64, NC>,
+        m: &mut OMatrix<f64, Q, Q>,
+        h: &mut OVector<f64, Q>,
+        phi_q: &mut OMatrix<f64, C, Q>,
+        gamma: &mut OVector<f64, C>,
     ) {
         self.inner.dynamics_terms(q, qd, t, m, h, phi_q, gamma);
         subtract_input(self.inner, &self.law.input(q, qd, t), h);
+    }
+    /// `M qdd + h - B law(q, qd, t)`.
+    fn inverse_dynamics(
+        &self,
+        q: &OVector<f64, Q>,
+        qd: &OVector<f64, Q>,
+        qdd: &OVector<f64, Q>,
+        t: f64,
+        tau: &mut OVector<f64, Q>,
+    ) {
+        self.inner.inverse_dynamics(q, qd, qdd, t, tau);
+        subtract_input(self.inner, &self.law.input(q, qd, t), tau);
     }
 }

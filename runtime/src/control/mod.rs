@@ -28,40 +28,53 @@ mod pd;
 mod servo;
 
 pub use feedback::{Feedback, FeedbackLaw};
-pub use pd::JointPd;
+pub use pd::{JointPd, JointPdOf};
 pub use servo::{
     servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, ServoSolution, ServoSummary,
 };
 
 use crate::scalar::Scalar;
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OVector};
 
 /// Desired values, rates and accelerations of `N` quantities at one time,
-/// in `T` (`f64` unless named).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Target<const N: usize, T: Scalar = f64> {
+/// in `T`, `N` fixed or known at run time ([`Target`]: fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TargetOf<T: Scalar, N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// Desired values.
-    pub position: SVector<T, N>,
+    pub position: OVector<T, N>,
     /// Their time derivatives.
-    pub velocity: SVector<T, N>,
+    pub velocity: OVector<T, N>,
     /// Their second time derivatives.
-    pub acceleration: SVector<T, N>,
+    pub acceleration: OVector<T, N>,
 }
+
+impl<T: Scalar, const N: usize> Copy for TargetOf<T, Const<N>> {}
+
+/// [`TargetOf`] of `N` quantities (fixed), in `T` (`f64` unless named).
+pub type Target<const N: usize, T = f64> = TargetOf<T, Const<N>>;
 
 /// A desired motion of `N` quantities: the references of [`JointPd`] (which
 /// uses the values and rates, in `f64`) and the prescription of [`Servo`]
-/// (in the servo's scalar). Any `Fn(T) -> Target<N, T>` is one.
-pub trait Trajectory<const N: usize, T: Scalar = f64> {
+/// (in the servo's scalar). Any `Fn(T) -> TargetOf<T, N>` is one.
+pub trait Trajectory<N: Dim, T: Scalar = f64>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// The desired motion at time `t`.
-    fn at(&self, t: T) -> Target<N, T>;
+    fn at(&self, t: T) -> TargetOf<T, N>;
 }
 
-impl<F, T: Scalar, const N: usize> Trajectory<N, T> for F
+impl<F, T: Scalar, N: Dim> Trajectory<N, T> for F
 where
-    F: Fn(T) -> Target<N, T>,
+    F: Fn(T) -> TargetOf<T, N>,
+    DefaultAllocator: Allocator<N>,
 {
     #[inline]
-    fn at(&self, t: T) -> Target<N, T> {
+    fn at(&self, t: T) -> TargetOf<T, N> {
         self(t)
     }
 }

@@ -12,35 +12,70 @@
 
 use super::{FeedbackLaw, Trajectory};
 use crate::error::{check_indices, Error, ErrorKind};
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OVector, SVector, U1};
 
-/// PD feedback of `NU` actuators, each on one of `NQ` coordinates, towards
-/// the references `R`; a [`FeedbackLaw`] for [`super::Feedback`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct JointPd<R, const NQ: usize, const NU: usize> {
-    joints: [usize; NU],
-    kp: [f64; NU],
-    kd: [f64; NU],
+/// PD feedback of `U` actuators, each on one of `Q` coordinates (sizes
+/// fixed or known at run time; [`JointPd`]: fixed), towards the references
+/// `R`; a [`FeedbackLaw`] for [`super::Feedback`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointPdOf<R, Q: Dim, U: Dim>
+where
+    DefaultAllocator: Allocator<U>,
+{
+    nq: Q,
+    joints: OVector<usize, U>,
+    kp: OVector<f64, U>,
+    kd: OVector<f64, U>,
     reference: R,
 }
 
+/// [`JointPdOf`] of `NU` actuators on `NQ` coordinates (fixed sizes).
+pub type JointPd<R, const NQ: usize, const NU: usize> = JointPdOf<R, Const<NQ>, Const<NU>>;
+
+impl<R: Copy, const NQ: usize, const NU: usize> Copy for JointPd<R, NQ, NU> {}
+
 impl<R, const NQ: usize, const NU: usize> JointPd<R, NQ, NU>
 where
-    R: Trajectory<NU>,
+    R: Trajectory<Const<NU>>,
 {
     /// Actuator `j` on coordinate `joints[j]` with gains `kp[j]`, `kd[j]`
-    /// towards component `j` of `reference`.
-    ///
-    /// Errors: [`ErrorKind::InvalidIndex`] if a joint index is not below
-    /// `NQ` (several actuators may act on one coordinate); [`ErrorKind::InvalidParameter`] if a gain is negative
-    /// or not finite.
+    /// towards component `j` of `reference` ([`JointPdOf::of_sizes`]).
     pub fn new(
         joints: [usize; NU],
         kp: [f64; NU],
         kd: [f64; NU],
         reference: R,
     ) -> Result<Self, Error> {
-        check_indices("PD joint coordinate", &joints, NQ, false)?;
+        Self::of_sizes(
+            Const,
+            SVector::from(joints),
+            SVector::from(kp),
+            SVector::from(kd),
+            reference,
+        )
+    }
+}
+
+impl<R, Q: Dim, U: Dim> JointPdOf<R, Q, U>
+where
+    R: Trajectory<U>,
+    DefaultAllocator: Allocator<U>,
+{
+    /// Actuator `j` on coordinate `joints[j]` (of `nq`) with gains `kp[j]`,
+    /// `kd[j]` towards component `j` of `reference`.
+    ///
+    /// Errors: [`ErrorKind::InvalidIndex`] if a joint index is not below
+    /// `nq` (several actuators may act on one coordinate); [`ErrorKind::InvalidParameter`] if a gain is negative
+    /// or not finite.
+    pub fn of_sizes(
+        nq: Q,
+        joints: OVector<usize, U>,
+        kp: OVector<f64, U>,
+        kd: OVector<f64, U>,
+        reference: R,
+    ) -> Result<Self, Error> {
+        check_indices("PD joint coordinate", joints.as_slice(), nq.value(), false)?;
         for (what, gains) in [
             ("proportional gain kp (finite, >= 0)", &kp),
             ("derivative gain kd (finite, >= 0)", &kd),
@@ -56,7 +91,8 @@ where
                 ));
             }
         }
-        Ok(JointPd {
+        Ok(JointPdOf {
+            nq,
             joints,
             kp,
             kd,
@@ -65,13 +101,13 @@ where
     }
 
     /// The coordinate each actuator acts on.
-    pub fn joints(&self) -> &[usize; NU] {
-        &self.joints
+    pub fn joints(&self) -> &[usize] {
+        self.joints.as_slice()
     }
 
     /// Proportional and derivative gains.
-    pub fn gains(&self) -> (&[f64; NU], &[f64; NU]) {
-        (&self.kp, &self.kd)
+    pub fn gains(&self) -> (&[f64], &[f64]) {
+        (self.kp.as_slice(), self.kd.as_slice())
     }
 
     /// The references.
@@ -80,13 +116,14 @@ where
     }
 }
 
-impl<R, const NQ: usize, const NU: usize> FeedbackLaw<NQ, NU> for JointPd<R, NQ, NU>
+impl<R, Q: Dim, U: Dim> FeedbackLaw<Q, U> for JointPdOf<R, Q, U>
 where
-    R: Trajectory<NU>,
+    R: Trajectory<U>,
+    DefaultAllocator: Allocator<Q> + Allocator<U>,
 {
-    fn input(&self, q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64) -> SVector<f64, NU> {
+    fn input(&self, q: &OVector<f64, Q>, qd: &OVector<f64, Q>, t: f64) -> OVector<f64, U> {
         let target = self.reference.at(t);
-        let mut u = SVector::<f64, NU>::zeros();
+        let mut u = OVector::<f64, U>::zeros_generic(self.joints.shape_generic().0, U1);
         for (j, &i) in self.joints.iter().enumerate() {
             // `new` checked `i < NQ`; `get` keeps this panic-free regardless.
             let (qi, qdi) = match (q.get(i), qd.get(i)) {

@@ -55,13 +55,13 @@ use crate::dynamics::{stabilised_rhs, Baumgarte, DynamicsConfig, Kkt};
 use crate::error::{check_indices, Error, ErrorKind, Quantity};
 use crate::eval::{self, Terms};
 use crate::input::Linear;
-use crate::integrate::Integrator;
+use crate::integrate::IntegratorOf;
 use crate::linalg::Svd;
 use crate::model::Model;
 use crate::scalar::Scalar;
 use crate::state::{Drift, State};
 use core::cell::Cell;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector};
 
 /// `NP` outputs `y(q)` of a model with `NQ` coordinates, with their
 /// Jacobian; [`Coordinates`] selects coordinates.
@@ -199,7 +199,7 @@ impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
     where
         M: Model<NQ, NC, NU, T>,
         O: Outputs<NQ, NP, T>,
-        P: Trajectory<NP, T>,
+        P: Trajectory<Const<NP>, T>,
     {
         if NP > NU {
             return Err(Error::new(
@@ -273,7 +273,7 @@ impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
     where
         M: Model<NQ, NC, NU, T>,
         O: Outputs<NQ, NP, T>,
-        P: Trajectory<NP, T>,
+        P: Trajectory<Const<NP>, T>,
     {
         let terms = eval::dynamics_terms(self.inner, q, qd, t)?;
         self.solve_terms(q, qd, t, terms)
@@ -285,12 +285,12 @@ impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
         q: &SVector<T, NQ>,
         qd: &SVector<T, NQ>,
         t: T,
-        terms: Terms<NQ, NC, T>,
+        terms: Terms<T, Const<NQ>, Const<NC>>,
     ) -> Result<ServoSolution<NQ, NC, NU, T>, Error>
     where
         M: Model<NQ, NC, NU, T>,
         O: Outputs<NQ, NP, T>,
-        P: Trajectory<NP, T>,
+        P: Trajectory<Const<NP>, T>,
     {
         eval::check_terms(&terms, t)?;
         let b = eval::actuator_map(self.inner, t)?;
@@ -416,12 +416,12 @@ impl<M, O, P, T, const NQ: usize, const NC: usize, const NU: usize, const NP: us
 where
     M: Model<NQ, NC, NU, T>,
     O: Outputs<NQ, NP, T>,
-    P: Trajectory<NP, T>,
+    P: Trajectory<Const<NP>, T>,
     T: Scalar,
 {
     crate::forward_model!(inner: M, NQ, NC, NU, T);
     fn bias(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T, h: &mut SVector<T, NQ>) {
-        let mut terms = Terms::<NQ, NC, T>::zeros();
+        let mut terms = Terms::<T, Const<NQ>, Const<NC>>::zeros(Const, Const);
         self.dynamics_terms(
             q,
             qd,
@@ -521,8 +521,8 @@ pub fn servo_run<
 where
     M: Model<NQ, NC, NU, T>,
     O: Outputs<NQ, NP, T>,
-    P: Trajectory<NP, T>,
-    G: Integrator<NQ, NC, NU, T> + Clone,
+    P: Trajectory<Const<NP>, T>,
+    G: IntegratorOf<Const<NQ>, Const<NC>, Const<NU>, T> + Clone,
     F: FnMut(&ServoSample<NQ, NU, T>),
 {
     state.check_finite()?;

@@ -1,12 +1,14 @@
 //! RK4 with step-doubling error control.
 
 use super::rk4::rk4_raw;
-use super::{begin_step, finish_step, Integrator, StepReport, StepSettings};
+use super::{begin_step, finish_step, IntegratorOf, StepReport, StepSettings};
 use crate::error::{Error, ErrorKind};
-use crate::input::Input;
+use crate::input::InputOf;
 use crate::math::{exp, ln, sqrt};
-use crate::model::Model;
-use crate::state::{Drift, State};
+use crate::model::{Equations, Sizes};
+use crate::state::{Drift, StateOf};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim};
 
 /// Error-controlled RK4.
 ///
@@ -106,14 +108,18 @@ impl AdaptiveRk4 {
         }
     }
 
-    fn error_norm<const NQ: usize>(
+    fn error_norm<Q: Dim>(
         &self,
-        y0: &State<NQ>,
-        coarse: &State<NQ>,
-        fine: &State<NQ>,
-    ) -> f64 {
+        y0: &StateOf<f64, Q>,
+        coarse: &StateOf<f64, Q>,
+        fine: &StateOf<f64, Q>,
+    ) -> f64
+    where
+        DefaultAllocator: Allocator<Q>,
+    {
+        let nq = y0.q.nrows();
         let mut sum = 0.0;
-        for i in 0..NQ {
+        for i in 0..nq {
             for (a, c, f) in [
                 (y0.q[i], coarse.q[i], fine.q[i]),
                 (y0.qd[i], coarse.qd[i], fine.qd[i]),
@@ -123,35 +129,36 @@ impl AdaptiveRk4 {
                 sum += e * e;
             }
         }
-        if NQ == 0 {
+        if nq == 0 {
             0.0
         } else {
-            sqrt(sum / (2 * NQ) as f64)
+            sqrt(sum / (2 * nq) as f64)
         }
     }
 
     /// One trial: a full step and two half steps; returns the extrapolated
     /// state, the scaled error norm and the stability estimate of the half steps.
-    fn trial<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+    fn trial<M, I, Q: Dim, C: Dim, U: Dim>(
         &self,
         model: &M,
-        state: &State<NQ>,
+        state: &StateOf<f64, Q>,
         input: &I,
         h: f64,
-    ) -> Result<(State<NQ>, f64, f64), Error>
+    ) -> Result<(StateOf<f64, Q>, f64, f64), Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Equations<Q, C, U> + ?Sized,
+        I: InputOf<U> + ?Sized,
+        DefaultAllocator: Sizes<Q, C, U>,
     {
         let dyn_cfg = &self.settings.dynamics;
         let (coarse, _) = rk4_raw(model, dyn_cfg, state, input, h, self.stability_limit)?;
         let (mid, est) = rk4_raw(model, dyn_cfg, state, input, 0.5 * h, self.stability_limit)?;
         let (fine, _) = rk4_raw(model, dyn_cfg, &mid, input, 0.5 * h, self.stability_limit)?;
         let err = self.error_norm(state, &coarse, &fine);
-        let q = fine.q + (fine.q - coarse.q) / 15.0;
-        let qd = fine.qd + (fine.qd - coarse.qd) / 15.0;
+        let q = &fine.q + (&fine.q - coarse.q) / 15.0;
+        let qd = &fine.qd + (&fine.qd - coarse.qd) / 15.0;
         Ok((
-            State {
+            StateOf {
                 q,
                 qd,
                 t: state.t + h,
@@ -163,16 +170,17 @@ impl AdaptiveRk4 {
 
     /// Takes one accepted step, trying `dt_try` first (capped by
     /// `settings.max_step`). The state is unchanged on error.
-    pub fn step_adaptive<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+    pub fn step_adaptive<M, I, Q: Dim, C: Dim, U: Dim>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut StateOf<f64, Q>,
         input: &I,
         dt_try: f64,
     ) -> Result<AdaptiveReport, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Equations<Q, C, U> + ?Sized,
+        I: InputOf<U> + ?Sized,
+        DefaultAllocator: Sizes<Q, C, U>,
     {
         begin_step(state, dt_try, f64::INFINITY)?;
         let mut h = dt_try.min(self.settings.max_step);
@@ -218,12 +226,13 @@ impl AdaptiveRk4 {
             if err <= 1.0 && next.q.iter().chain(next.qd.iter()).all(|x| x.is_finite()) {
                 let mut next = next;
                 let (projection, drift) = finish_step(model, &mut next, &self.settings)?;
+                let t = next.t;
                 *state = next;
                 let dt_next = (h * factor).min(self.settings.max_step);
                 self.dt_next = Some(dt_next);
                 return Ok(AdaptiveReport {
                     step: StepReport {
-                        t: next.t,
+                        t,
                         dt: h,
                         iterations: 0,
                         stability_estimate: 2.0 * est,
@@ -252,18 +261,19 @@ impl AdaptiveRk4 {
     /// Advances to `t_end` with at most `max_steps` accepted steps, starting
     /// from `dt_next` (or `dt_init` on the first call). On error the state is
     /// left after the last accepted step.
-    pub fn advance_to<M, I, const NQ: usize, const NC: usize, const NU: usize>(
+    pub fn advance_to<M, I, Q: Dim, C: Dim, U: Dim>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut StateOf<f64, Q>,
         input: &I,
         t_end: f64,
         dt_init: f64,
         max_steps: u32,
     ) -> Result<AdvanceReport, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Equations<Q, C, U> + ?Sized,
+        I: InputOf<U> + ?Sized,
+        DefaultAllocator: Sizes<Q, C, U>,
     {
         let mut report = AdvanceReport::default();
         while report.steps < max_steps {
@@ -290,7 +300,10 @@ impl AdaptiveRk4 {
     }
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> for AdaptiveRk4 {
+impl<Q: Dim, C: Dim, U: Dim> IntegratorOf<Q, C, U> for AdaptiveRk4
+where
+    DefaultAllocator: Sizes<Q, C, U>,
+{
     fn settings_mut(&mut self) -> &mut StepSettings {
         &mut self.settings
     }
@@ -302,16 +315,17 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut StateOf<f64, Q>,
         input: &I,
         dt: f64,
     ) -> Result<StepReport, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Equations<Q, C, U> + ?Sized,
+        I: InputOf<U> + ?Sized,
+        DefaultAllocator: Sizes<Q, C, U>,
     {
         begin_step(state, dt, f64::INFINITY)?;
-        let saved = *state;
+        let saved = state.clone();
         let saved_dt = self.dt_next;
         let t_end = state.t + dt;
         let result = self.advance_to(model, state, input, t_end, dt, self.max_substeps);
@@ -328,7 +342,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
                 })
             }
             Ok(r) => {
-                let reached = state.t - saved.t;
+                let (reached, t) = (state.t - saved.t, saved.t);
                 *state = saved;
                 self.dt_next = saved_dt;
                 Err(Error::new(
@@ -336,7 +350,7 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU> f
                         substeps: r.steps,
                         reached,
                     },
-                    saved.t,
+                    t,
                 ))
             }
             Err(e) => {

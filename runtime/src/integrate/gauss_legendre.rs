@@ -1,19 +1,19 @@
 //! Two-stage Gauss–Legendre collocation (implicit, symplectic, order 4).
 
 use super::{
-    begin_step, finish_step, name_fastest_mode, qdd_at, Integrator, StepReport, StepSettings,
+    begin_step, finish_step, name_fastest_mode, qdd_at, IntegratorOf, StepReport, StepSettings,
 };
 use crate::error::{Error, ErrorKind, Quantity, Stage};
 use crate::eval;
-use crate::input::Input;
+use crate::input::InputOf;
 use crate::linalg::all_finite;
-use crate::model::Model;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use crate::state::State;
-use nalgebra::SVector;
+use crate::state::StateOf;
+use nalgebra::{DefaultAllocator, Dim, OVector, U1};
 
 const SQRT3_6: f64 = 0.288_675_134_594_812_9; // sqrt(3) / 6
-const C: [f64; 2] = [0.5 - SQRT3_6, 0.5 + SQRT3_6];
+const NODES: [f64; 2] = [0.5 - SQRT3_6, 0.5 + SQRT3_6];
 const A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
 
 /// Two-stage Gauss–Legendre Runge–Kutta method (order 4) with a bounded
@@ -78,8 +78,9 @@ impl<T: Scalar> GaussLegendre4<T> {
     }
 }
 
-impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
-    for GaussLegendre4<T>
+impl<T: Scalar, Q: Dim, C: Dim, U: Dim> IntegratorOf<Q, C, U, T> for GaussLegendre4<T>
+where
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     fn settings_mut(&mut self) -> &mut StepSettings<T> {
         &mut self.settings
@@ -88,13 +89,13 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ, T>,
+        state: &mut StateOf<T, Q>,
         input: &I,
         dt: T,
     ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU, T>,
-        I: Input<NU, T> + ?Sized,
+        M: Equations<Q, C, U, T> + ?Sized,
+        I: InputOf<U, T> + ?Sized,
     {
         begin_step(state, dt, self.settings.max_step)?;
         let (t, h) = (state.t, dt);
@@ -121,8 +122,9 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
             name_fastest_mode(e, model, dyn_cfg, state, input)
         };
         let a0 = qdd_at(model, dyn_cfg, &state.q, &state.qd, t, input).map_err(in_sweep(0))?;
-        let mut acc = [a0, a0];
-        let mut vel = [state.qd; 2];
+        let nq = state.q.shape_generic().0;
+        let mut acc = [a0.clone(), a0];
+        let mut vel = [state.qd.clone(), state.qd.clone()];
         let mut iterations = 0u32;
         let mut err = T::INFINITY;
         // Sweeps in a row whose increment grew: two mean divergence.
@@ -130,17 +132,20 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
         while iterations < self.max_iterations {
             iterations += 1;
             for i in 0..2 {
-                vel[i] = state.qd + (acc[0] * T::of(A[i][0]) + acc[1] * T::of(A[i][1])) * h;
+                vel[i] = &state.qd + (&acc[0] * T::of(A[i][0]) + &acc[1] * T::of(A[i][1])) * h;
             }
-            let mut new = [SVector::<T, NQ>::zeros(); 2];
+            let mut new = [
+                OVector::<T, Q>::zeros_generic(nq, U1),
+                OVector::<T, Q>::zeros_generic(nq, U1),
+            ];
             for i in 0..2 {
-                let qi = state.q + (vel[0] * T::of(A[i][0]) + vel[1] * T::of(A[i][1])) * h;
+                let qi = &state.q + (&vel[0] * T::of(A[i][0]) + &vel[1] * T::of(A[i][1])) * h;
                 // A diverging iteration reaches non-finite stage values
                 // first; no model call sees them.
                 if !all_finite(&qi) || !all_finite(&vel[i]) {
                     return Err(failed(iterations, T::INFINITY, true));
                 }
-                new[i] = match qdd_at(model, dyn_cfg, &qi, &vel[i], t + T::of(C[i]) * h, input) {
+                new[i] = match qdd_at(model, dyn_cfg, &qi, &vel[i], t + T::of(NODES[i]) * h, input) {
                     Ok(a) => a,
                     // A growing iteration that reaches stage values the
                     // model cannot evaluate (a mass matrix no longer
@@ -153,8 +158,8 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
             let previous = err;
             err = T::zero();
             for i in 0..2 {
-                let d = new[i] - acc[i];
-                for k in 0..NQ {
+                let d = &new[i] - &acc[i];
+                for k in 0..nq.value() {
                     let eq = (h * h * d[k]).abs() / (self.atol + self.rtol * state.q[k].abs());
                     let ev = (h * d[k]).abs() / (self.atol + self.rtol * state.qd[k].abs());
                     err = err.max(eq).max(ev);
@@ -173,17 +178,17 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
             return Err(failed(iterations, err, false));
         }
         for i in 0..2 {
-            vel[i] = state.qd + (acc[0] * T::of(A[i][0]) + acc[1] * T::of(A[i][1])) * h;
+            vel[i] = &state.qd + (&acc[0] * T::of(A[i][0]) + &acc[1] * T::of(A[i][1])) * h;
         }
-        let q = state.q + (vel[0] + vel[1]) * (T::of(0.5) * h);
-        let qd = state.qd + (acc[0] + acc[1]) * (T::of(0.5) * h);
+        let q = &state.q + (&vel[0] + &vel[1]) * (T::of(0.5) * h);
+        let qd = &state.qd + (&acc[0] + &acc[1]) * (T::of(0.5) * h);
         eval::check_result(&q, Quantity::Position, t)?;
         eval::check_result(&qd, Quantity::Velocity, t)?;
-        let mut next = State { q, qd, t: t + h };
+        let mut next = StateOf { q, qd, t: t + h };
         let (projection, drift) = finish_step(model, &mut next, &self.settings)?;
         *state = next;
         Ok(StepReport {
-            t: next.t,
+            t: t + h,
             dt,
             iterations,
             stability_estimate: T::zero(),

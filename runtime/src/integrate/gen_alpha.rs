@@ -1,15 +1,16 @@
 //! Implicit generalized-α integrator with bounded Newton iterations.
 
-use super::{begin_step, finish_step, Integrator, StepReport, StepSettings};
+use super::{begin_step, finish_step, IntegratorOf, StepReport, StepSettings};
 use crate::dynamics::{accelerations, stabilised_rhs};
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
-use crate::input::Input;
+use crate::input::InputOf;
 use crate::linalg::{all_finite, Lu};
-use crate::model::Model;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use crate::state::State;
-use nalgebra::{SMatrix, SVector};
+use crate::state::StateOf;
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, U1};
 
 /// Parameters of [`GeneralizedAlpha`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -64,12 +65,15 @@ impl<T: Scalar> Default for GeneralizedAlphaConfig<T> {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Memory<const NQ: usize, const NC: usize, T: Scalar> {
-    state: State<NQ, T>,
-    a: SVector<T, NQ>,
-    a_aux: SVector<T, NQ>,
-    lambda: SVector<T, NC>,
+#[derive(Clone, Debug, PartialEq)]
+struct Memory<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<C>,
+{
+    state: StateOf<T, Q>,
+    a: OVector<T, Q>,
+    a_aux: OVector<T, Q>,
+    lambda: OVector<T, C>,
 }
 
 /// Generalized-α (Chung–Hulbert 1993, in the form of Arnold & Brüls 2007)
@@ -116,19 +120,47 @@ struct Memory<const NQ: usize, const NC: usize, T: Scalar> {
 /// if it is handed a different state (compared bitwise), it re-initialises
 /// them from a forward-dynamics solve, so external changes to the state
 /// (resets, projections, events) are safe.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct GeneralizedAlpha<const NQ: usize, const NC: usize, T: Scalar = f64> {
+///
+/// `Q` coordinates and `C` constraints of fixed or run-time size
+/// ([`GeneralizedAlpha`]: fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneralizedAlphaOf<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<C>,
+{
     /// Shared settings.
     pub settings: StepSettings<T>,
     /// Scheme parameters.
     pub config: GeneralizedAlphaConfig<T>,
-    memory: Option<Memory<NQ, NC, T>>,
+    memory: Option<Memory<T, Q, C>>,
 }
 
-impl<T: Scalar, const NQ: usize, const NC: usize> GeneralizedAlpha<NQ, NC, T> {
+/// [`GeneralizedAlphaOf`] for a model of fixed size.
+pub type GeneralizedAlpha<const NQ: usize, const NC: usize, T = f64> =
+    GeneralizedAlphaOf<T, Const<NQ>, Const<NC>>;
+
+impl<T: Scalar, const NQ: usize, const NC: usize> Copy for Memory<T, Const<NQ>, Const<NC>> {}
+impl<T: Scalar, const NQ: usize, const NC: usize> Copy
+    for GeneralizedAlphaOf<T, Const<NQ>, Const<NC>>
+{
+}
+
+impl<T: Scalar, Q: Dim, C: Dim> Default for GeneralizedAlphaOf<T, Q, C>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<C>,
+{
+    fn default() -> Self {
+        Self::new(StepSettings::default(), GeneralizedAlphaConfig::default())
+    }
+}
+
+impl<T: Scalar, Q: Dim, C: Dim> GeneralizedAlphaOf<T, Q, C>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<C>,
+{
     /// Generalized-α with the given settings and parameters.
     pub fn new(settings: StepSettings<T>, config: GeneralizedAlphaConfig<T>) -> Self {
-        GeneralizedAlpha {
+        GeneralizedAlphaOf {
             settings,
             config,
             memory: None,
@@ -157,64 +189,78 @@ impl<T: Scalar, const NQ: usize, const NC: usize> GeneralizedAlpha<NQ, NC, T> {
 }
 
 /// Iteration matrix, factored.
-struct Jacobian<const NQ: usize, const NC: usize, T: Scalar> {
-    lu_a: Lu<NQ, T>,
-    lu_w: Lu<NC, T>,
+struct Jacobian<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Sizes<Q, C, C>,
+{
+    lu_a: Lu<T, Q>,
+    lu_w: Lu<T, C>,
     /// `J11^-1 Phi_q^T`.
-    x: SMatrix<T, NQ, NC>,
+    x: OMatrix<T, Q, C>,
     /// `dR2/da`.
-    j21: SMatrix<T, NC, NQ>,
-    w_scale: SVector<T, NC>,
+    j21: OMatrix<T, C, Q>,
+    w_scale: OVector<T, C>,
 }
 
 /// Everything a step's residual depends on besides `(a, lambda)`.
-struct Ctx<const NQ: usize, const NU: usize, T: Scalar> {
-    q_base: SVector<T, NQ>,
-    v_base: SVector<T, NQ>,
+struct Ctx<T: Scalar, Q: Dim>
+where
+    DefaultAllocator: Allocator<Q>,
+{
+    q_base: OVector<T, Q>,
+    v_base: OVector<T, Q>,
     cq: T,
     cv: T,
     t: T,
-    f_ext: SVector<T, NQ>,
+    f_ext: OVector<T, Q>,
     gains: crate::dynamics::Baumgarte,
 }
 
 /// Residuals at one iterate.
-struct Residual<const NQ: usize, const NC: usize, T: Scalar> {
-    r1: SVector<T, NQ>,
-    r2: SVector<T, NC>,
-    phi_q: SMatrix<T, NC, NQ>,
-    m: SMatrix<T, NQ, NQ>,
+struct Residual<T: Scalar, Q: Dim, C: Dim>
+where
+    DefaultAllocator: Sizes<Q, C, C>,
+{
+    r1: OVector<T, Q>,
+    r2: OVector<T, C>,
+    phi_q: OMatrix<T, C, Q>,
+    m: OMatrix<T, Q, Q>,
 }
 
-impl<T: Scalar, const NQ: usize, const NU: usize> Ctx<NQ, NU, T> {
-    fn q(&self, a: &SVector<T, NQ>) -> SVector<T, NQ> {
-        self.q_base + a * self.cq
+impl<T: Scalar, Q: Dim> Ctx<T, Q>
+where
+    DefaultAllocator: Allocator<Q>,
+{
+    fn q(&self, a: &OVector<T, Q>) -> OVector<T, Q> {
+        &self.q_base + a * self.cq
     }
-    fn v(&self, a: &SVector<T, NQ>) -> SVector<T, NQ> {
-        self.v_base + a * self.cv
+    fn v(&self, a: &OVector<T, Q>) -> OVector<T, Q> {
+        &self.v_base + a * self.cv
     }
     /// `R1 = M a + h - Phi_q^T lambda - B tau`, `R2 = Phi_q a - c`.
-    fn residual<M, const NC: usize>(
+    fn residual<M, C: Dim, U: Dim>(
         &self,
         model: &M,
-        a: &SVector<T, NQ>,
-        lambda: &SVector<T, NC>,
-    ) -> Result<Residual<NQ, NC, T>, Error>
+        a: &OVector<T, Q>,
+        lambda: &OVector<T, C>,
+    ) -> Result<Residual<T, Q, C>, Error>
     where
-        M: Model<NQ, NC, NU, T>,
+        M: Equations<Q, C, U, T> + ?Sized,
+        DefaultAllocator: Sizes<Q, C, U> + Sizes<Q, C, C>,
     {
         let q = self.q(a);
         let v = self.v(a);
         let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, &q, &v, self.t)?;
-        let r1 = m * a + h - phi_q.transpose() * lambda - self.f_ext;
+        let r1 = &m * a + h - phi_q.transpose() * lambda - &self.f_ext;
         let c = stabilised_rhs(model, &self.gains, &q, &v, self.t, &phi_q, gamma)?;
-        let r2 = phi_q * a - c;
+        let r2 = &phi_q * a - c;
         Ok(Residual { r1, r2, phi_q, m })
     }
 }
 
-impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
-    for GeneralizedAlpha<NQ, NC, T>
+impl<T: Scalar, Q: Dim, C: Dim, U: Dim> IntegratorOf<Q, C, U, T> for GeneralizedAlphaOf<T, Q, C>
+where
+    DefaultAllocator: Sizes<Q, C, U> + Sizes<Q, C, C>,
 {
     fn settings_mut(&mut self) -> &mut StepSettings<T> {
         &mut self.settings
@@ -223,13 +269,13 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ, T>,
+        state: &mut StateOf<T, Q>,
         input: &I,
         dt: T,
     ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU, T>,
-        I: Input<NU, T> + ?Sized,
+        M: Equations<Q, C, U, T> + ?Sized,
+        I: InputOf<U, T> + ?Sized,
     {
         begin_step(state, dt, self.settings.max_step)?;
         let cfg = self.config;
@@ -247,13 +293,13 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
         let cq = h * h * beta * (one - af) * k;
         let cv = h * gamma * (one - af) * k;
         let gains = dyn_cfg.baumgarte;
-        let make_ctx = |mem: &Memory<NQ, NC, T>| {
-            let aux_base = (mem.a * af - mem.a_aux * am) * k;
-            let q_base = state.q
-                + state.qd * h
-                + mem.a_aux * (h * h * (T::of(0.5) - beta))
-                + aux_base * (h * h * beta);
-            let v_base = state.qd + mem.a_aux * (h * (one - gamma)) + aux_base * (h * gamma);
+        let make_ctx = |mem: &Memory<T, Q, C>| {
+            let aux_base = (&mem.a * af - &mem.a_aux * am) * k;
+            let q_base = &state.q
+                + &state.qd * h
+                + &mem.a_aux * (h * h * (T::of(0.5) - beta))
+                + &aux_base * (h * h * beta);
+            let v_base = &state.qd + &mem.a_aux * (h * (one - gamma)) + &aux_base * (h * gamma);
             (
                 Ctx {
                     q_base,
@@ -261,21 +307,21 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
                     cq,
                     cv,
                     t: t1,
-                    f_ext,
+                    f_ext: f_ext.clone(),
                     gains,
                 },
                 aux_base,
             )
         };
-        let mem = match self.memory {
-            Some(m) if m.state.same_bits(state) => m,
+        let mem = match &self.memory {
+            Some(m) if m.state.same_bits(state) => m.clone(),
             _ => {
                 let tau0 = input.at(t0);
                 eval::check_input(&tau0, t0)?;
                 let acc = accelerations(model, &dyn_cfg, &state.q, &state.qd, t0, &tau0)?;
                 let mut mem = Memory {
-                    state: *state,
-                    a: acc.qdd,
+                    state: state.clone(),
+                    a: acc.qdd.clone(),
                     a_aux: acc.qdd,
                     lambda: acc.lambda,
                 };
@@ -292,7 +338,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
                         &res,
                         false,
                     )?;
-                    let mut filtered = eval::mass(model, &state.q, t0)? * mem.a;
+                    let mut filtered = eval::mass(model, &state.q, t0)? * &mem.a;
                     jm.lu_a.solve(&mut filtered);
                     if all_finite(&filtered) {
                         mem.a_aux = filtered;
@@ -304,7 +350,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
         let (ctx, aux_base) = make_ctx(&mem);
         let mut a = mem.a;
         let mut lambda = mem.lambda;
-        let mut jac: Option<Jacobian<NQ, NC, T>> = None;
+        let mut jac: Option<Jacobian<T, Q, C>> = None;
         let mut prev_err = T::INFINITY;
         let mut err = T::INFINITY;
         let mut iterations = 0u32;
@@ -336,12 +382,12 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
             // Delta a = d0 + X Delta lambda, (J21 X) Delta lambda = -r2 - J21 d0.
             let mut d0 = -res.r1;
             jm.lu_a.solve(&mut d0);
-            let rhs = -res.r2 - jm.j21 * d0;
+            let rhs = -res.r2 - &jm.j21 * &d0;
             let mut y = rhs.component_mul(&jm.w_scale);
             jm.lu_w.solve(&mut y);
             let dl = y.component_mul(&jm.w_scale);
-            let da = d0 + jm.x * dl;
-            a += da;
+            let da = d0 + &jm.x * &dl;
+            a += &da;
             lambda += dl;
             if !all_finite(&a) || !all_finite(&lambda) {
                 return Err(Error::new(
@@ -356,7 +402,7 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
             let q1 = ctx.q(&a);
             let v1 = ctx.v(&a);
             err = T::zero();
-            for i in 0..NQ {
+            for i in 0..da.nrows() {
                 let eq = (cq * da[i]).abs() / (cfg.atol + cfg.rtol * q1[i].abs());
                 let ev = (cv * da[i]).abs() / (cfg.atol + cfg.rtol * v1[i].abs());
                 err = err.max(eq).max(ev);
@@ -382,22 +428,22 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
         }
         let q1 = ctx.q(&a);
         let v1 = ctx.v(&a);
-        let a_aux = aux_base + a * ((one - af) * k);
+        let a_aux = aux_base + &a * ((one - af) * k);
         eval::check_result(&q1, Quantity::Position, t0)?;
         eval::check_result(&v1, Quantity::Velocity, t0)?;
-        let mut next = State {
+        let mut next = StateOf {
             q: q1,
             qd: v1,
             t: t1,
         };
         let (projection, drift) = finish_step(model, &mut next, &self.settings)?;
+        *state = next.clone();
         self.memory = Some(Memory {
             state: next,
             a,
             a_aux,
             lambda,
         });
-        *state = next;
         Ok(StepReport {
             t: t1,
             dt,
@@ -417,24 +463,26 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
 /// neither the implied position change `c_q delta_j` nor the velocity change
 /// `c_v delta_j` exceeds `fd_step * max(|x_j|, 1)`.
 #[allow(clippy::too_many_arguments)]
-fn build_jacobian<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+fn build_jacobian<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     cfg: &GeneralizedAlphaConfig<T>,
     max_constraint_condition: T,
-    ctx: &Ctx<NQ, NU, T>,
-    a: &SVector<T, NQ>,
-    lambda: &SVector<T, NC>,
-    res: &Residual<NQ, NC, T>,
+    ctx: &Ctx<T, Q>,
+    a: &OVector<T, Q>,
+    lambda: &OVector<T, C>,
+    res: &Residual<T, Q, C>,
     finite_differences: bool,
-) -> Result<Jacobian<NQ, NC, T>, Error>
+) -> Result<Jacobian<T, Q, C>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U> + Sizes<Q, C, C>,
 {
     let t = ctx.t;
-    let mut j11 = SMatrix::<T, NQ, NQ>::zeros();
-    let mut j21 = SMatrix::<T, NC, NQ>::zeros();
-    let mut hq = SMatrix::<T, NQ, NQ>::zeros();
-    let mut hv = SMatrix::<T, NQ, NQ>::zeros();
+    let (nq, nc, _) = model.sizes();
+    let mut j11 = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
+    let mut j21 = OMatrix::<T, C, Q>::zeros_generic(nc, nq);
+    let mut hq = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
+    let mut hv = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
     let q = ctx.q(a);
     let v = ctx.v(a);
     if !finite_differences && model.bias_jacobians(&q, &v, t, &mut hq, &mut hv) {
@@ -446,15 +494,15 @@ where
                 t,
             ));
         }
-        j11 = res.m + hv * ctx.cv + hq * ctx.cq;
+        j11 = &res.m + hv * ctx.cv + hq * ctx.cq;
         let g = ctx.gains;
-        j21 = res.phi_q
+        j21 = &res.phi_q
             * (T::one() + T::of(2.0 * g.alpha) * ctx.cv + T::of(g.beta * g.beta) * ctx.cq);
     } else {
-        for j in 0..NQ {
+        for j in 0..nq.value() {
             let dq = cfg.fd_step * q[j].abs().max(T::one()) / ctx.cq;
             let dv = cfg.fd_step * v[j].abs().max(T::one()) / ctx.cv;
-            let mut ap = *a;
+            let mut ap = a.clone();
             ap[j] += dq.min(dv);
             let delta = ap[j] - a[j];
             if !(delta > T::zero()) || !delta.is_finite() {
@@ -466,8 +514,8 @@ where
                 ));
             }
             let rp = ctx.residual(model, &ap, lambda)?;
-            j11.set_column(j, &((rp.r1 - res.r1) / delta));
-            j21.set_column(j, &((rp.r2 - res.r2) / delta));
+            j11.set_column(j, &((rp.r1 - &res.r1) / delta));
+            j21.set_column(j, &((rp.r2 - &res.r2) / delta));
         }
     }
     let lu_a = match Lu::factor(&j11, cfg.max_condition) {
@@ -482,14 +530,14 @@ where
         }
     };
     let mut x = res.phi_q.transpose();
-    for j in 0..NC {
-        let mut col: SVector<T, NQ> = x.column(j).into_owned();
+    for j in 0..nc.value() {
+        let mut col: OVector<T, Q> = x.column(j).into_owned();
         lu_a.solve(&mut col);
         x.set_column(j, &col);
     }
-    let w = j21 * x;
-    let mut w_scale = SVector::<T, NC>::zeros();
-    for i in 0..NC {
+    let w = &j21 * &x;
+    let mut w_scale = OVector::<T, C>::zeros_generic(nc, U1);
+    for i in 0..nc.value() {
         let d = w[(i, i)].abs();
         if !(d > T::zero()) || !d.is_finite() {
             return Err(Error::new(
@@ -503,8 +551,8 @@ where
         w_scale[i] = T::one() / d.square_root();
     }
     let mut ws = w;
-    for j in 0..NC {
-        for i in 0..NC {
+    for j in 0..nc.value() {
+        for i in 0..nc.value() {
             ws[(i, j)] *= w_scale[i] * w_scale[j];
         }
     }

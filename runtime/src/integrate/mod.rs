@@ -31,19 +31,20 @@ mod semi_implicit;
 
 pub use adaptive::{AdaptiveReport, AdaptiveRk4, AdvanceReport};
 pub use gauss_legendre::GaussLegendre4;
-pub use gen_alpha::{GeneralizedAlpha, GeneralizedAlphaConfig};
+pub use gen_alpha::{GeneralizedAlpha, GeneralizedAlphaConfig, GeneralizedAlphaOf};
 pub use rk4::Rk4;
 pub use semi_implicit::SemiImplicitEuler;
 
 use crate::dynamics::{accelerations, DynamicsConfig};
 use crate::error::{Error, ErrorKind};
 use crate::eval;
-use crate::input::Input;
-use crate::model::Model;
+use crate::input::InputOf;
+use crate::model::{Equations, Sizes};
 use crate::projection::{project_with, ProjectionConfig, ProjectionReport};
 use crate::scalar::Scalar;
-use crate::state::{constraint_drift, Drift, State};
-use nalgebra::SVector;
+use crate::state::{constraint_drift, Drift, StateOf};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OVector};
 
 /// Settings shared by all integrators.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -99,24 +100,44 @@ pub struct StepReport<T: Scalar = f64> {
     pub drift: Drift<T>,
 }
 
-/// A time integrator: advances `state` by `dt` under the input `input`.
-pub trait Integrator<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f64> {
+/// A time integrator: advances `state` by `dt` under the input `input`, for
+/// models of `Q` coordinates, `C` constraints and `U` inputs (`Const<N>`
+/// for generated models, `Dyn` for models of run-time size).
+pub trait IntegratorOf<Q: Dim, C: Dim, U: Dim, T: Scalar = f64>
+where
+    DefaultAllocator: Sizes<Q, C, U>,
+{
     /// Advances `state` by `dt`. On error the state (and any integrator
     /// memory) is left as it was before the call.
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ, T>,
+        state: &mut StateOf<T, Q>,
         input: &I,
         dt: T,
     ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU, T>,
-        I: Input<NU, T> + ?Sized;
+        M: Equations<Q, C, U, T> + ?Sized,
+        I: InputOf<U, T> + ?Sized;
 
     /// The integrator's step settings (e.g. for [`crate::control::servo_run`]
     /// to take its trial step without the coordinate projection).
     fn settings_mut(&mut self) -> &mut StepSettings<T>;
+}
+
+/// [`IntegratorOf`] for models of fixed size, `NQ` coordinates, `NC`
+/// constraints, `NU` inputs: what firmware code names. Implemented for
+/// every [`IntegratorOf`] of those sizes.
+pub trait Integrator<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f64>:
+    IntegratorOf<Const<NQ>, Const<NC>, Const<NU>, T>
+{
+}
+
+impl<G, T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
+    for G
+where
+    G: IntegratorOf<Const<NQ>, Const<NC>, Const<NU>, T>,
+{
 }
 
 /// Summary of [`run`].
@@ -132,20 +153,21 @@ pub struct RunSummary<T: Scalar = f64> {
 
 /// Takes `steps` steps of size `dt`, calling `observe` after each. Stops at the
 /// first error (the state is then the one before the failed step).
-pub fn run<G, M, I, F, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub fn run<G, M, I, F, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     integrator: &mut G,
     model: &M,
-    state: &mut State<NQ, T>,
+    state: &mut StateOf<T, Q>,
     input: &I,
     dt: T,
     steps: usize,
     mut observe: F,
 ) -> Result<RunSummary<T>, Error>
 where
-    G: Integrator<NQ, NC, NU, T>,
-    M: Model<NQ, NC, NU, T>,
-    I: Input<NU, T> + ?Sized,
-    F: FnMut(&State<NQ, T>, &StepReport<T>),
+    G: IntegratorOf<Q, C, U, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    I: InputOf<U, T> + ?Sized,
+    F: FnMut(&StateOf<T, Q>, &StepReport<T>),
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let mut summary = RunSummary::<T>::default();
     for _ in 0..steps {
@@ -160,11 +182,14 @@ where
 }
 
 /// Validates the state and the step size at the start of a step.
-pub(crate) fn begin_step<T: Scalar, const NQ: usize>(
-    state: &State<NQ, T>,
+pub(crate) fn begin_step<T: Scalar, Q: Dim>(
+    state: &StateOf<T, Q>,
     dt: T,
     max_step: T,
-) -> Result<(), Error> {
+) -> Result<(), Error>
+where
+    DefaultAllocator: Allocator<Q>,
+{
     state.check_finite()?;
     if !(dt > T::zero()) || !dt.is_finite() || !(state.t + dt).is_finite() {
         return Err(Error::new(
@@ -187,17 +212,18 @@ pub(crate) fn begin_step<T: Scalar, const NQ: usize>(
 }
 
 /// Accelerations at `(q, qd, t)` with the input sampled at `t`.
-pub(crate) fn qdd_at<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn qdd_at<M, I, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     config: &DynamicsConfig<T>,
-    q: &SVector<T, NQ>,
-    qd: &SVector<T, NQ>,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
     t: T,
     input: &I,
-) -> Result<SVector<T, NQ>, Error>
+) -> Result<OVector<T, Q>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
-    I: Input<NU, T> + ?Sized,
+    M: Equations<Q, C, U, T> + ?Sized,
+    I: InputOf<U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let tau = input.at(t);
     eval::check_input(&tau, t)?;
@@ -205,30 +231,32 @@ where
 }
 
 /// Post-step work: optional projection, then the drift measurement.
-pub(crate) fn finish_step<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn finish_step<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    next: &mut State<NQ, T>,
+    next: &mut StateOf<T, Q>,
     settings: &StepSettings<T>,
 ) -> Result<(Option<ProjectionReport<T>>, Drift<T>), Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     finish_step_with(model, next, settings, T::zero())
 }
 
 /// [`finish_step`] with the SHAKE-style velocity update of
 /// [`crate::projection::project_with`].
-pub(crate) fn finish_step_with<M, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn finish_step_with<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
-    next: &mut State<NQ, T>,
+    next: &mut StateOf<T, Q>,
     settings: &StepSettings<T>,
     velocity_from_position_dt: T,
 ) -> Result<(Option<ProjectionReport<T>>, Drift<T>), Error>
 where
-    M: Model<NQ, NC, NU, T>,
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let projection = match &settings.projection {
-        Some(cfg) if NC > 0 => Some(project_with(
+        Some(cfg) if model.sizes().1.value() > 0 => Some(project_with(
             model,
             next,
             cfg,
@@ -255,44 +283,50 @@ const RATE_ITERATIONS: usize = 24;
 /// so bounded work. Used only on the refusal paths of [`Rk4`], [`SemiImplicitEuler`] and
 /// [`GaussLegendre4`]; `None` when an
 /// evaluation fails.
-pub(crate) fn spectral_radius<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn spectral_radius<M, I, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     dynamics: &DynamicsConfig<T>,
-    s: &State<NQ, T>,
+    s: &StateOf<T, Q>,
     input: &I,
 ) -> Option<T>
 where
-    M: Model<NQ, NC, NU, T>,
-    I: Input<NU, T> + ?Sized,
+    M: Equations<Q, C, U, T> + ?Sized,
+    I: InputOf<U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let a0 = qdd_at(model, dynamics, &s.q, &s.qd, s.t, input).ok()?;
     let eps = T::of(1e-7) * (T::one() + s.q.amax() + s.qd.amax());
-    let norm = |x: &SVector<T, NQ>, y: &SVector<T, NQ>| {
+    let norm = |x: &OVector<T, Q>, y: &OVector<T, Q>| {
         Scalar::square_root(x.norm_squared() + y.norm_squared())
     };
     // J (dq, dv) = (dv, A dq + B dv) with A = dqdd/dq, B = dqdd/dqd, each
     // product by a one-sided difference whose step moves q or qd by eps
     // whatever the size of dq or dv (the model is linearised, not probed far
     // away, and a small part is not lost to rounding next to a large one).
-    let apply = |dq: &SVector<T, NQ>, dv: &SVector<T, NQ>| {
-        let mut jv = SVector::<T, NQ>::zeros();
+    let nq = s.q.shape_generic().0;
+    let apply = |dq: &OVector<T, Q>, dv: &OVector<T, Q>| {
+        let mut jv = OVector::<T, Q>::zeros_generic(nq, nalgebra::U1);
         for (x, along_q) in [(dq, true), (dv, false)] {
             let n = Scalar::square_root(x.norm_squared());
             if n > T::zero() {
                 let h = eps / n;
                 let (q, qd) = if along_q {
-                    (s.q + x * h, s.qd)
+                    (&s.q + x * h, s.qd.clone())
                 } else {
-                    (s.q, s.qd + x * h)
+                    (s.q.clone(), &s.qd + x * h)
                 };
-                jv += (qdd_at(model, dynamics, &q, &qd, s.t, input).ok()? - a0) / h;
+                jv += (qdd_at(model, dynamics, &q, &qd, s.t, input).ok()? - &a0) / h;
             }
         }
-        Some((*dv, jv))
+        Some((dv.clone(), jv))
     };
     // A start with a component along every coordinate and velocity.
-    let mut dq = SVector::<T, NQ>::from_fn(|i, _| T::one() + T::of(0.37) * T::of(i as f64));
-    let mut dv = SVector::<T, NQ>::from_fn(|i, _| T::one() - T::of(0.23) * T::of(i as f64));
+    let mut dq = OVector::<T, Q>::from_fn_generic(nq, nalgebra::U1, |i, _| {
+        T::one() + T::of(0.37) * T::of(i as f64)
+    });
+    let mut dv = OVector::<T, Q>::from_fn_generic(nq, nalgebra::U1, |i, _| {
+        T::one() - T::of(0.23) * T::of(i as f64)
+    });
     let mut rho2 = T::zero();
     for _ in 0..RATE_ITERATIONS {
         let n = norm(&dq, &dv);
@@ -316,23 +350,17 @@ where
 /// `value` becomes `dt` times that rate, so that the reported `dt * rho(J)`
 /// and the suggested step `limit / rate` come from one number (and that
 /// step satisfies both estimates). Other errors pass unchanged.
-pub(crate) fn name_fastest_mode<
-    M,
-    I,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
->(
+pub(crate) fn name_fastest_mode<M, I, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     mut e: Error,
     model: &M,
     dynamics: &DynamicsConfig<T>,
-    s: &State<NQ, T>,
+    s: &StateOf<T, Q>,
     input: &I,
 ) -> Error
 where
-    M: Model<NQ, NC, NU, T>,
-    I: Input<NU, T> + ?Sized,
+    M: Equations<Q, C, U, T> + ?Sized,
+    I: InputOf<U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     match &mut e.kind {
         ErrorKind::StepTooLarge {

@@ -1,16 +1,17 @@
 //! Classical fourth-order Runge–Kutta.
 
 use super::{
-    begin_step, finish_step, name_fastest_mode, qdd_at, Integrator, StepReport, StepSettings,
+    begin_step, finish_step, name_fastest_mode, qdd_at, IntegratorOf, StepReport, StepSettings,
 };
 use crate::dynamics::DynamicsConfig;
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
-use crate::input::Input;
-use crate::model::Model;
+use crate::input::InputOf;
+use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
-use crate::state::State;
-use nalgebra::SVector;
+use crate::state::StateOf;
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OVector};
 
 /// Explicit classical RK4 with a fixed step.
 ///
@@ -59,40 +60,44 @@ impl<T: Scalar> Rk4<T> {
 /// first being `(s.qd, a0)`), and the estimate of `h * rho(J)` from them:
 /// `k3 - k2 = (h/2)^2 J^2 k1 + O(h^3)`, so `(h rho)^2 ~ 4 |k3 - k2| / |k1|`
 /// (exact for a linear oscillator or a linear damper).
-pub(crate) struct HalfStages<const NQ: usize, T: Scalar = f64> {
-    pub k2q: SVector<T, NQ>,
-    pub k2v: SVector<T, NQ>,
-    pub k3q: SVector<T, NQ>,
-    pub k3v: SVector<T, NQ>,
+pub(crate) struct HalfStages<T: Scalar, Q: Dim>
+where
+    DefaultAllocator: Allocator<Q>,
+{
+    pub k2q: OVector<T, Q>,
+    pub k2v: OVector<T, Q>,
+    pub k3q: OVector<T, Q>,
+    pub k3v: OVector<T, Q>,
     pub estimate: T,
 }
 
 /// Computes [`HalfStages`] (two accelerations).
-pub(crate) fn half_stages<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn half_stages<M, I, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     dynamics: &DynamicsConfig<T>,
-    s: &State<NQ, T>,
-    a0: &SVector<T, NQ>,
+    s: &StateOf<T, Q>,
+    a0: &OVector<T, Q>,
     input: &I,
     h: T,
-) -> Result<HalfStages<NQ, T>, Error>
+) -> Result<HalfStages<T, Q>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
-    I: Input<NU, T> + ?Sized,
+    M: Equations<Q, C, U, T> + ?Sized,
+    I: InputOf<U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let t = s.t;
     let half = T::of(0.5) * h;
-    let (k1q, k1v) = (s.qd, *a0);
-    let q2 = s.q + k1q * half;
-    let v2 = s.qd + k1v * half;
-    let k2q = v2;
+    let (k1q, k1v) = (&s.qd, a0);
+    let q2 = &s.q + k1q * half;
+    let v2 = &s.qd + k1v * half;
     let k2v = qdd_at(model, dynamics, &q2, &v2, t + half, input)?;
-    let q3 = s.q + k2q * half;
-    let v3 = s.qd + k2v * half;
-    let k3q = v3;
+    let k2q = v2;
+    let q3 = &s.q + &k2q * half;
+    let v3 = &s.qd + &k2v * half;
     let k3v = qdd_at(model, dynamics, &q3, &v3, t + half, input)?;
+    let k3q = v3;
     let den = k1q.norm_squared() + k1v.norm_squared();
-    let num = (k3q - k2q).norm_squared() + (k3v - k2v).norm_squared();
+    let num = (&k3q - &k2q).norm_squared() + (&k3v - &k2v).norm_squared();
     let estimate = if den > T::zero() {
         T::of(2.0) * Scalar::square_root(Scalar::square_root(num / den))
     } else {
@@ -109,17 +114,18 @@ where
 
 /// One RK4 step from `s` without projection; returns the new state and the
 /// stability estimate. Checks the stability estimate against `limit`.
-pub(crate) fn rk4_raw<M, I, T: Scalar, const NQ: usize, const NC: usize, const NU: usize>(
+pub(crate) fn rk4_raw<M, I, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     dynamics: &DynamicsConfig<T>,
-    s: &State<NQ, T>,
+    s: &StateOf<T, Q>,
     input: &I,
     h: T,
     limit: T,
-) -> Result<(State<NQ, T>, T), Error>
+) -> Result<(StateOf<T, Q>, T), Error>
 where
-    M: Model<NQ, NC, NU, T>,
-    I: Input<NU, T> + ?Sized,
+    M: Equations<Q, C, U, T> + ?Sized,
+    I: InputOf<U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     let t = s.t;
     let k1v = qdd_at(model, dynamics, &s.q, &s.qd, t, input)?;
@@ -141,21 +147,22 @@ where
             t,
         ));
     }
-    let k1q = s.qd;
-    let q4 = s.q + k3q * h;
-    let v4 = s.qd + k3v * h;
-    let k4q = v4;
+    let k1q = &s.qd;
+    let q4 = &s.q + &k3q * h;
+    let v4 = &s.qd + &k3v * h;
     let k4v = qdd_at(model, dynamics, &q4, &v4, t + h, input)?;
+    let k4q = v4;
     let sixth = h / T::of(6.0);
-    let q = s.q + (k1q + (k2q + k3q) * T::of(2.0) + k4q) * sixth;
-    let qd = s.qd + (k1v + (k2v + k3v) * T::of(2.0) + k4v) * sixth;
+    let q = &s.q + (k1q + (k2q + k3q) * T::of(2.0) + k4q) * sixth;
+    let qd = &s.qd + (k1v + (k2v + k3v) * T::of(2.0) + k4v) * sixth;
     eval::check_result(&q, Quantity::Position, t)?;
     eval::check_result(&qd, Quantity::Velocity, t)?;
-    Ok((State { q, qd, t: t + h }, estimate))
+    Ok((StateOf { q, qd, t: t + h }, estimate))
 }
 
-impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU, T>
-    for Rk4<T>
+impl<T: Scalar, Q: Dim, C: Dim, U: Dim> IntegratorOf<Q, C, U, T> for Rk4<T>
+where
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     fn settings_mut(&mut self) -> &mut StepSettings<T> {
         &mut self.settings
@@ -164,22 +171,23 @@ impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ, T>,
+        state: &mut StateOf<T, Q>,
         input: &I,
         dt: T,
     ) -> Result<StepReport<T>, Error>
     where
-        M: Model<NQ, NC, NU, T>,
-        I: Input<NU, T> + ?Sized,
+        M: Equations<Q, C, U, T> + ?Sized,
+        I: InputOf<U, T> + ?Sized,
     {
         begin_step(state, dt, self.settings.max_step)?;
         let dynamics = &self.settings.dynamics;
         let (mut next, estimate) = rk4_raw(model, dynamics, state, input, dt, self.stability_limit)
             .map_err(|e| name_fastest_mode(e, model, dynamics, state, input))?;
         let (projection, drift) = finish_step(model, &mut next, &self.settings)?;
+        let t = next.t;
         *state = next;
         Ok(StepReport {
-            t: next.t,
+            t,
             dt,
             iterations: 0,
             stability_estimate: estimate,
@@ -194,7 +202,9 @@ mod tests {
     extern crate std;
 
     use super::*;
-    use crate::integrate::Integrator;
+    use crate::integrate::IntegratorOf;
+    use crate::model::Model;
+    use crate::state::State;
     use nalgebra::{SMatrix, SVector};
 
     /// `x'' = -w^2 x`: unit mass, stiffness `w^2`, no constraints.

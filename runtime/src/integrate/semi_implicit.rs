@@ -2,13 +2,15 @@
 
 use super::rk4::half_stages;
 use super::{
-    begin_step, finish_step_with, name_fastest_mode, qdd_at, Integrator, StepReport, StepSettings,
+    begin_step, finish_step_with, name_fastest_mode, qdd_at, IntegratorOf, StepReport, StepSettings,
 };
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
-use crate::input::Input;
-use crate::model::Model;
-use crate::state::State;
+use crate::input::InputOf;
+use crate::model::{Equations, Sizes};
+use crate::state::StateOf;
+use nalgebra::DefaultAllocator;
+use nalgebra::Dim;
 
 /// Semi-implicit Euler: `qd' = qd + dt qdd(q, qd, t)`, then `q' = q + dt qd'`.
 ///
@@ -65,8 +67,9 @@ impl SemiImplicitEuler {
     }
 }
 
-impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
-    for SemiImplicitEuler
+impl<Q: Dim, C: Dim, U: Dim> IntegratorOf<Q, C, U> for SemiImplicitEuler
+where
+    DefaultAllocator: Sizes<Q, C, U>,
 {
     fn settings_mut(&mut self) -> &mut StepSettings {
         &mut self.settings
@@ -75,13 +78,14 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
     fn step<M, I>(
         &mut self,
         model: &M,
-        state: &mut State<NQ>,
+        state: &mut StateOf<f64, Q>,
         input: &I,
         dt: f64,
     ) -> Result<StepReport, Error>
     where
-        M: Model<NQ, NC, NU>,
-        I: Input<NU> + ?Sized,
+        M: Equations<Q, C, U> + ?Sized,
+        I: InputOf<U> + ?Sized,
+        DefaultAllocator: Sizes<Q, C, U>,
     {
         begin_step(state, dt, self.settings.max_step)?;
         let t = state.t;
@@ -103,15 +107,15 @@ impl<const NQ: usize, const NC: usize, const NU: usize> Integrator<NQ, NC, NU>
                 return Err(name_fastest_mode(e, model, dynamics, state, input));
             }
         }
-        let qd = state.qd + qdd * dt;
-        let q = state.q + qd * dt;
+        let qd = &state.qd + qdd * dt;
+        let q = &state.q + &qd * dt;
         eval::check_result(&q, Quantity::Position, t)?;
         eval::check_result(&qd, Quantity::Velocity, t)?;
-        let mut next = State { q, qd, t: t + dt };
+        let mut next = StateOf { q, qd, t: t + dt };
         let (projection, drift) = finish_step_with(model, &mut next, &self.settings, dt)?;
         *state = next;
         Ok(StepReport {
-            t: next.t,
+            t: t + dt,
             dt,
             iterations: 0,
             stability_estimate: estimate,

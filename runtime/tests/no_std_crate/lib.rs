@@ -14,7 +14,7 @@ use flexdyn_runtime::control::{
 };
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
 use flexdyn_runtime::{
-    AdaptiveRk4, Error, GaussLegendre4, GeneralizedAlpha, Integrator, InverseConfig, InverseDynamics,
+    AdaptiveRk4, Error, GaussLegendre4, GeneralizedAlpha, Integrator, IntegratorOf, InverseConfig, InverseDynamics,
     InverseSolution, Model, Rk4, SemiImplicitEuler, State, StepSettings,
 };
 
