@@ -111,7 +111,11 @@ pub fn validate_every_scene(suite: &Suite) {
     // (b) A wrong emitted coefficient must be caught, and named.
     for &(path, term) in suite.negative {
         let file = suite.repo.join(path);
-        let scene = file.file_stem().unwrap_or_default().to_string_lossy();
+        let scene = file
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
         if !file.is_file() {
             problems.push(format!(
                 "negative test: {} is missing; update NEGATIVE",

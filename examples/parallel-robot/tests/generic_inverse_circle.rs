@@ -48,6 +48,7 @@ fn generic(
         initial: Some(here(&format!("motions/circle_start_{scene}.json"))),
         free_rates,
         csv: csv.clone(),
+        quiet: true,
     };
     run(&args, &ROBOT_SCENES).unwrap();
     let table = Table::read(&csv).unwrap();
