@@ -1,5 +1,6 @@
 //! Regenerates the equations of every scene in `scenes/` into `$OUT_DIR`,
-//! and a test-only copy of the pendulum with one emitted coefficient
+//! and test-only copies of the pendulum and of a small-scale pendulum
+//! (`tests/casadi/small_pendulum.toml`) with one emitted coefficient
 //! perturbed by 1e-6 (relative), which `flexdyn eval --perturbed` evaluates
 //! and the CasADi validation must reject (`tests/casadi_validation.rs`).
 use flexdyn_codegen::Builder;
@@ -23,6 +24,8 @@ fn main() {
         index(Builder::new())
             .scene("scenes/pendulum.toml")
             .perturb_coefficient("pendulum", "bias", 0, 1e-6)
+            .scene("tests/casadi/small_pendulum.toml")
+            .perturb_coefficient("small_pendulum", "bias", 0, 1e-6)
             .out_dir(out.join("perturbed"))
             .generate()
     });

@@ -483,3 +483,25 @@ fn eval_refuses_non_finite_results_naming_the_entry() {
     );
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[test]
+fn times_in_messages_have_bounded_digits() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = p(dir.path(), "o.csv");
+    let scene = data("actuated_pendulum.toml");
+    let start = data("start_at_1e300.json");
+    let (code, err) = run(&[
+        "simulate",
+        "--scene",
+        &scene,
+        "--duration",
+        "1",
+        "--initial",
+        &start,
+        "--csv",
+        &csv,
+        "--quiet",
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("t = 1e300 s") && err.len() < 200, "{err}");
+}

@@ -1,9 +1,9 @@
 //! The generator's entry point: a builder that turns scene files into Rust
 //! modules, all or nothing ([`crate::files`]), writing only files whose
-//! content changed. Each
-//! scene goes through the stages in order: load, model, reduce, derive,
-//! prune, then schedule and emit ([`generate_scene`]); [`Model`] offers the
-//! first stages to callers that want the symbolic model itself.
+//! content changed. Each scene goes through the stages in order: load,
+//! model, reduce, derive, prune, then schedule and emit ([`generate_scene`]);
+//! [`Model`] offers the first stages to callers that want the symbolic model
+//! itself.
 //!
 //! ```no_run
 //! flexdyn_codegen::Builder::new()

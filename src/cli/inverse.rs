@@ -283,8 +283,7 @@ struct Job {
 }
 
 impl Job {
-    /// The CSV's columns.
-    /// `t`, the actuators, the coordinates, the multipliers: unique names,
+    /// The CSV's columns: `t`, the actuators, the coordinates, the multipliers: unique names,
     /// an actuator named like a coordinate or a multiplier (a URDF import
     /// names both after the joint) as `tau_<name>` (prefixed again while
     /// that is taken too).

@@ -26,7 +26,12 @@ For each scene (the files given, or every ``scenes/*.toml``):
    ``<scene dir>/<scene>.states.json`` when that file exists);
 5. ``flexdyn eval`` evaluates the generated code once at the same states, and
    every term is compared: a term passes when
-   ``max |rust - casadi| <= 1e-10 * max(1, max |casadi|)`` over all states.
+   ``max |rust - casadi| <= 1e-10 * max(max |casadi|, 1e-4 * S)`` over all
+   states, relative to the term's own scale (``max |casadi|`` of that term,
+   however small the scene's numbers), with a floor for terms that cancel
+   to (near) zero: ``S`` is the largest ``|casadi|`` of any term of the
+   scene (the actuator map, gains, left out), whose rounding such a term
+   carries.
 
 Exit status: 0 when every term of every scene passes, 1 when a term fails or
 is missing from flexdyn's output, 2 on any other error.
@@ -49,6 +54,13 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 FORMAT = "flexdyn-scene-export/1"
 RTOL = 1e-10
+# The floor of a term's scale, as a fraction of the scene's largest term
+# (module docs): rounding of 1e-14 of the scene's scale passes in terms that
+# cancel to zero.
+CANCEL_FLOOR = 1e-4
+# Terms whose size says nothing of the scene's (the actuator map: gains),
+# left out of its largest term.
+UNSCALED_TERMS = {"actuator_map"}
 DEFAULT_SEED = 20240611
 DEFAULT_RANGE = (-math.pi, math.pi)
 DEFAULT_VELOCITY_RANGE = (-2.0, 2.0)
@@ -534,8 +546,17 @@ def term_rtol(export: dict, term: str) -> float:
     return RTOL
 
 
-def compare(rust: "np.ndarray", ref: "np.ndarray", rtol: float = RTOL) -> dict:
-    """Worst absolute error, scale, where, and the verdict for one term."""
+def finite_max(ref: "np.ndarray") -> float:
+    """Largest finite magnitude of an array (0 for none)."""
+    finite = np.abs(np.where(np.isfinite(ref), ref, 0.0))
+    return float(np.max(finite)) if finite.size else 0.0
+
+
+def compare(rust: "np.ndarray", ref: "np.ndarray", rtol: float = RTOL,
+            floor: float = 0.0) -> dict:
+    """Worst absolute error, scale, where, and the verdict for one term: the
+    scale is the term's own largest magnitude, at least ``floor`` (and the
+    smallest normal number, for a scene that is zero throughout)."""
     shape = ref.shape[1:]
     if ref.size == 0:
         return {"max_abs_error": 0.0, "scale": 1.0, "tolerance": rtol, "state": None,
@@ -551,7 +572,7 @@ def compare(rust: "np.ndarray", ref: "np.ndarray", rtol: float = RTOL) -> dict:
     with np.errstate(invalid="ignore"):
         err = np.where(both, np.abs(rust - ref), np.inf)
     err = np.where(same_nonfinite, 0.0, err)
-    scale = max(1.0, float(np.max(np.abs(np.where(finite_ref, ref, 0.0)))))
+    scale = max(finite_max(ref), floor, sys.float_info.min)
     flat = int(np.argmax(err))
     worst = float(err.reshape(-1)[flat])
     state, entry = divmod(flat, max(1, math.prod(shape)))
@@ -690,6 +711,7 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
 
     t0 = time.perf_counter()
     rows = []
+    floor = CANCEL_FLOOR * max(finite_max(ref[t]) for t in ref if t not in UNSCALED_TERMS)
     for term in required + [k for k in optional if k in present]:
         shape = ref[term].shape[1:]
         row = {"term": term, "shape": "x".join(map(str, shape)) or "scalar"}
@@ -698,7 +720,7 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
                         "entry": None, "nonfinite": 0, "passed": False, "missing": True})
         else:
             row.update(compare(rust_array(results, term, shape), ref[term],
-                               term_rtol(export, term)))
+                               term_rtol(export, term), floor))
             row["missing"] = False
         rows.append(row)
     known = set(BASE_TERMS + list(FUSED_TERMS) + FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS)
@@ -804,7 +826,8 @@ def main(argv=None) -> int:
     binary = find_flexdyn(args.flexdyn)
     print(f"flexdyn: {binary}")
     print(f"casadi {ca.__version__}, numpy {np.__version__}; seed {args.seed}; "
-          f"pass when max |rust - casadi| <= {RTOL:g} * max(1, max |casadi|)")
+          f"pass when max |rust - casadi| <= {RTOL:g} * max(max |casadi| of the term, "
+          f"{CANCEL_FLOOR:g} * that of the scene's largest term)")
     if args.perturbed:
         print("evaluating the perturbed build (`flexdyn eval --perturbed`)")
 

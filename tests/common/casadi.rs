@@ -23,8 +23,8 @@ pub struct Suite {
     /// The folder of the scenes compiled into that binary.
     pub scenes: PathBuf,
     /// The test-only builds the binary's `eval --perturbed` evaluates, with
-    /// one emitted coefficient multiplied by 1 + 1e-6: (scene, the function
-    /// holding it). The validation must fail on exactly that function's
+    /// one emitted coefficient multiplied by 1 + 1e-6: (the scene file,
+    /// relative to `repo`; the function holding it). The validation must fail on exactly that function's
     /// term: the fused `dynamics_terms` and every other function are emitted
     /// from their own programs and stay right.
     pub negative: &'static [(&'static str, &'static str)],
@@ -109,8 +109,13 @@ pub fn validate_every_scene(suite: &Suite) {
     }
 
     // (b) A wrong emitted coefficient must be caught, and named.
-    for &(scene, term) in suite.negative {
-        let file = suite.scenes.join(format!("{scene}.toml"));
+    for &(path, term) in suite.negative {
+        let file = suite.repo.join(path);
+        let scene = file
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
         if !file.is_file() {
             problems.push(format!(
                 "negative test: {} is missing; update NEGATIVE",

@@ -16,6 +16,9 @@ fn casadi_validates_every_term_of_every_robot_scene() {
         repo: here.join("../.."),
         binary: env!("CARGO_BIN_EXE_parallel-robot"),
         scenes: here.join("scenes"),
-        negative: &[("parallel_robot_rigid", "mass_matrix")],
+        negative: &[(
+            "examples/parallel-robot/scenes/parallel_robot_rigid.toml",
+            "mass_matrix",
+        )],
     });
 }

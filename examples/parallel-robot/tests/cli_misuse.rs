@@ -60,7 +60,7 @@ fn inverse_refuses_bad_numbers_and_leaves_no_partial_output() {
             "--plot",
             &p(d, "no/plot.png"),
         ],
-        "plotting failed",
+        "no/plot.png: directory",
     );
     refused(
         d,
@@ -205,8 +205,9 @@ fn simulate_refuses_unreadable_or_wrong_torque_tables_and_bad_steps() {
         let args: Vec<&str> = sim.iter().chain(extra).copied().collect();
         refused(d, &["tq.csv"], &args, needle);
     }
-    // Plot failure after the simulation: no CSV left either.
+    // A plot into a missing directory: refused (the outputs are staged
+    // all or nothing), no CSV left either.
     let plot = p(d, "no/plot.png");
     let args: Vec<&str> = sim.iter().chain(&["--plot", &plot]).copied().collect();
-    refused(d, &["tq.csv"], &args, "plotting failed");
+    refused(d, &["tq.csv"], &args, "no/plot.png: directory");
 }
