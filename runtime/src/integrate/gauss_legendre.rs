@@ -145,7 +145,8 @@ where
                 if !all_finite(&qi) || !all_finite(&vel[i]) {
                     return Err(failed(iterations, T::INFINITY, true));
                 }
-                new[i] = match qdd_at(model, dyn_cfg, &qi, &vel[i], t + T::of(NODES[i]) * h, input) {
+                new[i] = match qdd_at(model, dyn_cfg, &qi, &vel[i], t + T::of(NODES[i]) * h, input)
+                {
                     Ok(a) => a,
                     // A growing iteration that reaches stage values the
                     // model cannot evaluate (a mass matrix no longer

@@ -812,6 +812,7 @@ impl flexdyn_runtime::Model<12, 9, 3, f32> for ParallelRobotRigid {
         tau[10] = 2.6 * qdd[10];
         tau[11] = 2.6 * qdd[11] + 25.506;
     }
+    ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f32, 12, 3>) {
         *b = SMatrix::zeros();

@@ -238,6 +238,7 @@ impl flexdyn_runtime::Model<5, 1, 1, f32> for SpinUpBeam {
             - 3.1442528 * qdd[0];
         tau[4] = 566.47614 * q[4] + 6.4782233 * v2 + 0.68585426 * v3 + 1.0 * qdd[4];
     }
+    ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<f32, 5, 1>) {
         *b = SMatrix::zeros();
