@@ -8,7 +8,7 @@
 
 use crate::scalar::Scalar;
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DefaultAllocator, Dim, OVector, SVector};
+use nalgebra::{Const, DefaultAllocator, Dim, OVector};
 
 /// Actuator input `tau(t)` of `U` inputs, fixed (`Const<NU>`, see
 /// [`Input`]) or known at run time (`Dyn`).
@@ -38,30 +38,42 @@ where
 }
 
 /// Linear interpolation between `(t0, tau0)` and `(t1, tau1)`; constant
-/// extrapolation outside `[t0, t1]`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Linear<const NU: usize, T: Scalar = f64> {
+/// extrapolation outside `[t0, t1]`. `U` inputs, fixed or known at run
+/// time ([`Linear`]: fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearOf<T: Scalar, U: Dim>
+where
+    DefaultAllocator: Allocator<U>,
+{
     /// Start time.
     pub t0: T,
     /// Input at `t0`.
-    pub tau0: SVector<T, NU>,
+    pub tau0: OVector<T, U>,
     /// End time.
     pub t1: T,
     /// Input at `t1`.
-    pub tau1: SVector<T, NU>,
+    pub tau1: OVector<T, U>,
 }
 
-impl<T: Scalar, const NU: usize> InputOf<Const<NU>, T> for Linear<NU, T> {
-    fn at(&self, t: T) -> SVector<T, NU> {
+impl<T: Scalar, const NU: usize> Copy for LinearOf<T, Const<NU>> {}
+
+/// [`LinearOf`] of `NU` inputs (fixed).
+pub type Linear<const NU: usize, T = f64> = LinearOf<T, Const<NU>>;
+
+impl<T: Scalar, U: Dim> InputOf<U, T> for LinearOf<T, U>
+where
+    DefaultAllocator: Allocator<U>,
+{
+    fn at(&self, t: T) -> OVector<T, U> {
         let span = self.t1 - self.t0;
         if !(span > T::zero()) || t <= self.t0 {
-            return self.tau0;
+            return self.tau0.clone();
         }
         if t >= self.t1 {
-            return self.tau1;
+            return self.tau1.clone();
         }
         let s = (t - self.t0) / span;
-        self.tau0 * (T::one() - s) + self.tau1 * s
+        &self.tau0 * (T::one() - s) + &self.tau1 * s
     }
 }
 

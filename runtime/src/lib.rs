@@ -38,7 +38,7 @@ mod error;
 mod eval;
 mod input;
 pub mod integrate;
-mod inverse;
+mod inverse_dynamics;
 mod linalg;
 pub mod math;
 mod model;
@@ -48,16 +48,17 @@ mod state;
 
 pub use dynamics::{accelerations, Accelerations, AccelerationsOf, Baumgarte, DynamicsConfig};
 pub use error::{Error, ErrorKind, Quantity, Stage, Time, GAUSS_LEGENDRE_CONTRACTION_LIMIT};
-pub use input::{FromFn, Input, InputOf, Linear};
+pub use input::{FromFn, Input, InputOf, Linear, LinearOf};
 pub use integrate::{
     run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GaussLegendre4, GeneralizedAlpha,
     GeneralizedAlphaConfig, GeneralizedAlphaOf, Integrator, IntegratorOf, Rk4, RunSummary,
     SemiImplicitEuler, StepReport, StepSettings,
 };
-pub use inverse::{
-    forces, ForceReport, InverseConfig, InverseDynamics, InverseReport, InverseSolution, SolvePath,
+pub use inverse_dynamics::{
+    forces, ForceReport, InverseConfig, InverseDynamics, InverseDynamicsOf, InverseReport,
+    InverseSolution, InverseSolutionOf, SolvePath,
 };
-pub use model::{Equations, FiniteDifferenceJacobians, Model, Sizes};
+pub use model::{Equations, FiniteDifferenceJacobians, Model, PrescribedSizes, Sizes};
 pub use nalgebra;
 pub use projection::{project, ProjectionConfig, ProjectionReport};
 pub use scalar::Scalar;

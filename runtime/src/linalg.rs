@@ -1,4 +1,5 @@
-//! Small dense factorisations on fixed-size stack matrices.
+//! Small dense factorisations over fixed (`Const`, on the stack) or
+//! run-time (`Dyn`) sizes.
 //!
 //! Hand-written (rather than nalgebra's decompositions) so that every failure
 //! is reported as a value with the numbers that show it, loops have static
@@ -6,7 +7,7 @@
 
 use crate::scalar::Scalar;
 use nalgebra::allocator::Allocator;
-use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, U1};
 
 /// Largest absolute entry; NaN if any entry is NaN.
 pub(crate) fn max_abs<T: Scalar, R: Dim, C: Dim>(a: &OMatrix<T, R, C>) -> T
@@ -68,12 +69,11 @@ where
 /// `out += a x` for a slice `x` of length `C` and `out` of length `R`, as a
 /// sum of scaled columns (contiguous, vectorisable; nalgebra's generic
 /// products cost more at these sizes).
-pub(crate) fn mul_vec_acc<T: Scalar, const R: usize, const C: usize>(
-    a: &SMatrix<T, R, C>,
-    x: &[T],
-    out: &mut [T],
-) {
-    for (col, xk) in a.as_slice().chunks_exact(R.max(1)).zip(x) {
+pub(crate) fn mul_vec_acc<T: Scalar, R: Dim, C: Dim>(a: &OMatrix<T, R, C>, x: &[T], out: &mut [T])
+where
+    DefaultAllocator: Allocator<R, C>,
+{
+    for (col, xk) in a.as_slice().chunks_exact(a.nrows().max(1)).zip(x) {
         for (o, e) in out.iter_mut().zip(col) {
             *o += *e * *xk;
         }
@@ -82,12 +82,14 @@ pub(crate) fn mul_vec_acc<T: Scalar, const R: usize, const C: usize>(
 
 /// `out += a^T x` for a slice `x` of length `R` and `out` of length `C`:
 /// one dot product per (contiguous) column.
-pub(crate) fn tr_mul_vec_acc<T: Scalar, const R: usize, const C: usize>(
-    a: &SMatrix<T, R, C>,
+pub(crate) fn tr_mul_vec_acc<T: Scalar, R: Dim, C: Dim>(
+    a: &OMatrix<T, R, C>,
     x: &[T],
     out: &mut [T],
-) {
-    for (col, o) in a.as_slice().chunks_exact(R.max(1)).zip(out.iter_mut()) {
+) where
+    DefaultAllocator: Allocator<R, C>,
+{
+    for (col, o) in a.as_slice().chunks_exact(a.nrows().max(1)).zip(out.iter_mut()) {
         *o += col.iter().zip(x).map(|(e, xi)| *e * *xi).sum::<T>();
     }
 }
@@ -370,9 +372,12 @@ where
 /// robot's inverse-dynamics call went from 1.78 to 1.60 us). Anything
 /// else, and a block whose determinant is zero or not finite (e.g. by
 /// underflow), goes to [`gauss_jordan`].
-pub(crate) fn invert_in_place<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
+pub(crate) fn invert_in_place<T: Scalar, N: Dim>(m: &mut OMatrix<T, N, N>) -> bool
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
     if let Some(blocks) = SmallBlocks::of(m) {
-        let a = *m;
+        let a = m.clone();
         if blocks.invert(&a, m) {
             return true;
         }
@@ -385,32 +390,43 @@ pub(crate) fn invert_in_place<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N
 /// diagonal blocks after permuting rows and columns: the connected
 /// components of its non-zero pattern (a NaN counts as non-zero). Exists
 /// only when every block is square and at most 3 x 3.
-struct SmallBlocks<const N: usize> {
+struct SmallBlocks<N: Dim>
+where
+    DefaultAllocator: Allocator<N>,
+{
     /// Row and column sets of each block, as bit masks.
-    blocks: [(u64, u64); N],
+    blocks: OVector<(u64, u64), N>,
     count: usize,
 }
 
-impl<const N: usize> SmallBlocks<N> {
-    fn of<T: Scalar>(a: &SMatrix<T, N, N>) -> Option<Self> {
-        let mut blocks = [(0u64, 0u64); N];
-        if N <= 3 {
+impl<N: Dim> SmallBlocks<N>
+where
+    DefaultAllocator: Allocator<N>,
+{
+    fn of<T: Scalar>(a: &OMatrix<T, N, N>) -> Option<Self>
+    where
+        DefaultAllocator: Allocator<N, N>,
+    {
+        let (dim, _) = a.shape_generic();
+        let n = dim.value();
+        let mut blocks = OVector::<(u64, u64), N>::from_element_generic(dim, U1, (0, 0));
+        if n <= 3 {
             // One block, whatever the pattern (the closed form is general).
-            if N > 0 {
-                blocks[0] = ((1 << N) - 1, (1 << N) - 1);
+            if n > 0 {
+                blocks[0] = ((1 << n) - 1, (1 << n) - 1);
             }
             return Some(SmallBlocks {
                 blocks,
-                count: N.min(1),
+                count: n.min(1),
             });
         }
-        if N > 64 {
+        if n > 64 {
             return None;
         }
         let mut count = 0;
         // Add the columns one by one: column j joins (and merges) every
         // block that shares a non-zero row with it.
-        for (j, col) in a.as_slice().chunks_exact(N).enumerate() {
+        for (j, col) in a.as_slice().chunks_exact(n).enumerate() {
             let mut rows = 0u64;
             for (i, x) in col.iter().enumerate() {
                 rows |= u64::from(*x != T::zero()) << i;
@@ -430,7 +446,7 @@ impl<const N: usize> SmallBlocks<N> {
             blocks[count] = (rows, cols);
             count += 1;
         }
-        for &(rows, cols) in &blocks[..count] {
+        for &(rows, cols) in &blocks.as_slice()[..count] {
             let size = cols.count_ones();
             if size > 3 || rows.count_ones() != size {
                 return None;
@@ -441,10 +457,13 @@ impl<const N: usize> SmallBlocks<N> {
 
     /// Writes the inverse of `a` to `inv`; `false` when a block's
     /// determinant is zero or not finite, or the inverse is not finite.
-    fn invert<T: Scalar>(&self, a: &SMatrix<T, N, N>, inv: &mut SMatrix<T, N, N>) -> bool {
+    fn invert<T: Scalar>(&self, a: &OMatrix<T, N, N>, inv: &mut OMatrix<T, N, N>) -> bool
+    where
+        DefaultAllocator: Allocator<N, N>,
+    {
         // (Through the slice: nalgebra's `fill` is an element-wise loop.)
         inv.as_mut_slice().fill(T::zero());
-        for &(rows, cols) in &self.blocks[..self.count] {
+        for &(rows, cols) in &self.blocks.as_slice()[..self.count] {
             let (mut r, mut c) = ([0usize; 3], [0usize; 3]);
             let size = bit_indices(rows, &mut r);
             bit_indices(cols, &mut c);
@@ -512,12 +531,21 @@ fn bit_indices(mut mask: u64, out: &mut [usize; 3]) -> usize {
 /// cost less, with results identical to the dense elimination. Returns
 /// `false` (leaving `m` unspecified) when a pivot is zero or not finite, or
 /// the inverse has a non-finite entry.
-fn gauss_jordan<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
-    let mut pivots = [0usize; N];
-    for k in 0..N {
+fn gauss_jordan<T: Scalar, N: Dim>(m: &mut OMatrix<T, N, N>) -> bool
+where
+    DefaultAllocator: Allocator<N, N> + Allocator<N>,
+{
+    let (dim, _) = m.shape_generic();
+    let n = dim.value();
+    let mut pivots = OVector::<usize, N>::from_element_generic(dim, U1, 0);
+    // Multipliers (column k without the pivot row) and the rows where they
+    // are non-zero.
+    let mut f = OVector::<T, N>::zeros_generic(dim, U1);
+    let mut rows = OVector::<usize, N>::from_element_generic(dim, U1, 0);
+    for k in 0..n {
         let mut p = k;
         let mut best = m[(k, k)].abs();
-        for i in (k + 1)..N {
+        for i in (k + 1)..n {
             let v = m[(i, k)].abs();
             if v > best {
                 best = v;
@@ -532,15 +560,12 @@ fn gauss_jordan<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
             m.swap_rows(k, p);
         }
         let inv_pivot = T::one() / m[(k, k)];
-        // Multipliers (column k without the pivot row); column k becomes the
-        // k-th unit vector, which the elimination turns into the k-th column
-        // of the inverse in progress.
-        let mut f = [T::zero(); N];
-        // Rows with a non-zero multiplier.
-        let mut rows = [0usize; N];
+        // Column k becomes the k-th unit vector, which the elimination turns
+        // into the k-th column of the inverse in progress.
         let mut n_rows = 0;
         for (i, fi) in f.iter_mut().enumerate() {
             let x = m[(i, k)];
+            *fi = T::zero();
             if i != k && x != T::zero() {
                 *fi = x;
                 rows[n_rows] = i;
@@ -549,13 +574,13 @@ fn gauss_jordan<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
         }
         m.column_mut(k).fill(T::zero());
         m[(k, k)] = T::one();
-        let sparse = 4 * n_rows <= N;
-        for col in m.as_mut_slice().chunks_exact_mut(N) {
+        let sparse = 4 * n_rows <= n;
+        for col in m.as_mut_slice().chunks_exact_mut(n) {
             let ck = col[k];
             if ck != T::zero() {
                 let c = ck * inv_pivot;
                 if sparse {
-                    for &i in &rows[..n_rows] {
+                    for &i in &rows.as_slice()[..n_rows] {
                         col[i] -= f[i] * c;
                     }
                 } else {
@@ -569,7 +594,7 @@ fn gauss_jordan<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
     }
     // The loop inverted P A; A^-1 = (P A)^-1 P undoes the row swaps as
     // column swaps in reverse order.
-    for k in (0..N).rev() {
+    for k in (0..n).rev() {
         if pivots[k] != k {
             m.swap_columns(k, pivots[k]);
         }
@@ -580,24 +605,32 @@ fn gauss_jordan<T: Scalar, const N: usize>(m: &mut SMatrix<T, N, N>) -> bool {
 /// Thin singular value decomposition `A = U S V^T` of an `R x C` matrix by
 /// one-sided (Hestenes) Jacobi rotations. Works for any shape; when `C > R`
 /// at least `C - R` singular values are zero.
-pub(crate) struct Svd<const R: usize, const C: usize, T: Scalar = f64> {
+pub(crate) struct Svd<T: Scalar, R: Dim, C: Dim>
+where
+    DefaultAllocator: Allocator<R, C> + Allocator<C, C> + Allocator<C>,
+{
     /// Columns `sigma_j u_j` (i.e. `A V`).
-    us: SMatrix<T, R, C>,
+    us: OMatrix<T, R, C>,
     /// Right singular vectors as columns.
-    v: SMatrix<T, C, C>,
+    v: OMatrix<T, C, C>,
     /// Singular values (unsorted, aligned with the columns).
-    sigma: SVector<T, C>,
+    sigma: OVector<T, C>,
     /// Indices of `sigma` in decreasing order.
-    order: [usize; C],
+    order: OVector<usize, C>,
 }
 
-impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
+impl<T: Scalar, R: Dim, C: Dim> Svd<T, R, C>
+where
+    DefaultAllocator: Allocator<R, C> + Allocator<C, C> + Allocator<C> + Allocator<R>,
+{
     /// Decomposes `a`; `Err(sweeps)` if the rotations have not converged
     /// (all column pairs orthogonal to working precision) within `max_sweeps`.
     /// `a` must be finite.
-    pub(crate) fn new(a: &SMatrix<T, R, C>, max_sweeps: u32) -> Result<Self, u32> {
-        let mut w = *a;
-        let mut v = SMatrix::<T, C, C>::identity();
+    pub(crate) fn new(a: &OMatrix<T, R, C>, max_sweeps: u32) -> Result<Self, u32> {
+        let (rows, cols) = a.shape_generic();
+        let (r, c) = (rows.value(), cols.value());
+        let mut w = a.clone();
+        let mut v = OMatrix::<T, C, C>::identity_generic(cols, cols);
         // Columns below `eps |A|_F` are numerically zero (their singular
         // values are below it): rotating them against the others only
         // shuffles rounding errors and never meets the orthogonality test, so
@@ -607,17 +640,17 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
             let e = T::EPSILON * a.norm();
             e * e
         };
-        let mut converged = C < 2;
+        let mut converged = c < 2;
         let mut sweep = 0;
         while !converged && sweep < max_sweeps {
             sweep += 1;
             let mut rotated = false;
-            for p in 0..C {
-                for q in (p + 1)..C {
+            for p in 0..c {
+                for q in (p + 1)..c {
                     let mut alpha = T::zero();
                     let mut beta = T::zero();
                     let mut gamma = T::zero();
-                    for i in 0..R {
+                    for i in 0..r {
                         alpha += w[(i, p)] * w[(i, p)];
                         beta += w[(i, q)] * w[(i, q)];
                         gamma += w[(i, p)] * w[(i, q)];
@@ -642,19 +675,19 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
                         };
                         sgn / (zeta.abs() + Scalar::square_root(T::one() + zeta * zeta))
                     };
-                    let c = T::one() / Scalar::square_root(T::one() + t * t);
-                    let s = c * t;
-                    for i in 0..R {
+                    let cs = T::one() / Scalar::square_root(T::one() + t * t);
+                    let sn = cs * t;
+                    for i in 0..r {
                         let wp = w[(i, p)];
                         let wq = w[(i, q)];
-                        w[(i, p)] = c * wp - s * wq;
-                        w[(i, q)] = s * wp + c * wq;
+                        w[(i, p)] = cs * wp - sn * wq;
+                        w[(i, q)] = sn * wp + cs * wq;
                     }
-                    for i in 0..C {
+                    for i in 0..c {
                         let vp = v[(i, p)];
                         let vq = v[(i, q)];
-                        v[(i, p)] = c * vp - s * vq;
-                        v[(i, q)] = s * vp + c * vq;
+                        v[(i, p)] = cs * vp - sn * vq;
+                        v[(i, q)] = sn * vp + cs * vq;
                     }
                 }
             }
@@ -665,19 +698,16 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
         if !converged {
             return Err(sweep);
         }
-        let mut sigma = SVector::<T, C>::zeros();
-        for j in 0..C {
+        let mut sigma = OVector::<T, C>::zeros_generic(cols, U1);
+        for j in 0..c {
             sigma[j] = w.column(j).norm();
         }
-        let mut order = [0usize; C];
-        for (i, o) in order.iter_mut().enumerate() {
-            *o = i;
-        }
+        let mut order = OVector::<usize, C>::from_fn_generic(cols, U1, |i, _| i);
         // Insertion sort, decreasing.
-        for i in 1..C {
+        for i in 1..c {
             let mut k = i;
             while k > 0 && sigma[order[k - 1]] < sigma[order[k]] {
-                order.swap(k - 1, k);
+                order.swap_rows(k - 1, k);
                 k -= 1;
             }
         }
@@ -691,7 +721,7 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
 
     /// Largest singular value (0 for an empty matrix).
     pub(crate) fn sigma_max(&self) -> T {
-        if C == 0 {
+        if self.order.is_empty() {
             T::zero()
         } else {
             self.sigma[self.order[0]]
@@ -700,7 +730,7 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
 
     /// The `k`-th largest singular value (0-based); 0 if out of range.
     pub(crate) fn sigma_sorted(&self, k: usize) -> T {
-        if k < C {
+        if k < self.order.len() {
             self.sigma[self.order[k]]
         } else {
             T::zero()
@@ -711,7 +741,7 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
     pub(crate) fn rank(&self, rel_tol: T) -> usize {
         let thr = rel_tol * self.sigma_max();
         let mut r = 0;
-        for k in 0..C {
+        for k in 0..self.order.len() {
             if self.sigma[self.order[k]] > thr && self.sigma[self.order[k]] > T::zero() {
                 r += 1;
             }
@@ -735,9 +765,9 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
 
     /// Least-squares minimum-norm solution of `A x = b` using the leading
     /// `rank` singular triplets.
-    pub(crate) fn solve(&self, b: &SVector<T, R>, rank: usize, x: &mut SVector<T, C>) {
+    pub(crate) fn solve(&self, b: &OVector<T, R>, rank: usize, x: &mut OVector<T, C>) {
         x.fill(T::zero());
-        for k in 0..rank.min(C) {
+        for k in 0..rank.min(self.order.len()) {
             let j = self.order[k];
             let s2 = self.sigma[j] * self.sigma[j];
             if s2 > T::zero() {
@@ -749,9 +779,9 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
 
     /// Least-squares minimum-norm solution of `A^T y = c` using the leading
     /// `rank` singular triplets.
-    pub(crate) fn solve_transpose(&self, c: &SVector<T, C>, rank: usize, y: &mut SVector<T, R>) {
+    pub(crate) fn solve_transpose(&self, c: &OVector<T, C>, rank: usize, y: &mut OVector<T, R>) {
         y.fill(T::zero());
-        for k in 0..rank.min(C) {
+        for k in 0..rank.min(self.order.len()) {
             let j = self.order[k];
             let s2 = self.sigma[j] * self.sigma[j];
             if s2 > T::zero() {
@@ -764,8 +794,8 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
     /// Removes from `x` its component in the span of the leading `rank` left
     /// singular vectors (i.e. projects onto the orthogonal complement of the
     /// range of `A`).
-    pub(crate) fn remove_range(&self, x: &mut SVector<T, R>, rank: usize) {
-        for k in 0..rank.min(C) {
+    pub(crate) fn remove_range(&self, x: &mut OVector<T, R>, rank: usize) {
+        for k in 0..rank.min(self.order.len()) {
             let j = self.order[k];
             let s2 = self.sigma[j] * self.sigma[j];
             if s2 > T::zero() {
@@ -779,6 +809,7 @@ impl<T: Scalar, const R: usize, const C: usize> Svd<R, C, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{SMatrix, SVector};
 
     #[test]
     fn cholesky_solves() {

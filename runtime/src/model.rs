@@ -279,6 +279,83 @@ macro_rules! forward_model {
     };
 }
 
+/// Inside an `impl Equations<Q, C, U, T> for Wrapper` block, forwards to
+/// the wrapped model in field `$inner` what a wrapper that changes only the
+/// bias forces leaves alone: `sizes`, `mass_matrix`, the constraint terms
+/// with `constraints_and_jacobian`, `actuator_map` and the two energies.
+macro_rules! forward_equations {
+    ($inner:ident, $Q:ty, $C:ty, $U:ty, $T:ty) => {
+        fn sizes(&self) -> ($Q, $C, $U) {
+            self.$inner.sizes()
+        }
+        fn mass_matrix(
+            &self,
+            q: &nalgebra::OVector<$T, $Q>,
+            t: $T,
+            m: &mut nalgebra::OMatrix<$T, $Q, $Q>,
+        ) {
+            self.$inner.mass_matrix(q, t, m)
+        }
+        fn constraints(
+            &self,
+            q: &nalgebra::OVector<$T, $Q>,
+            t: $T,
+            phi: &mut nalgebra::OVector<$T, $C>,
+        ) {
+            self.$inner.constraints(q, t, phi)
+        }
+        fn constraint_jacobian(
+            &self,
+            q: &nalgebra::OVector<$T, $Q>,
+            t: $T,
+            phi_q: &mut nalgebra::OMatrix<$T, $C, $Q>,
+        ) {
+            self.$inner.constraint_jacobian(q, t, phi_q)
+        }
+        fn constraint_time_derivative(
+            &self,
+            q: &nalgebra::OVector<$T, $Q>,
+            t: $T,
+            phi_t: &mut nalgebra::OVector<$T, $C>,
+        ) {
+            self.$inner.constraint_time_derivative(q, t, phi_t)
+        }
+        fn constraint_rhs(
+            &self,
+            q: &nalgebra::OVector<$T, $Q>,
+            qd: &nalgebra::OVector<$T, $Q>,
+            t: $T,
+            gamma: &mut nalgebra::OVector<$T, $C>,
+        ) {
+            self.$inner.constraint_rhs(q, qd, t, gamma)
+        }
+        fn actuator_map(&self, b: &mut nalgebra::OMatrix<$T, $Q, $U>) {
+            self.$inner.actuator_map(b)
+        }
+        fn kinetic_energy(
+            &self,
+            q: &nalgebra::OVector<$T, $Q>,
+            qd: &nalgebra::OVector<$T, $Q>,
+            t: $T,
+        ) -> $T {
+            self.$inner.kinetic_energy(q, qd, t)
+        }
+        fn potential_energy(&self, q: &nalgebra::OVector<$T, $Q>, t: $T) -> $T {
+            self.$inner.potential_energy(q, t)
+        }
+        fn constraints_and_jacobian(
+            &self,
+            q: &nalgebra::OVector<$T, $Q>,
+            t: $T,
+            phi: &mut nalgebra::OVector<$T, $C>,
+            phi_q: &mut nalgebra::OMatrix<$T, $C, $Q>,
+        ) {
+            self.$inner.constraints_and_jacobian(q, t, phi, phi_q)
+        }
+    };
+}
+pub(crate) use forward_equations;
+
 /// A model with its generated bias Jacobians hidden (the required methods,
 /// the runtime parameters and the fused `dynamics_terms` forwarded): the
 /// generalized-alpha integrator then builds its Newton matrix by finite
@@ -359,6 +436,28 @@ impl<Q: Dim, C: Dim, U: Dim> Sizes<Q, C, U> for DefaultAllocator where
         + Allocator<U, U>
         + Allocator<U, C>
         + Allocator<C, U>
+{
+}
+
+/// [`Sizes`] and the shapes that `P` prescribed coordinates or outputs add
+/// ([`crate::InverseDynamicsOf`], [`crate::control::Servo`]).
+pub trait PrescribedSizes<Q: Dim, C: Dim, U: Dim, P: Dim>:
+    Sizes<Q, C, U>
+    + Allocator<P>
+    + Allocator<P, Q>
+    + Allocator<C, P>
+    + Allocator<P, P>
+    + Allocator<P, U>
+{
+}
+
+impl<Q: Dim, C: Dim, U: Dim, P: Dim> PrescribedSizes<Q, C, U, P> for DefaultAllocator where
+    DefaultAllocator: Sizes<Q, C, U>
+        + Allocator<P>
+        + Allocator<P, Q>
+        + Allocator<C, P>
+        + Allocator<P, P>
+        + Allocator<P, U>
 {
 }
 

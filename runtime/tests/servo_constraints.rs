@@ -15,6 +15,7 @@ use flexdyn_runtime::{
     Rk4, State, StepSettings,
 };
 use models::*;
+use flexdyn_runtime::nalgebra::Const;
 
 /// The error of a set-up or solve that must fail.
 fn rejected<T>(r: Result<T, Error>) -> Error {
@@ -178,7 +179,7 @@ impl Rigid {
 fn slider_servo(
     model: &SliderCrank,
     config: ServoConfig,
-) -> Servo<'_, SliderCrank, Coordinates<1>, fn(f64) -> Target<1>, 1> {
+) -> Servo<'_, SliderCrank, Coordinates<[usize; 1]>, fn(f64) -> Target<1>, Const<1>> {
     Servo::new(
         model,
         Coordinates([2]),
@@ -204,14 +205,14 @@ fn slider_crank_servo_matches_the_rigid_inverse_dynamics() {
 /// accelerations and multipliers. Returns the smallest and largest servo
 /// condition.
 fn matches_rigid<O, T>(
-    servo: &Servo<'_, SliderCrank, O, T, 1>,
+    servo: &Servo<'_, SliderCrank, O, T, Const<1>>,
     index: usize,
     path: fn(f64) -> Target<1>,
     times: impl Iterator<Item = f64>,
 ) -> (f64, f64)
 where
-    O: Outputs<3, 1>,
-    T: Trajectory<flexdyn_runtime::nalgebra::Const<1>>,
+    O: Outputs<Const<3>, Const<1>>,
+    T: Trajectory<Const<1>>,
 {
     let mut rigid = Rigid::new(index);
     let mut conditions = (f64::INFINITY, 0.0f64);
@@ -278,7 +279,10 @@ fn rigid_servo_run_reproduces_the_rigid_inverse_dynamics() {
 /// The crank pin's height `y = r sin(theta)`: a general output.
 struct CrankPinHeight(f64);
 
-impl Outputs<3, 1> for CrankPinHeight {
+impl Outputs<Const<3>, Const<1>> for CrankPinHeight {
+    fn count(&self) -> Const<1> {
+        Const
+    }
     fn evaluate(
         &self,
         q: &V<3>,

@@ -75,42 +75,10 @@ where
     L: FeedbackLaw<Q, U>,
     DefaultAllocator: Sizes<Q, C, U>,
 {
-    fn sizes(&self) -> (Q, C, U) {
-        self.inner.sizes()
-    }
-    fn mass_matrix(&self, q: &OVector<f64, Q>, t: f64, m: &mut OMatrix<f64, Q, Q>) {
-        self.inner.mass_matrix(q, t, m)
-    }
+    crate::model::forward_equations!(inner, Q, C, U, f64);
     fn bias(&self, q: &OVector<f64, Q>, qd: &OVector<f64, Q>, t: f64, h: &mut OVector<f64, Q>) {
         self.inner.bias(q, qd, t, h);
         subtract_input(self.inner, &self.law.input(q, qd, t), h);
-    }
-    fn constraints(&self, q: &OVector<f64, Q>, t: f64, phi: &mut OVector<f64, C>) {
-        self.inner.constraints(q, t, phi)
-    }
-    fn constraint_jacobian(&self, q: &OVector<f64, Q>, t: f64, phi_q: &mut OMatrix<f64, C, Q>) {
-        self.inner.constraint_jacobian(q, t, phi_q)
-    }
-    fn constraint_time_derivative(&self, q: &OVector<f64, Q>, t: f64, phi_t: &mut OVector<f64, C>) {
-        self.inner.constraint_time_derivative(q, t, phi_t)
-    }
-    fn constraint_rhs(
-        &self,
-        q: &OVector<f64, Q>,
-        qd: &OVector<f64, Q>,
-        t: f64,
-        gamma: &mut OVector<f64, C>,
-    ) {
-        self.inner.constraint_rhs(q, qd, t, gamma)
-    }
-    fn actuator_map(&self, b: &mut OMatrix<f64, Q, U>) {
-        self.inner.actuator_map(b)
-    }
-    fn kinetic_energy(&self, q: &OVector<f64, Q>, qd: &OVector<f64, Q>, t: f64) -> f64 {
-        self.inner.kinetic_energy(q, qd, t)
-    }
-    fn potential_energy(&self, q: &OVector<f64, Q>, t: f64) -> f64 {
-        self.inner.potential_energy(q, t)
     }
     /// Not provided (the law's derivatives are unknown).
     fn bias_jacobians(
@@ -122,15 +90,6 @@ where
         _: &mut OMatrix<f64, Q, Q>,
     ) -> bool {
         false
-    }
-    fn constraints_and_jacobian(
-        &self,
-        q: &OVector<f64, Q>,
-        t: f64,
-        phi: &mut OVector<f64, C>,
-        phi_q: &mut OMatrix<f64, C, Q>,
-    ) {
-        self.inner.constraints_and_jacobian(q, t, phi, phi_q)
     }
     fn dynamics_terms(
         &self,

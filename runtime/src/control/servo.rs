@@ -50,24 +50,36 @@
 //! [`crate::StepSettings::dynamics`]) for the outputs to follow exactly.
 
 use super::feedback::subtract_input;
-use super::Trajectory;
+use super::{TargetOf, Trajectory};
 use crate::dynamics::{stabilised_rhs, Baumgarte, DynamicsConfig, Kkt};
 use crate::error::{check_indices, Error, ErrorKind, Quantity};
 use crate::eval::{self, Terms};
-use crate::input::Linear;
+use crate::input::LinearOf;
 use crate::integrate::IntegratorOf;
 use crate::linalg::Svd;
-use crate::model::Model;
+use crate::model::{Equations, Model, PrescribedSizes};
 use crate::scalar::Scalar;
-use crate::state::{Drift, State};
+use crate::state::{Drift, StateOf};
 use core::cell::Cell;
-use nalgebra::{Const, SMatrix, SVector};
+use core::marker::PhantomData;
+use nalgebra::allocator::Allocator;
+#[cfg(feature = "alloc")]
+use nalgebra::Dyn;
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
 
-/// `NP` outputs `y(q)` of a model with `NQ` coordinates, with their
-/// Jacobian; [`Coordinates`] selects coordinates.
-pub trait Outputs<const NQ: usize, const NP: usize, T: Scalar = f64> {
-    /// Checks the set-up ([`Servo::new`] calls it); the default accepts it.
-    fn validate(&self) -> Result<(), Error> {
+/// `N` outputs `y(q)` of a model with `Q` coordinates (each fixed or known
+/// at run time), with their Jacobian; [`Coordinates`] selects coordinates.
+pub trait Outputs<Q: Dim, N: Dim, T: Scalar = f64>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<N> + Allocator<N, Q>,
+{
+    /// The number of outputs.
+    fn count(&self) -> N;
+
+    /// Checks the set-up for a model with `nq` coordinates ([`Servo::new`]
+    /// calls it); the default accepts it.
+    fn validate(&self, nq: usize) -> Result<(), Error> {
+        let _ = nq;
         Ok(())
     }
 
@@ -75,36 +87,50 @@ pub trait Outputs<const NQ: usize, const NP: usize, T: Scalar = f64> {
     /// (so that `y'' = Y_q qdd + (dY_q/dt) qd`). Every output is written.
     fn evaluate(
         &self,
-        q: &SVector<T, NQ>,
-        qd: &SVector<T, NQ>,
-        y: &mut SVector<T, NP>,
-        y_q: &mut SMatrix<T, NP, NQ>,
-        convective: &mut SVector<T, NP>,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        y: &mut OVector<T, N>,
+        y_q: &mut OMatrix<T, N, Q>,
+        convective: &mut OVector<T, N>,
     );
 }
 
 /// Prescribed coordinates: output `k` is `q[self.0[k]]` (`Y_q` selects, no
-/// convective term).
+/// convective term). Any list of indices (an array `[usize; NP]` for
+/// `Const<NP>` outputs, a slice for `Dyn`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Coordinates<const NP: usize>(pub [usize; NP]);
+pub struct Coordinates<I>(pub I);
 
-impl<T: Scalar, const NQ: usize, const NP: usize> Outputs<NQ, NP, T> for Coordinates<NP> {
-    /// [`ErrorKind::InvalidIndex`] if an index is not below `NQ` or repeats.
-    fn validate(&self) -> Result<(), Error> {
-        check_indices("prescribed coordinate", &self.0, NQ, true)
+impl<T: Scalar, Q: Dim, N: Dim, I: AsRef<[usize]>> Outputs<Q, N, T> for Coordinates<I>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<N> + Allocator<N, Q>,
+{
+    /// The number of indices (`N` is `Dyn`, or fixed to that number:
+    /// [`Outputs::validate`] checks it).
+    fn count(&self) -> N {
+        N::from_usize(self.0.as_ref().len())
     }
-
+    /// [`ErrorKind::InvalidIndex`] if an index is not below `nq` or repeats;
+    /// [`ErrorKind::InvalidConfiguration`] if `N` is fixed to another number.
+    fn validate(&self, nq: usize) -> Result<(), Error> {
+        if N::try_to_usize().is_some_and(|n| n != self.0.as_ref().len()) {
+            return Err(invalid(
+                "servo: the number of prescribed coordinates differs from the outputs' size",
+            ));
+        }
+        check_indices("prescribed coordinate", self.0.as_ref(), nq, true)
+    }
     fn evaluate(
         &self,
-        q: &SVector<T, NQ>,
-        _qd: &SVector<T, NQ>,
-        y: &mut SVector<T, NP>,
-        y_q: &mut SMatrix<T, NP, NQ>,
-        convective: &mut SVector<T, NP>,
+        q: &OVector<T, Q>,
+        _qd: &OVector<T, Q>,
+        y: &mut OVector<T, N>,
+        y_q: &mut OMatrix<T, N, Q>,
+        convective: &mut OVector<T, N>,
     ) {
         y_q.fill(T::zero());
         convective.fill(T::zero());
-        for (k, &i) in self.0.iter().enumerate() {
+        for (k, &i) in self.0.as_ref().iter().enumerate() {
             // Validated indices; an invalid one gives NaN, never a panic.
             match q.get(i) {
                 Some(&qi) => {
@@ -155,77 +181,90 @@ impl<T: Scalar> Default for ServoConfig<T> {
     }
 }
 
-/// The servo solve at one state.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ServoSolution<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f64> {
+/// The servo solve at one state, `Q` coordinates, `C` constraints, `U`
+/// inputs of fixed or run-time size ([`ServoSolution`]: fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServoSolutionOf<T: Scalar, Q: Dim, C: Dim, U: Dim>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<C> + Allocator<U>,
+{
     /// Actuator inputs.
-    pub tau: SVector<T, NU>,
+    pub tau: OVector<T, U>,
     /// Accelerations under them.
-    pub qdd: SVector<T, NQ>,
+    pub qdd: OVector<T, Q>,
     /// Constraint forces (multipliers).
-    pub lambda: SVector<T, NC>,
+    pub lambda: OVector<T, C>,
     /// Servo condition: `1 / sigma_min` of the normalised servo matrix
     /// (module docs).
     pub condition: T,
 }
 
-/// The model `inner` with its inputs chosen so that the outputs `O` follow
-/// the path `P` (module docs). As a [`Model`] its bias forces are
-/// `h - B u(q, qd, t)`; integrate it with zero input. A failed solve inside
-/// a model evaluation writes NaN bias forces (which the integrator reports)
-/// and keeps the error for [`Servo::take_failure`]. Computes in the model's
-/// scalar `T` (`f64` unless named), the path and the outputs included.
-pub struct Servo<'a, M, O, P, const NP: usize, T: Scalar = f64> {
+impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize> Copy
+    for ServoSolutionOf<T, Const<NQ>, Const<NC>, Const<NU>>
+{
+}
+
+/// [`ServoSolutionOf`] of a model of fixed size.
+pub type ServoSolution<const NQ: usize, const NC: usize, const NU: usize, T = f64> =
+    ServoSolutionOf<T, Const<NQ>, Const<NC>, Const<NU>>;
+
+/// The model `inner` with its inputs chosen so that the `N` outputs `O`
+/// follow the path `P` (module docs). As a model ([`Equations`]) its bias
+/// forces are `h - B u(q, qd, t)`; integrate it with zero input. A failed
+/// solve inside a model evaluation writes NaN bias forces (which the
+/// integrator reports) and keeps the error for [`Servo::take_failure`].
+/// Computes in the model's scalar `T` (`f64` unless named), the path and the
+/// outputs included.
+pub struct Servo<'a, M: ?Sized, O, P, N, T: Scalar = f64> {
     inner: &'a M,
     outputs: O,
     path: P,
     /// Settings.
     pub config: ServoConfig<T>,
     failure: Cell<Option<Error>>,
+    count: PhantomData<N>,
 }
 
-impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
+impl<'a, M: ?Sized, O, P, N: Dim, T: Scalar> Servo<'a, M, O, P, N, T> {
     /// Servo constraints making `outputs` of `inner` follow `path`.
     ///
-    /// Errors: [`ErrorKind::InvalidConfiguration`] unless `NP == NU`;
-    /// whatever [`Outputs::validate`] reports (for [`Coordinates`],
-    /// [`ErrorKind::InvalidIndex`]).
-    pub fn new<const NQ: usize, const NC: usize, const NU: usize>(
+    /// Errors: [`ErrorKind::InvalidConfiguration`] unless there are as many
+    /// outputs as inputs; whatever [`Outputs::validate`] reports (for
+    /// [`Coordinates`], [`ErrorKind::InvalidIndex`]).
+    pub fn new<Q: Dim, C: Dim, U: Dim>(
         inner: &'a M,
         outputs: O,
         path: P,
         config: ServoConfig<T>,
     ) -> Result<Self, Error>
     where
-        M: Model<NQ, NC, NU, T>,
-        O: Outputs<NQ, NP, T>,
-        P: Trajectory<Const<NP>, T>,
+        M: Equations<Q, C, U, T>,
+        O: Outputs<Q, N, T>,
+        P: Trajectory<N, T>,
+        DefaultAllocator: PrescribedSizes<Q, C, U, N>,
     {
-        if NP > NU {
-            return Err(Error::new(
-                ErrorKind::InvalidConfiguration {
-                    reason: "servo: more prescribed outputs than actuator inputs (NP > NU): \
-                             the prescription over-determines the inputs",
-                },
-                0.0,
+        let (nq, _, nu) = inner.sizes();
+        outputs.validate(nq.value())?;
+        let np = outputs.count().value();
+        if np > nu.value() {
+            return Err(invalid(
+                "servo: more prescribed outputs than actuator inputs (NP > NU): \
+                 the prescription over-determines the inputs",
             ));
         }
-        if NP < NU {
-            return Err(Error::new(
-                ErrorKind::InvalidConfiguration {
-                    reason: "servo: fewer prescribed outputs than actuator inputs (NP < NU): \
-                             the prescription does not determine the inputs",
-                },
-                0.0,
+        if np < nu.value() {
+            return Err(invalid(
+                "servo: fewer prescribed outputs than actuator inputs (NP < NU): \
+                 the prescription does not determine the inputs",
             ));
         }
-        outputs.validate()?;
         Ok(Servo {
             inner,
             outputs,
             path,
             config,
             failure: Cell::new(None),
+            count: PhantomData,
         })
     }
 
@@ -264,35 +303,39 @@ impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
     /// [`ErrorKind::SingularConstraintJacobian`] as in forward dynamics;
     /// [`ErrorKind::SingularServo`]; [`ErrorKind::DecompositionNotConverged`];
     /// [`ErrorKind::NonFiniteResult`].
-    pub fn solve<const NQ: usize, const NC: usize, const NU: usize>(
+    pub fn solve<Q: Dim, C: Dim, U: Dim>(
         &self,
-        q: &SVector<T, NQ>,
-        qd: &SVector<T, NQ>,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
         t: T,
-    ) -> Result<ServoSolution<NQ, NC, NU, T>, Error>
+    ) -> Result<ServoSolutionOf<T, Q, C, U>, Error>
     where
-        M: Model<NQ, NC, NU, T>,
-        O: Outputs<NQ, NP, T>,
-        P: Trajectory<Const<NP>, T>,
+        M: Equations<Q, C, U, T>,
+        O: Outputs<Q, N, T>,
+        P: Trajectory<N, T>,
+        DefaultAllocator: PrescribedSizes<Q, C, U, N>,
     {
         let terms = eval::dynamics_terms(self.inner, q, qd, t)?;
         self.solve_terms(q, qd, t, terms)
     }
 
     /// [`Servo::solve`] from the model's terms at the state.
-    fn solve_terms<const NQ: usize, const NC: usize, const NU: usize>(
+    fn solve_terms<Q: Dim, C: Dim, U: Dim>(
         &self,
-        q: &SVector<T, NQ>,
-        qd: &SVector<T, NQ>,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
         t: T,
-        terms: Terms<T, Const<NQ>, Const<NC>>,
-    ) -> Result<ServoSolution<NQ, NC, NU, T>, Error>
+        terms: Terms<T, Q, C>,
+    ) -> Result<ServoSolutionOf<T, Q, C, U>, Error>
     where
-        M: Model<NQ, NC, NU, T>,
-        O: Outputs<NQ, NP, T>,
-        P: Trajectory<Const<NP>, T>,
+        M: Equations<Q, C, U, T>,
+        O: Outputs<Q, N, T>,
+        P: Trajectory<N, T>,
+        DefaultAllocator: PrescribedSizes<Q, C, U, N>,
     {
         eval::check_terms(&terms, t)?;
+        let (nq, nc, nu) = self.inner.sizes();
+        let np = self.outputs.count();
         let b = eval::actuator_map(self.inner, t)?;
         let dynamics = &self.config.dynamics;
         let c = stabilised_rhs(
@@ -307,54 +350,63 @@ impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
         let kkt = Kkt::new(terms.m, &terms.phi_q, dynamics.max_condition, t)?;
         // qdd = x0 + xb u, lambda = mu0 + mub u.
         let (x0, mu0) = kkt.solve(&-terms.h, &c);
-        let mut xb = SMatrix::<T, NQ, NU>::zeros();
-        let mut mub = SMatrix::<T, NC, NU>::zeros();
-        for j in 0..NU {
-            let (x, mu) = kkt.solve(&b.column(j).into_owned(), &SVector::zeros());
+        let mut xb = OMatrix::<T, Q, U>::zeros_generic(nq, nu);
+        let mut mub = OMatrix::<T, C, U>::zeros_generic(nc, nu);
+        let no_constraint = OVector::<T, C>::zeros_generic(nc, U1);
+        for j in 0..nu.value() {
+            let (x, mu) = kkt.solve(&b.column(j).into_owned(), &no_constraint);
             xb.set_column(j, &x);
             mub.set_column(j, &mu);
         }
-        let mut y = SVector::<T, NP>::zeros();
-        let mut y_q = SMatrix::<T, NP, NQ>::zeros();
-        let mut convective = SVector::<T, NP>::zeros();
+        let mut y = OVector::<T, N>::zeros_generic(np, U1);
+        let mut y_q = OMatrix::<T, N, Q>::zeros_generic(np, nq);
+        let mut convective = y.clone();
         self.outputs
             .evaluate(q, qd, &mut y, &mut y_q, &mut convective);
         for o in [&y, &convective] {
             eval::check(o, Quantity::Outputs, t)?;
         }
         eval::check(&y_q, Quantity::Outputs, t)?;
-        let target = self.path.at(t);
+        let target: TargetOf<T, N> = self.path.at(t);
         for (x, quantity) in [
             (&target.position, Quantity::PrescribedPosition),
             (&target.velocity, Quantity::PrescribedVelocity),
             (&target.acceleration, Quantity::PrescribedAcceleration),
         ] {
+            if x.nrows() != np.value() {
+                return Err(invalid(
+                    "servo: the path gives another number of values than there are outputs",
+                ));
+            }
             if let Some(index) = crate::linalg::first_non_finite(x) {
                 return Err(Error::new(ErrorKind::NonFiniteInput { quantity, index }, t));
             }
         }
         let gains = &self.config.output_gains;
         let s = target.acceleration
-            + (target.velocity - y_q * qd) * T::of(2.0 * gains.alpha)
+            + (target.velocity - &y_q * qd) * T::of(2.0 * gains.alpha)
             + (target.position - y) * T::of(gains.beta * gains.beta)
             - convective;
         // Scales: the M^-1-norms of the output gradients and of the
         // actuator columns.
-        let rows = SVector::<T, NP>::from_fn(|i, _| kkt.inverse_mass_norm(&y_q.row(i).transpose()));
-        let cols =
-            SVector::<T, NU>::from_fn(|j, _| kkt.inverse_mass_norm(&b.column(j).into_owned()));
+        let rows = OVector::<T, N>::from_fn_generic(np, U1, |i, _| {
+            kkt.inverse_mass_norm(&y_q.row(i).transpose())
+        });
+        let cols = OVector::<T, U>::from_fn_generic(nu, U1, |j, _| {
+            kkt.inverse_mass_norm(&b.column(j).into_owned())
+        });
         let (tau, condition) = solve_normalised(
-            &(y_q * xb),
-            &(s - y_q * x0),
+            &(&y_q * &xb),
+            &(s - &y_q * &x0),
             (&rows, &cols),
             &self.config,
             t,
         )?;
-        let qdd = x0 + xb * tau;
-        let lambda = mu0 + mub * tau;
+        let qdd = x0 + xb * &tau;
+        let lambda = mu0 + mub * &tau;
         eval::check_result(&qdd, Quantity::Acceleration, t)?;
         eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
-        Ok(ServoSolution {
+        Ok(ServoSolutionOf {
             tau,
             qdd,
             lambda,
@@ -363,17 +415,25 @@ impl<'a, M, O, P, T: Scalar, const NP: usize> Servo<'a, M, O, P, NP, T> {
     }
 }
 
+/// [`ErrorKind::InvalidConfiguration`] at time 0.
+fn invalid(reason: &'static str) -> Error {
+    Error::new(ErrorKind::InvalidConfiguration { reason }, 0.0)
+}
+
 /// Solves the square system `a x = rhs` with `a` normalised to
 /// `a~ = diag(1 / rows) a diag(1 / cols)`; returns `x` and `1 / sigma_min(a~)`,
 /// or [`ErrorKind::SingularServo`] when that exceeds `limit` (a zero row or
 /// column scale: infinite).
-fn solve_normalised<T: Scalar, const NP: usize, const NU: usize>(
-    a: &SMatrix<T, NP, NU>,
-    rhs: &SVector<T, NP>,
-    (rows, cols): (&SVector<T, NP>, &SVector<T, NU>),
+fn solve_normalised<T: Scalar, N: Dim, U: Dim>(
+    a: &OMatrix<T, N, U>,
+    rhs: &OVector<T, N>,
+    (rows, cols): (&OVector<T, N>, &OVector<T, U>),
     config: &ServoConfig<T>,
     t: T,
-) -> Result<(SVector<T, NU>, T), Error> {
+) -> Result<(OVector<T, U>, T), Error>
+where
+    DefaultAllocator: Allocator<N, U> + Allocator<U, U> + Allocator<U> + Allocator<N>,
+{
     let limit = config.max_condition;
     let singular = |condition: T| {
         Error::new(
@@ -387,42 +447,81 @@ fn solve_normalised<T: Scalar, const NP: usize, const NU: usize>(
     if !(rows.iter().chain(cols.iter()).all(|s| *s > T::zero())) {
         return Err(singular(T::INFINITY));
     }
-    let mut scaled = *a;
-    for j in 0..NU {
-        for i in 0..NP {
+    let (np, nu) = a.shape_generic();
+    let mut scaled = a.clone();
+    for j in 0..nu.value() {
+        for i in 0..np.value() {
             scaled[(i, j)] /= rows[i] * cols[j];
         }
     }
     eval::check_result(&scaled, Quantity::Input, t)?;
     let svd = Svd::new(&scaled, config.max_sweeps)
         .map_err(|sweeps| Error::new(ErrorKind::DecompositionNotConverged { sweeps }, t))?;
-    let condition = if NU == 0 {
-        T::one()
-    } else {
-        T::one() / svd.sigma_sorted(NU - 1)
+    let condition = match nu.value() {
+        0 => T::one(),
+        n => T::one() / svd.sigma_sorted(n - 1),
     };
     if !(condition <= limit) {
         return Err(singular(condition));
     }
-    let mut z = SVector::<T, NU>::zeros();
-    svd.solve(&rhs.component_div(rows), NU, &mut z);
+    let mut z = OVector::<T, U>::zeros_generic(nu, U1);
+    svd.solve(&rhs.component_div(rows), nu.value(), &mut z);
     let x = z.component_div(cols);
     eval::check_result(&x, Quantity::Input, t)?;
     Ok((x, condition))
 }
 
-impl<M, O, P, T, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
-    Model<NQ, NC, NU, T> for Servo<'_, M, O, P, NP, T>
-where
-    M: Model<NQ, NC, NU, T>,
-    O: Outputs<NQ, NP, T>,
-    P: Trajectory<Const<NP>, T>,
-    T: Scalar,
-{
-    crate::forward_model!(inner: M, NQ, NC, NU, T);
-    fn bias(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T, h: &mut SVector<T, NQ>) {
-        let mut terms = Terms::<T, Const<NQ>, Const<NC>>::zeros(Const, Const);
-        self.dynamics_terms(
+impl<'a, M: ?Sized, O, P, N: Dim, T: Scalar> Servo<'a, M, O, P, N, T> {
+    /// The inner model's `M`, `h - B u`, `Phi_q`, `gamma` (NaN `h` and the
+    /// error kept on failure).
+    #[allow(clippy::too_many_arguments)]
+    fn terms_under_input<Q: Dim, C: Dim, U: Dim>(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        t: T,
+        m: &mut OMatrix<T, Q, Q>,
+        h: &mut OVector<T, Q>,
+        phi_q: &mut OMatrix<T, C, Q>,
+        gamma: &mut OVector<T, C>,
+    ) where
+        M: Equations<Q, C, U, T>,
+        O: Outputs<Q, N, T>,
+        P: Trajectory<N, T>,
+        DefaultAllocator: PrescribedSizes<Q, C, U, N>,
+    {
+        self.inner.dynamics_terms(q, qd, t, m, h, phi_q, gamma);
+        let terms = Terms {
+            m: m.clone(),
+            h: h.clone(),
+            phi_q: phi_q.clone(),
+            gamma: gamma.clone(),
+        };
+        match self.solve_terms::<Q, C, U>(q, qd, t, terms) {
+            Ok(solution) => subtract_input(self.inner, &solution.tau, h),
+            Err(e) => {
+                self.failure.set(Some(e));
+                h.fill(T::NAN);
+            }
+        }
+    }
+
+    /// `h - B u` alone.
+    fn bias_under_input<Q: Dim, C: Dim, U: Dim>(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        t: T,
+        h: &mut OVector<T, Q>,
+    ) where
+        M: Equations<Q, C, U, T>,
+        O: Outputs<Q, N, T>,
+        P: Trajectory<N, T>,
+        DefaultAllocator: PrescribedSizes<Q, C, U, N>,
+    {
+        let (nq, nc, _) = self.inner.sizes();
+        let mut terms = Terms::<T, Q, C>::zeros(nq, nc);
+        self.terms_under_input::<Q, C, U>(
             q,
             qd,
             t,
@@ -431,6 +530,21 @@ where
             &mut terms.phi_q,
             &mut terms.gamma,
         );
+    }
+}
+
+/// A servo of a model of fixed size is one ([`Model`]).
+impl<M, O, P, T, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>
+    Model<NQ, NC, NU, T> for Servo<'_, M, O, P, Const<NP>, T>
+where
+    M: Model<NQ, NC, NU, T>,
+    O: Outputs<Const<NQ>, Const<NP>, T>,
+    P: Trajectory<Const<NP>, T>,
+    T: Scalar,
+{
+    crate::forward_model!(inner: M, NQ, NC, NU, T);
+    fn bias(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T, h: &mut SVector<T, NQ>) {
+        self.bias_under_input::<Const<NQ>, Const<NC>, Const<NU>>(q, qd, t, h)
     }
     fn dynamics_terms(
         &self,
@@ -442,31 +556,84 @@ where
         phi_q: &mut SMatrix<T, NC, NQ>,
         gamma: &mut SVector<T, NC>,
     ) {
-        self.inner.dynamics_terms(q, qd, t, m, h, phi_q, gamma);
-        let terms = Terms {
-            m: *m,
-            h: *h,
-            phi_q: *phi_q,
-            gamma: *gamma,
-        };
-        match self.solve_terms(q, qd, t, terms) {
-            Ok(solution) => subtract_input(self.inner, &solution.tau, h),
-            Err(e) => {
-                self.failure.set(Some(e));
-                h.fill(T::NAN);
-            }
-        }
+        self.terms_under_input::<Const<NQ>, Const<NC>, Const<NU>>(q, qd, t, m, h, phi_q, gamma)
     }
 }
 
-/// One sample of [`servo_run`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ServoSample<const NQ: usize, const NU: usize, T: Scalar = f64> {
-    /// The state.
-    pub state: State<NQ, T>,
-    /// The actuator inputs at that time.
-    pub tau: SVector<T, NU>,
+/// A servo of a model of run-time size is one ([`Equations`] over `Dyn`;
+/// with the `alloc` feature).
+#[cfg(feature = "alloc")]
+impl<M, O, P, T, N> Equations<Dyn, Dyn, Dyn, T> for Servo<'_, M, O, P, N, T>
+where
+    M: Equations<Dyn, Dyn, Dyn, T> + ?Sized,
+    O: Outputs<Dyn, N, T>,
+    P: Trajectory<N, T>,
+    T: Scalar,
+    N: Dim,
+    DefaultAllocator: PrescribedSizes<Dyn, Dyn, Dyn, N>,
+{
+    crate::model::forward_equations!(inner, Dyn, Dyn, Dyn, T);
+    fn bias(&self, q: &OVector<T, Dyn>, qd: &OVector<T, Dyn>, t: T, h: &mut OVector<T, Dyn>) {
+        self.bias_under_input::<Dyn, Dyn, Dyn>(q, qd, t, h)
+    }
+    /// Not provided (the inputs' derivatives are unknown).
+    fn bias_jacobians(
+        &self,
+        _: &OVector<T, Dyn>,
+        _: &OVector<T, Dyn>,
+        _: T,
+        _: &mut OMatrix<T, Dyn, Dyn>,
+        _: &mut OMatrix<T, Dyn, Dyn>,
+    ) -> bool {
+        false
+    }
+    fn dynamics_terms(
+        &self,
+        q: &OVector<T, Dyn>,
+        qd: &OVector<T, Dyn>,
+        t: T,
+        m: &mut OMatrix<T, Dyn, Dyn>,
+        h: &mut OVector<T, Dyn>,
+        phi_q: &mut OMatrix<T, Dyn, Dyn>,
+        gamma: &mut OVector<T, Dyn>,
+    ) {
+        self.terms_under_input::<Dyn, Dyn, Dyn>(q, qd, t, m, h, phi_q, gamma)
+    }
+    /// `M qdd + h - B u(q, qd, t)`.
+    fn inverse_dynamics(
+        &self,
+        q: &OVector<T, Dyn>,
+        qd: &OVector<T, Dyn>,
+        qdd: &OVector<T, Dyn>,
+        t: T,
+        tau: &mut OVector<T, Dyn>,
+    ) {
+        let n = Dyn(q.nrows());
+        let mut m = OMatrix::<T, Dyn, Dyn>::zeros_generic(n, n);
+        self.inner.mass_matrix(q, t, &mut m);
+        self.bias(q, qd, t, tau);
+        *tau += m * qdd;
+    }
 }
+
+/// One sample of [`servo_run`], `Q` coordinates and `U` inputs of fixed or
+/// run-time size ([`ServoSample`]: fixed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServoSampleOf<T: Scalar, Q: Dim, U: Dim>
+where
+    DefaultAllocator: Allocator<Q> + Allocator<U>,
+{
+    /// The state.
+    pub state: StateOf<T, Q>,
+    /// The actuator inputs at that time.
+    pub tau: OVector<T, U>,
+}
+
+impl<T: Scalar, const NQ: usize, const NU: usize> Copy for ServoSampleOf<T, Const<NQ>, Const<NU>> {}
+
+/// [`ServoSampleOf`] of a model of fixed size.
+pub type ServoSample<const NQ: usize, const NU: usize, T = f64> =
+    ServoSampleOf<T, Const<NQ>, Const<NU>>;
 
 /// Summary of [`servo_run`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -499,65 +666,62 @@ pub struct ServoSummary<T: Scalar = f64> {
 /// failure of the servo solve inside the trial step is returned as such
 /// (e.g. [`ErrorKind::SingularServo`]), not as the non-finite bias forces
 /// the integrator saw.
-pub fn servo_run<
-    M,
-    O,
-    P,
-    G,
-    F,
-    T: Scalar,
-    const NQ: usize,
-    const NC: usize,
-    const NU: usize,
-    const NP: usize,
->(
-    servo: &Servo<'_, M, O, P, NP, T>,
+pub fn servo_run<'a, M, O, P, G, F, T: Scalar, Q: Dim, C: Dim, U: Dim, N: Dim>(
+    servo: &Servo<'a, M, O, P, N, T>,
     integrator: &mut G,
-    state: &mut State<NQ, T>,
+    state: &mut StateOf<T, Q>,
     dt: T,
     steps: usize,
     mut record: F,
 ) -> Result<ServoSummary<T>, Error>
 where
-    M: Model<NQ, NC, NU, T>,
-    O: Outputs<NQ, NP, T>,
-    P: Trajectory<Const<NP>, T>,
-    G: IntegratorOf<Const<NQ>, Const<NC>, Const<NU>, T> + Clone,
-    F: FnMut(&ServoSample<NQ, NU, T>),
+    M: Equations<Q, C, U, T> + ?Sized,
+    O: Outputs<Q, N, T>,
+    P: Trajectory<N, T>,
+    G: IntegratorOf<Q, C, U, T> + Clone,
+    F: FnMut(&ServoSampleOf<T, Q, U>),
+    Servo<'a, M, O, P, N, T>: Equations<Q, C, U, T>,
+    DefaultAllocator: PrescribedSizes<Q, C, U, N>,
 {
     state.check_finite()?;
-    let first = servo.solve(&state.q, &state.qd, state.t)?;
-    let mut tau = first.tau;
+    let first = servo.solve::<Q, C, U>(&state.q, &state.qd, state.t)?;
+    let mut sample = ServoSampleOf {
+        state: state.clone(),
+        tau: first.tau,
+    };
     let mut summary = ServoSummary {
         max_condition: first.condition,
         ..ServoSummary::default()
     };
-    record(&ServoSample { state: *state, tau });
-    let zero = SVector::<T, NU>::zeros();
+    record(&sample);
+    let zero = OVector::<T, U>::zeros_generic(sample.tau.shape_generic().0, U1);
     for _ in 0..steps {
         servo.take_failure();
         let mut trial_integrator = integrator.clone();
         if !servo.config.trial_projection {
             trial_integrator.settings_mut().projection = None;
         }
-        let mut trial = *state;
+        let mut trial = state.clone();
         trial_integrator
             .step(servo, &mut trial, &zero, dt)
             .map_err(|e| servo.take_failure().unwrap_or(e))?;
-        let next = servo.solve(&trial.q, &trial.qd, trial.t)?;
-        let input = Linear {
+        let next = servo.solve::<Q, C, U>(&trial.q, &trial.qd, trial.t)?;
+        let input = LinearOf {
             t0: state.t,
-            tau0: tau,
+            tau0: sample.tau,
             t1: trial.t,
             tau1: next.tau,
         };
         let report = integrator.step(servo.inner, state, &input, dt)?;
-        tau = next.tau;
         summary.steps += 1;
         summary.max_condition = summary.max_condition.max(next.condition);
         summary.max_drift.position = summary.max_drift.position.max(report.drift.position);
         summary.max_drift.velocity = summary.max_drift.velocity.max(report.drift.velocity);
-        record(&ServoSample { state: *state, tau });
+        sample = ServoSampleOf {
+            state: state.clone(),
+            tau: input.tau1,
+        };
+        record(&sample);
     }
     Ok(summary)
 }
