@@ -1,5 +1,7 @@
 //! Inverse dynamics of any scene along prescribed coordinates: what
-//! `flexdyn inverse` computes, generic over a compiled (or padded) model.
+//! `flexdyn inverse` computes, on a model of any size ([`DynModel`]: a
+//! compiled scene or an interpreted one), through the runtime's solvers
+//! over run-time sizes.
 //!
 //! `NP` coordinates `q_S` follow given functions of time `p(t)` (with their
 //! rates and accelerations). Two cases:
@@ -26,13 +28,18 @@
 //! prescribed coordinates as actuators, and a non-singular projected
 //! actuation (the runtime names the condition when it is not).
 
-use flexdyn_runtime::control::{servo_run, Coordinates, Servo, ServoConfig, Target};
-use flexdyn_runtime::integrate::{GeneralizedAlpha, StepSettings};
-use flexdyn_runtime::nalgebra::{DMatrix, DVector, SMatrix, SVector};
-use flexdyn_runtime::{
-    ErrorKind, GeneralizedAlphaConfig, InverseConfig, InverseDynamics, InverseSolution, Model,
-    State,
+use flexdyn_runtime::control::{servo_run, Coordinates, Servo, ServoConfig, TargetOf};
+use flexdyn_runtime::integrate::StepSettings;
+use flexdyn_runtime::nalgebra::allocator::Allocator;
+use flexdyn_runtime::nalgebra::{
+    DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, OVector, U1,
 };
+use flexdyn_runtime::{
+    Equations, ErrorKind, GeneralizedAlphaConfig, GeneralizedAlphaOf, InverseConfig,
+    InverseDynamicsOf, InverseSolutionOf, StateOf,
+};
+
+use crate::dynamic::DynModel;
 
 /// A motion `t -> [p, p', p'']`.
 pub type Motion<'a> = &'a dyn Fn(f64) -> [f64; 3];
@@ -45,24 +52,20 @@ pub struct Prescribed<'a> {
     pub motion: Motion<'a>,
 }
 
-/// What to solve: the real sizes of the scene (a padded model has more),
-/// the prescription and the output times.
+/// What to solve: the names of the scene's coordinates, constraints and
+/// actuators (one per row of the model's), the prescription and the output
+/// times.
 pub struct Problem<'a> {
-    /// Names of the real coordinates (the first `nq` of the model's).
+    /// Names of the coordinates.
     pub coordinates: Vec<String>,
-    /// Names of the real constraints.
+    /// Names of the constraints.
     pub constraints: Vec<String>,
-    /// Names of the real actuators.
+    /// Names of the actuators.
     pub actuators: Vec<String>,
-    /// The prescribed real coordinates.
+    /// The prescribed coordinates.
     pub prescribed: Vec<Prescribed<'a>>,
-    /// Coordinates held at 0 that an input acts on (the pad inputs'
-    /// coordinates of a padded model); not counted in the real sizes.
-    pub held_inputs: Vec<usize>,
-    /// Other coordinates held at 0 (a padded model's pad coordinates that
-    /// no constraint and no input touches).
-    pub held_free: Vec<usize>,
-    /// Newton's starting point for the first sample (real coordinates).
+    /// Newton's starting point for the first sample (one value per
+    /// coordinate; missing ones are 0).
     pub guess: Vec<f64>,
     /// Output times, uniformly spaced from the first.
     pub times: Vec<f64>,
@@ -96,7 +99,7 @@ pub enum Method {
     Servo,
 }
 
-/// The solution at the output times (real sizes).
+/// The solution at the output times.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Solution {
     /// How it was solved.
@@ -112,21 +115,24 @@ pub struct Solution {
 }
 
 /// Solves `problem` on `model` (module docs). Errors name the time, the
-/// coordinates and the condition involved. `NP` is the number of prescribed
-/// and held coordinates, `NQ - NC` when every coordinate is determined
-/// (otherwise unused).
-pub fn solve<M, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>(
-    model: &M,
-    problem: &Problem<'_>,
-) -> Result<Solution, String>
-where
-    M: Model<NQ, NC, NU>,
-{
+/// coordinates and the condition involved, and a model whose sizes differ
+/// from the problem's names.
+pub fn solve(model: &dyn DynModel, problem: &Problem<'_>) -> Result<Solution, String> {
     let (nq, nc, nu) = (
         problem.coordinates.len(),
         problem.constraints.len(),
         problem.actuators.len(),
     );
+    if (model.nq(), model.nc(), model.nu()) != (nq, nc, nu) {
+        return Err(format!(
+            "scene `{}` has {} coordinates, {} constraints, {} actuators; the problem names \
+             {nq}, {nc}, {nu}",
+            model.name(),
+            model.nq(),
+            model.nc(),
+            model.nu()
+        ));
+    }
     let np = problem.prescribed.len();
     let named = |idx: &mut dyn Iterator<Item = usize>| {
         idx.map(|i| format!("`{}`", problem.coordinates[i]))
@@ -134,6 +140,12 @@ where
             .join(", ")
     };
     let prescribed_names = named(&mut problem.prescribed.iter().map(|p| p.coordinate));
+    if let Some(p) = problem.prescribed.iter().find(|p| p.coordinate >= nq) {
+        return Err(format!(
+            "prescribed coordinate {} is not one of the scene's {nq}",
+            p.coordinate
+        ));
+    }
     if np != nu {
         return Err(format!(
             "the prescription does not determine the actuator inputs: {np} prescribed \
@@ -148,33 +160,17 @@ where
              ({prescribed_names}) and {nc} constraint(s) for {nq} coordinate(s)"
         ));
     }
-    let zero = |_: f64| [0.0; 3];
-    let mut motions: Vec<(usize, Motion<'_>)> = problem
-        .prescribed
-        .iter()
-        .map(|p| (p.coordinate, p.motion))
-        .collect();
-    motions.extend(problem.held_inputs.iter().map(|&i| (i, &zero as _)));
-    let servo_count = motions.len();
-    motions.extend(problem.held_free.iter().map(|&i| (i, &zero as _)));
+    let index: Vec<usize> = problem.prescribed.iter().map(|p| p.coordinate).collect();
     let target = |t: f64| {
-        let mut out = Target {
-            position: SVector::<f64, NP>::zeros(),
-            velocity: SVector::zeros(),
-            acceleration: SVector::zeros(),
-        };
-        for (k, (_, f)) in motions.iter().enumerate().take(NP) {
-            let [p, v, a] = f(t);
-            out.position[k] = p;
-            out.velocity[k] = v;
-            out.acceleration[k] = a;
+        let values: Vec<[f64; 3]> = problem.prescribed.iter().map(|p| (p.motion)(t)).collect();
+        let column = |k: usize| DVector::from_iterator(np, values.iter().map(|x| x[k]));
+        TargetOf {
+            position: column(0),
+            velocity: column(1),
+            acceleration: column(2),
         }
-        out
     };
-    let mut guess = SVector::<f64, NQ>::zeros();
-    for (i, g) in problem.guess.iter().enumerate().take(nq) {
-        guess[i] = *g;
-    }
+    let guess = DVector::from_fn(nq, |i, _| problem.guess.get(i).copied().unwrap_or(0.0));
     let rank_error = |e: flexdyn_runtime::Error| {
         format!(
             "at t = {} s: the prescription of {prescribed_names} does not determine the \
@@ -184,246 +180,218 @@ where
             e.kind
         )
     };
+    let job = Job {
+        model,
+        problem,
+        index: &index,
+        target: &target,
+        rank_error: &rank_error,
+    };
     if np + nc == nq {
-        if motions.len() != NP {
-            return Err(format!(
-                "internal: {} prescribed and held coordinates for {NP}",
-                motions.len()
-            ));
-        }
-        let index = core::array::from_fn(|k| motions[k].0);
-        determined(model, problem, index, &target, guess, &rank_error)
+        job.determined(guess)
     } else {
-        if servo_count != NU || NP < NU {
-            return Err(format!(
-                "internal: {servo_count} prescribed and held coordinates for {NU} inputs"
-            ));
-        }
-        let index = core::array::from_fn(|k| motions[k].0);
-        let servo_target = |t: f64| {
-            let x = target(t);
-            Target {
-                position: SVector::<f64, NU>::from_fn(|k, _| x.position[k]),
-                velocity: SVector::from_fn(|k, _| x.velocity[k]),
-                acceleration: SVector::from_fn(|k, _| x.acceleration[k]),
-            }
-        };
-        servo(model, problem, index, &servo_target, guess, &rank_error)
+        job.servo(guess)
     }
 }
 
-type Targets<'a, const N: usize> = &'a dyn Fn(f64) -> Target<N>;
+/// The desired motion of the prescribed coordinates.
+type Targets<'a> = &'a dyn Fn(f64) -> TargetOf<f64, Dyn>;
 
-/// The determined case: [`InverseDynamics`] at every output time.
-fn determined<M, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>(
-    model: &M,
-    problem: &Problem<'_>,
-    index: [usize; NP],
-    target: Targets<'_, NP>,
-    guess: SVector<f64, NQ>,
-    rank_error: &dyn Fn(flexdyn_runtime::Error) -> String,
-) -> Result<Solution, String>
-where
-    M: Model<NQ, NC, NU>,
-{
-    let mut solver = InverseDynamics::<NQ, NC, NU, NP>::new(index, guess, InverseConfig::default())
+/// A problem with what both cases need.
+struct Job<'a> {
+    model: &'a dyn DynModel,
+    problem: &'a Problem<'a>,
+    /// The prescribed coordinates.
+    index: &'a [usize],
+    target: Targets<'a>,
+    rank_error: &'a dyn Fn(flexdyn_runtime::Error) -> String,
+}
+
+impl Job<'_> {
+    /// The determined case: [`InverseDynamicsOf`] at every output time.
+    fn determined(&self, guess: DVector<f64>) -> Result<Solution, String> {
+        let model = self.model;
+        let mut solver = InverseDynamicsOf::<f64, Dyn, Dyn, Dyn, Dyn>::for_model(
+            model,
+            self.index,
+            guess,
+            InverseConfig::default(),
+        )
         .map_err(|e| e.to_string())?;
-    let mut out = Solution::new(Method::Determined);
-    let mut sol = InverseSolution::<NQ, NC, NU>::default();
-    for &t in &problem.times {
-        let x = target(t);
-        let start = *solver.guess();
-        solver
-            .solve(
-                model,
+        let mut out = Solution::new(Method::Determined);
+        let mut sol = InverseSolutionOf::zeros(model.sizes());
+        for &t in &self.problem.times {
+            let x = (self.target)(t);
+            let start = solver.guess().clone();
+            solver
+                .solve(
+                    model,
+                    t,
+                    &x.position,
+                    &x.velocity,
+                    &x.acceleration,
+                    &mut sol,
+                )
+                .map_err(|e| match e.kind {
+                    ErrorKind::SingularActuation { .. } => (self.rank_error)(e),
+                    ErrorKind::SingularConstraintJacobian { .. }
+                    | ErrorKind::NewtonNotConverged { .. } => {
+                        self.position_error(&x.position, &start, t, e)
+                    }
+                    _ => e.to_string(),
+                })?;
+            out.push(
                 t,
-                &x.position,
-                &x.velocity,
-                &x.acceleration,
-                &mut sol,
-            )
-            .map_err(|e| match e.kind {
-                ErrorKind::SingularActuation { .. } => rank_error(e),
-                ErrorKind::SingularConstraintJacobian { .. }
-                | ErrorKind::NewtonNotConverged { .. } => {
-                    position_error(model, problem, &index, &x.position, &start, t, e)
-                }
-                _ => e.to_string(),
-            })?;
-        out.push(
-            problem,
-            t,
-            sol.tau.as_slice(),
-            sol.q.as_slice(),
-            sol.lambda.as_slice(),
-        );
+                sol.tau.as_slice(),
+                sol.q.as_slice(),
+                sol.lambda.as_slice(),
+            );
+        }
+        Ok(out)
     }
-    Ok(out)
-}
 
-/// The error of a failed position solve, with the constraint that is
-/// violated most at Newton's starting point and the condition of the
-/// Jacobian of the free coordinates there.
-fn position_error<M, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>(
-    model: &M,
-    problem: &Problem<'_>,
-    index: &[usize; NP],
-    p: &SVector<f64, NP>,
-    start: &SVector<f64, NQ>,
-    t: f64,
-    e: flexdyn_runtime::Error,
-) -> String
-where
-    M: Model<NQ, NC, NU>,
-{
-    let mut q = *start;
-    for (k, &i) in index.iter().enumerate() {
-        q[i] = p[k];
+    /// The error of a failed position solve, with the constraint that is
+    /// violated most at Newton's starting point and the condition of the
+    /// Jacobian of the free coordinates there.
+    fn position_error(
+        &self,
+        p: &DVector<f64>,
+        start: &DVector<f64>,
+        t: f64,
+        e: flexdyn_runtime::Error,
+    ) -> String {
+        let problem = self.problem;
+        let mut q = start.clone();
+        for (k, &i) in self.index.iter().enumerate() {
+            q[i] = p[k];
+        }
+        let (nq, nc) = (q.len(), problem.constraints.len());
+        let mut phi = DVector::zeros(nc);
+        let mut phi_q = DMatrix::zeros(nc, nq);
+        Equations::constraints(self.model, &q, t, &mut phi);
+        Equations::constraint_jacobian(self.model, &q, t, &mut phi_q);
+        let worst = (0..nc)
+            .max_by(|&a, &b| phi[a].abs().total_cmp(&phi[b].abs()))
+            .unwrap_or(0);
+        let free: Vec<usize> = (0..nq).filter(|i| !self.index.contains(i)).collect();
+        let jf = DMatrix::from_fn(nc, free.len(), |r, c| phi_q[(r, free[c])]);
+        let sv = jf.singular_values();
+        let condition = sv.max() / sv.min();
+        format!(
+            "at t = {t} s: the constraints cannot be solved for the coordinates {} ({}); \
+             from the previous solution, constraint `{}` (multiplier `lambda_{worst}`) is \
+             violated most (|Phi| = {:.3e}) and the Jacobian of those coordinates has \
+             condition {condition:.3e}: a singular pose, or a prescription the mechanism \
+             cannot follow",
+            free.iter()
+                .map(|&i| format!("`{}`", problem.coordinates[i]))
+                .collect::<Vec<_>>()
+                .join(", "),
+            e.kind,
+            problem.constraints.get(worst).map_or("", String::as_str),
+            phi.get(worst).map_or(0.0, |x| x.abs())
+        )
     }
-    let mut phi = SVector::<f64, NC>::zeros();
-    let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
-    model.constraints(&q, t, &mut phi);
-    model.constraint_jacobian(&q, t, &mut phi_q);
-    let worst = (0..problem.constraints.len())
-        .max_by(|&a, &b| phi[a].abs().total_cmp(&phi[b].abs()))
-        .unwrap_or(0);
-    let free: Vec<usize> = (0..problem.coordinates.len())
-        .filter(|i| !index.contains(i))
-        .collect();
-    let jf = DMatrix::from_fn(problem.constraints.len(), free.len(), |r, c| {
-        phi_q[(r, free[c])]
-    });
-    let sv = jf.singular_values();
-    let condition = sv.max() / sv.min();
-    format!(
-        "at t = {t} s: the constraints cannot be solved for the coordinates {} ({}); \
-         from the previous solution, constraint `{}` (multiplier `lambda_{worst}`) is \
-         violated most (|Phi| = {:.3e}) and the Jacobian of those coordinates has condition \
-         {condition:.3e}: a singular pose, or a prescription the mechanism cannot follow",
-        free.iter()
-            .map(|&i| format!("`{}`", problem.coordinates[i]))
-            .collect::<Vec<_>>()
-            .join(", "),
-        e.kind,
-        problem.constraints.get(worst).map_or("", String::as_str),
-        phi[worst].abs()
-    )
-}
 
-/// The servo case: static equilibrium at the first time, then
-/// [`servo_run`] with generalized-alpha.
-fn servo<M, const NQ: usize, const NC: usize, const NU: usize>(
-    model: &M,
-    problem: &Problem<'_>,
-    index: [usize; NU],
-    target: Targets<'_, NU>,
-    guess: SVector<f64, NQ>,
-    rank_error: &dyn Fn(flexdyn_runtime::Error) -> String,
-) -> Result<Solution, String>
-where
-    M: Model<NQ, NC, NU>,
-{
-    let mut out = Solution::new(Method::Servo);
-    let Some(&t0) = problem.times.first() else {
-        return Ok(out);
-    };
-    let dt = match problem.times.get(1) {
-        Some(t1) => t1 - t0,
-        None => 1.0,
-    };
-    let x0 = target(t0);
-    let q = static_equilibrium(model, &index, &problem.held_free, &x0.position, guess, t0)?;
-    let qd = initial_velocities(model, &index, &x0.velocity, &q, t0, problem.free_rates)?;
-    let mut state = State { q, qd, t: t0 };
-    let config = ServoConfig {
-        trial_projection: false,
-        ..ServoConfig::default()
-    };
-    let servo = Servo::new(model, Coordinates(index), target, config).map_err(|e| e.to_string())?;
-    // L-stable (rho_inf = 0), as the robot's servo: the elastic modes a
-    // step of the rigid motion does not resolve are damped, not rung.
-    let config = GeneralizedAlphaConfig {
-        rho_inf: 0.0,
-        filter_start: false,
-        ..Default::default()
-    };
-    let mut integrator = GeneralizedAlpha::<NQ, NC>::new(StepSettings::with_projection(), config);
-    let mut failed = None;
-    servo_run(
-        &servo,
-        &mut integrator,
-        &mut state,
-        dt,
-        problem.times.len() - 1,
-        |s| match servo.solve::<NQ, NC, NU>(&s.state.q, &s.state.qd, s.state.t) {
-            // The output times exactly (the state's time sums the steps).
-            Ok(x) => out.push(
-                problem,
-                problem.times[out.t.len().min(problem.times.len() - 1)],
-                s.tau.as_slice(),
-                s.state.q.as_slice(),
-                x.lambda.as_slice(),
-            ),
-            Err(e) => failed = failed.or(Some(e)),
-        },
-    )
-    .map_err(rank_error)?;
-    match failed {
-        Some(e) => Err(rank_error(e)),
-        None => Ok(out),
+    /// The servo case: static equilibrium at the first time, then
+    /// [`servo_run`] with generalized-alpha.
+    fn servo(&self, guess: DVector<f64>) -> Result<Solution, String> {
+        let (model, problem) = (self.model, self.problem);
+        let mut out = Solution::new(Method::Servo);
+        let Some(&t0) = problem.times.first() else {
+            return Ok(out);
+        };
+        let dt = match problem.times.get(1) {
+            Some(t1) => t1 - t0,
+            None => 1.0,
+        };
+        let x0 = (self.target)(t0);
+        let q = static_equilibrium(model, self.index, &x0.position, guess, t0)?;
+        let qd = initial_velocities(model, self.index, &x0.velocity, &q, t0, problem.free_rates)?;
+        let mut state = StateOf { q, qd, t: t0 };
+        let config = ServoConfig {
+            trial_projection: false,
+            ..ServoConfig::default()
+        };
+        let servo = Servo::new(model, Coordinates(self.index), self.target, config)
+            .map_err(|e| e.to_string())?;
+        // L-stable (rho_inf = 0), as the robot's servo: the elastic modes a
+        // step of the rigid motion does not resolve are damped, not rung.
+        let config = GeneralizedAlphaConfig {
+            rho_inf: 0.0,
+            filter_start: false,
+            ..Default::default()
+        };
+        let mut integrator =
+            GeneralizedAlphaOf::<f64, Dyn, Dyn>::new(StepSettings::with_projection(), config);
+        let mut failed = None;
+        servo_run(
+            &servo,
+            &mut integrator,
+            &mut state,
+            dt,
+            problem.times.len() - 1,
+            |s| match servo.solve::<Dyn, Dyn, Dyn>(&s.state.q, &s.state.qd, s.state.t) {
+                // The output times exactly (the state's time sums the steps).
+                Ok(x) => out.push(
+                    problem.times[out.t.len().min(problem.times.len() - 1)],
+                    s.tau.as_slice(),
+                    s.state.q.as_slice(),
+                    x.lambda.as_slice(),
+                ),
+                Err(e) => failed = failed.or(Some(e)),
+            },
+        )
+        .map_err(self.rank_error)?;
+        match failed {
+            Some(e) => Err((self.rank_error)(e)),
+            None => Ok(out),
+        }
     }
 }
 
 /// Newton on `h(q, 0, t) - Phi_q^T lambda - B tau = 0`, `Phi(q, t) = 0`,
 /// `q_S = p` for `(q, lambda, tau)` (module docs), the first block's
-/// Jacobian by central differences; the force rows of the coordinates
-/// `fixed` (which nothing acts on) are replaced by `q_i = 0`.
-fn static_equilibrium<M, const NQ: usize, const NC: usize, const NU: usize>(
-    model: &M,
-    index: &[usize; NU],
-    fixed: &[usize],
-    p: &SVector<f64, NU>,
-    guess: SVector<f64, NQ>,
+/// Jacobian by central differences.
+fn static_equilibrium(
+    model: &dyn DynModel,
+    index: &[usize],
+    p: &DVector<f64>,
+    guess: DVector<f64>,
     t: f64,
-) -> Result<SVector<f64, NQ>, String>
-where
-    M: Model<NQ, NC, NU>,
-{
-    let n = NQ + NC + NU;
-    let mut b = SMatrix::<f64, NQ, NU>::zeros();
-    model.actuator_map(&mut b);
-    let rest = SVector::<f64, NQ>::zeros();
+) -> Result<DVector<f64>, String> {
+    let (nq, nc, nu) = (model.nq(), model.nc(), model.nu());
+    let n = nq + nc + nu;
+    let mut b = DMatrix::zeros(nq, nu);
+    Equations::actuator_map(model, &mut b);
+    let rest = DVector::zeros(nq);
     // Generalized forces at rest, less the constraint forces.
-    let load = |q: &SVector<f64, NQ>, lambda: &DVector<f64>| {
-        let mut h = SVector::<f64, NQ>::zeros();
-        let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
-        model.bias(q, &rest, t, &mut h);
-        model.constraint_jacobian(q, t, &mut phi_q);
-        let lambda = SVector::<f64, NC>::from_iterator(lambda.iter().copied());
+    let load = |q: &DVector<f64>, lambda: &DVector<f64>| {
+        let mut h = DVector::zeros(nq);
+        let mut phi_q = DMatrix::zeros(nc, nq);
+        Equations::bias(model, q, &rest, t, &mut h);
+        Equations::constraint_jacobian(model, q, t, &mut phi_q);
         (h - phi_q.transpose() * lambda, phi_q)
     };
     let mut x = DVector::<f64>::zeros(n);
-    x.rows_mut(0, NQ).copy_from(&guess);
+    x.rows_mut(0, nq).copy_from(&guess);
     for (k, &i) in index.iter().enumerate() {
         x[i] = p[k];
     }
     let mut residual_norm = f64::INFINITY;
     for _ in 0..50 {
-        let q = SVector::<f64, NQ>::from_iterator(x.rows(0, NQ).iter().copied());
-        let lambda = x.rows(NQ, NC).into_owned();
-        let tau = SVector::<f64, NU>::from_iterator(x.rows(NQ + NC, NU).iter().copied());
+        let q = x.rows(0, nq).into_owned();
+        let lambda = x.rows(nq, nc).into_owned();
+        let tau = x.rows(nq + nc, nu).into_owned();
         let (f, phi_q) = load(&q, &lambda);
-        let mut phi = SVector::<f64, NC>::zeros();
-        model.constraints(&q, t, &mut phi);
-        let f = f - b * tau;
+        let mut phi = DVector::zeros(nc);
+        Equations::constraints(model, &q, t, &mut phi);
+        let f = f - &b * &tau;
         let mut r = DVector::<f64>::zeros(n);
-        r.rows_mut(0, NQ).copy_from(&f);
-        r.rows_mut(NQ, NC).copy_from(&phi);
+        r.rows_mut(0, nq).copy_from(&f);
+        r.rows_mut(nq, nc).copy_from(&phi);
         for (k, &i) in index.iter().enumerate() {
-            r[NQ + NC + k] = q[i] - p[k];
-        }
-        for &i in fixed {
-            r[i] = q[i];
+            r[nq + nc + k] = q[i] - p[k];
         }
         let scale = 1.0 + f.amax().max(lambda.amax()).max(tau.amax());
         residual_norm = r.amax();
@@ -434,29 +402,25 @@ where
             return Ok(q);
         }
         let mut jac = DMatrix::<f64>::zeros(n, n);
-        for j in 0..NQ {
+        for j in 0..nq {
             let d = 1e-6 * q[j].abs().max(1e-3);
-            let (mut qp, mut qm) = (q, q);
+            let (mut qp, mut qm) = (q.clone(), q.clone());
             qp[j] += d;
             qm[j] -= d;
             let column = (load(&qp, &lambda).0 - load(&qm, &lambda).0) / (2.0 * d);
-            jac.view_mut((0, j), (NQ, 1)).copy_from(&column);
+            jac.view_mut((0, j), (nq, 1)).copy_from(&column);
         }
-        for i in 0..NC {
-            for j in 0..NQ {
-                jac[(NQ + i, j)] = phi_q[(i, j)];
-                jac[(j, NQ + i)] = -phi_q[(i, j)];
+        for i in 0..nc {
+            for j in 0..nq {
+                jac[(nq + i, j)] = phi_q[(i, j)];
+                jac[(j, nq + i)] = -phi_q[(i, j)];
             }
         }
-        for k in 0..NU {
-            for j in 0..NQ {
-                jac[(j, NQ + NC + k)] = -b[(j, k)];
+        for k in 0..nu {
+            for j in 0..nq {
+                jac[(j, nq + nc + k)] = -b[(j, k)];
             }
-            jac[(NQ + NC + k, index[k])] = 1.0;
-        }
-        for &i in fixed {
-            jac.row_mut(i).fill(0.0);
-            jac[(i, i)] = 1.0;
+            jac[(nq + nc + k, index[k])] = 1.0;
         }
         let dx = jac
             .full_piv_lu()
@@ -478,83 +442,83 @@ where
 
 /// The initial velocities with `Phi_q qd + Phi_t = 0` and `qd_S = v`,
 /// as `free_rates` picks them.
-fn initial_velocities<M, const NQ: usize, const NC: usize, const NU: usize>(
-    model: &M,
-    index: &[usize; NU],
-    v: &SVector<f64, NU>,
-    q: &SVector<f64, NQ>,
+fn initial_velocities(
+    model: &dyn DynModel,
+    index: &[usize],
+    v: &DVector<f64>,
+    q: &DVector<f64>,
     t: f64,
     free_rates: FreeRates,
-) -> Result<SVector<f64, NQ>, String>
-where
-    M: Model<NQ, NC, NU>,
-{
-    let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
-    let mut phi_t = SVector::<f64, NC>::zeros();
-    model.constraint_jacobian(q, t, &mut phi_q);
-    model.constraint_time_derivative(q, t, &mut phi_t);
+) -> Result<DVector<f64>, String> {
+    let (nq, nc, nu) = (model.nq(), model.nc(), model.nu());
+    let mut phi_q = DMatrix::zeros(nc, nq);
+    let mut phi_t = DVector::zeros(nc);
+    Equations::constraint_jacobian(model, q, t, &mut phi_q);
+    Equations::constraint_time_derivative(model, q, t, &mut phi_t);
     match free_rates {
         FreeRates::LeastEnergy => {
-            let mut m = SMatrix::<f64, NQ, NQ>::zeros();
-            model.mass_matrix(q, t, &mut m);
+            let mut m = DMatrix::zeros(nq, nq);
+            Equations::mass_matrix(model, q, t, &mut m);
             // The rows of Phi_q qd = -Phi_t, then qd_S = v.
-            let a = DMatrix::from_fn(NC + NU, NQ, |r, c| match r < NC {
+            let a = DMatrix::from_fn(nc + nu, nq, |r, c| match r < nc {
                 true => phi_q[(r, c)],
-                false => f64::from(u8::from(index[r - NC] == c)),
+                false => f64::from(u8::from(index[r - nc] == c)),
             });
-            let rhs = DVector::from_fn(NC + NU, |r, _| match r < NC {
+            let rhs = DVector::from_fn(nc + nu, |r, _| match r < nc {
                 true => -phi_t[r],
-                false => v[r - NC],
+                false => v[r - nc],
             });
-            least_energy_velocities(&m, &a, &rhs, t)
+            least_energy_velocities(m, &a, &rhs, t)
         }
-        FreeRates::Zero => needed_velocities(&phi_q, &phi_t, index, v, t),
+        FreeRates::Zero => needed_velocities(&phi_q, &phi_t, index, v.as_slice(), t),
     }
 }
 
 /// The velocities of least kinetic energy `qd^T M qd / 2` with `a qd = rhs`.
-fn least_energy_velocities<const NQ: usize>(
-    m: &SMatrix<f64, NQ, NQ>,
+fn least_energy_velocities(
+    m: DMatrix<f64>,
     a: &DMatrix<f64>,
     rhs: &DVector<f64>,
     t: f64,
-) -> Result<SVector<f64, NQ>, String> {
+) -> Result<DVector<f64>, String> {
     let singular = || format!("at t = {t} s: the initial velocities are not determined");
-    let m_inv = DMatrix::from_column_slice(NQ, NQ, m.as_slice())
-        .try_inverse()
-        .ok_or_else(singular)?;
+    let m_inv = m.try_inverse().ok_or_else(singular)?;
     let schur = a * &m_inv * a.transpose();
     let y = schur.full_piv_lu().solve(rhs).ok_or_else(singular)?;
-    let qd = m_inv * a.transpose() * y;
-    Ok(SVector::from_iterator(qd.iter().copied()))
+    Ok(m_inv * a.transpose() * y)
 }
 
 /// The velocities with `Phi_q qd + Phi_t = 0` and `qd_S = v` (`S` the
 /// coordinates `index`), nonzero only on `S` and on the first columns of
 /// `Phi_q` outside `S` (in order) that are independent: the rates the
 /// velocity constraints need, every other one zero ([`FreeRates::Zero`]).
-/// An error names `t` when the constraints cannot be met so.
-pub fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
-    phi_q: &SMatrix<f64, NC, NQ>,
-    phi_t: &SVector<f64, NC>,
-    index: &[usize; NU],
-    v: &SVector<f64, NU>,
+/// An error names `t` when the constraints cannot be met so. Any sizes
+/// (the parallel-robot example calls it with fixed ones).
+pub fn needed_velocities<Q: Dim, C: Dim>(
+    phi_q: &OMatrix<f64, C, Q>,
+    phi_t: &OVector<f64, C>,
+    index: &[usize],
+    v: &[f64],
     t: f64,
-) -> Result<SVector<f64, NQ>, String> {
-    let mut qd = SVector::<f64, NQ>::zeros();
+) -> Result<OVector<f64, Q>, String>
+where
+    DefaultAllocator: Allocator<C, Q> + Allocator<C> + Allocator<Q>,
+{
+    let (nc, nq) = phi_q.shape();
+    let mut qd = OVector::<f64, Q>::zeros_generic(phi_q.shape_generic().1, U1);
     for (k, &i) in index.iter().enumerate() {
         qd[i] = v[k];
     }
     // Greedy: keep a column when it is independent of the kept ones
     // (Gram-Schmidt, twice, against an orthonormal basis of them).
-    let mut basis: Vec<SVector<f64, NC>> = Vec::with_capacity(NC);
-    let mut needed = Vec::with_capacity(NC);
-    for j in (0..NQ).filter(|j| !index.contains(j)) {
-        if basis.len() == NC {
+    let mut basis: Vec<DVector<f64>> = Vec::with_capacity(nc);
+    let mut needed = Vec::with_capacity(nc);
+    for j in (0..nq).filter(|j| !index.contains(j)) {
+        if basis.len() == nc {
             break;
         }
-        let column = phi_q.column(j).into_owned();
-        let mut r = column;
+        let column = DVector::from_iterator(nc, phi_q.column(j).iter().copied());
+        let mut r = column.clone();
         for _ in 0..2 {
             for b in &basis {
                 r -= b * b.dot(&r);
@@ -565,8 +529,8 @@ pub fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
             needed.push(j);
         }
     }
-    let a = DMatrix::from_fn(NC, needed.len(), |r, c| phi_q[(r, needed[c])]);
-    let rhs = DVector::from_iterator(NC, (-(phi_q * qd + phi_t)).iter().copied());
+    let a = DMatrix::from_fn(nc, needed.len(), |r, c| phi_q[(r, needed[c])]);
+    let rhs = DVector::from_iterator(nc, (-(phi_q * &qd + phi_t)).iter().copied());
     let w = a
         .svd(true, true)
         .solve(&rhs, 1e-12)
@@ -574,7 +538,7 @@ pub fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
     for (c, &i) in needed.iter().enumerate() {
         qd[i] = w[c];
     }
-    let residual = (phi_q * qd + phi_t).amax();
+    let residual = (phi_q * &qd + phi_t).amax();
     if residual.is_nan() || residual > 1e-9 * (1.0 + rhs.amax()) {
         return Err(format!(
             "at t = {t} s: the velocity constraints cannot be met with the prescribed rates \
@@ -595,12 +559,11 @@ impl Solution {
         }
     }
 
-    /// Appends one sample, cut to the real sizes.
-    fn push(&mut self, problem: &Problem<'_>, t: f64, tau: &[f64], q: &[f64], lambda: &[f64]) {
+    /// Appends one sample.
+    fn push(&mut self, t: f64, tau: &[f64], q: &[f64], lambda: &[f64]) {
         self.t.push(t);
-        self.tau.push(tau[..problem.actuators.len()].to_vec());
-        self.q.push(q[..problem.coordinates.len()].to_vec());
-        self.lambda
-            .push(lambda[..problem.constraints.len()].to_vec());
+        self.tau.push(tau.to_vec());
+        self.q.push(q.to_vec());
+        self.lambda.push(lambda.to_vec());
     }
 }

@@ -15,7 +15,6 @@ pub mod interpreted;
 pub mod inverse;
 pub mod plot;
 pub mod progress;
-pub mod sized;
 pub mod spline;
 pub mod table;
 

@@ -5,6 +5,7 @@
 //! sampled prescriptions (CSV) against the closed form, and clear errors
 //! for prescriptions that do not determine the inputs.
 
+use flexdyn::dynamic::erase;
 use flexdyn::inverse::{solve, FreeRates, Method, Prescribed, Problem};
 use flexdyn::runtime::nalgebra::SVector;
 use flexdyn::runtime::Model;
@@ -35,13 +36,11 @@ fn pendulum_torque_is_the_closed_form() {
             coordinate: 0,
             motion: &motion,
         }],
-        held_inputs: vec![],
-        held_free: vec![],
         guess: vec![0.0],
         times: times(2.0, 0.01),
         free_rates: FreeRates::LeastEnergy,
     };
-    let out = solve::<_, 1, 0, 1, 1>(&Pendulum::default(), &problem).unwrap();
+    let out = solve(&*erase(Pendulum::default()), &problem).unwrap();
     assert_eq!(out.method, Method::Determined);
     let (m, l, g) = (1.0, 0.5, 9.81);
     for (k, &t) in out.t.iter().enumerate() {
@@ -74,13 +73,11 @@ fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> flexdyn::inverse::Solution {
             coordinate: 0,
             motion,
         }],
-        held_inputs: vec![],
-        held_free: vec![],
         guess: vec![0.3, 0.1, 0.4],
         times: times(1.0, 0.01),
         free_rates: FreeRates::LeastEnergy,
     };
-    solve::<_, 3, 2, 1, 1>(&SliderCrank, &problem).unwrap()
+    solve(&*erase(SliderCrank), &problem).unwrap()
 }
 
 #[test]
@@ -155,13 +152,11 @@ fn cart_pole_servo_integrates_the_free_pole_and_gives_the_cart_force() {
             coordinate: 0,
             motion: &motion,
         }],
-        held_inputs: vec![],
-        held_free: vec![],
         guess: vec![0.0, 3.0],
         times: times(1.0, 0.001),
         free_rates: FreeRates::LeastEnergy,
     };
-    let out = solve::<_, 2, 0, 1, 1>(&CartPole, &problem).unwrap();
+    let out = solve(&*erase(CartPole), &problem).unwrap();
     assert_eq!(out.method, Method::Servo);
     assert_eq!(out.t.len(), 1001);
     let (mc, m, l) = (1.0, 0.1, 1.0);
@@ -195,14 +190,12 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
         constraints: names(&["closure_x", "closure_y"]),
         actuators: names(&["tau"]),
         prescribed: vec![],
-        held_inputs: vec![],
-        held_free: vec![],
         guess: vec![0.3, 0.1, 0.4],
         times: times(0.1, 0.01),
         free_rates: FreeRates::LeastEnergy,
     };
     // No prescription at all: fewer than the actuators.
-    let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &base()).unwrap_err();
+    let e = solve(&*erase(SliderCrank), &base()).unwrap_err();
     assert!(e.contains("does not determine the actuator inputs"), "{e}");
     // Two prescriptions for one actuator.
     let mut two = base();
@@ -216,7 +209,7 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
             motion: &motion,
         },
     ];
-    let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &two).unwrap_err();
+    let e = solve(&*erase(SliderCrank), &two).unwrap_err();
     assert!(e.contains("2 prescribed") && e.contains("`x`"), "{e}");
     // The slider's position prescribed: it determines the pose (two
     // branches), but at the dead centre the crank's torque cannot move it.
@@ -227,7 +220,7 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
         motion: &dead_centre,
     }];
     slider.guess = vec![0.0, 0.0, 0.4];
-    let e = solve::<_, 3, 2, 1, 1>(&SliderCrank, &slider).unwrap_err();
+    let e = solve(&*erase(SliderCrank), &slider).unwrap_err();
     assert!(e.contains("at t = 0 s"), "{e}");
     println!("{e}");
 }
@@ -259,7 +252,7 @@ fn inverse(dir: &std::path::Path, args: &[&str]) -> Result<String, String> {
 }
 
 #[test]
-fn command_on_the_padded_slider_crank_matches_the_compiled_solve() {
+fn command_on_the_interpreted_slider_crank_matches_the_compiled_solve() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(

@@ -89,7 +89,11 @@ pub(crate) fn tr_mul_vec_acc<T: Scalar, R: Dim, C: Dim>(
 ) where
     DefaultAllocator: Allocator<R, C>,
 {
-    for (col, o) in a.as_slice().chunks_exact(a.nrows().max(1)).zip(out.iter_mut()) {
+    for (col, o) in a
+        .as_slice()
+        .chunks_exact(a.nrows().max(1))
+        .zip(out.iter_mut())
+    {
         *o += col.iter().zip(x).map(|(e, xi)| *e * *xi).sum::<T>();
     }
 }

@@ -10,12 +10,12 @@ mod models;
 use flexdyn_runtime::control::{
     servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, Target, Trajectory,
 };
+use flexdyn_runtime::nalgebra::Const;
 use flexdyn_runtime::{
     Error, ErrorKind, GeneralizedAlpha, InverseConfig, InverseDynamics, InverseSolution, Quantity,
     Rk4, State, StepSettings,
 };
 use models::*;
-use flexdyn_runtime::nalgebra::Const;
 
 /// The error of a set-up or solve that must fail.
 fn rejected<T>(r: Result<T, Error>) -> Error {

@@ -14,8 +14,7 @@
 //! after it), interpolated by natural cubic splines ([`crate::spline`]) so
 //! that rates and accelerations are continuous. The CSV's columns replace
 //! the motion file's for the same coordinate, and a `--prescribe` replaces
-//! both. The scene runs through [`crate::sized::with_padding`]: compiled
-//! in, or interpreted.
+//! both. The scene runs compiled in, or interpreted, at its own size.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -23,11 +22,8 @@ use std::path::{Path, PathBuf};
 use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
 use crate::inverse::{solve, FreeRates, Prescribed, Problem, Solution};
-use crate::sized::{with_padding, Padded, Sized, LADDER};
 use crate::spline::Spline;
 use crate::table::{check_output, read_input, OutputFiles, Table};
-use flexdyn_runtime::nalgebra::{SMatrix, SVector};
-use flexdyn_runtime::Model;
 
 /// Inverse dynamics of a scene along prescribed coordinates.
 #[derive(Debug, clap::Args)]
@@ -121,7 +117,8 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         times,
         free_rates: args.free_rates,
     };
-    let (columns, solution) = (job.columns(), with_padding(model.as_ref(), job)??);
+    let columns = job.columns();
+    let solution = job.solve(model.as_ref())?;
     let mut table = Table::new(&columns.iter().map(String::as_str).collect::<Vec<_>>());
     for (k, &t) in solution.t.iter().enumerate() {
         let mut row = vec![t];
@@ -271,7 +268,7 @@ fn initial_guess(path: &Path, nq: usize) -> Result<Vec<f64>, String> {
     Ok(state.q)
 }
 
-/// The inverse-dynamics problem, solved on the padded model.
+/// The inverse-dynamics problem of a scene.
 struct Job {
     coordinates: Vec<String>,
     constraints: Vec<String>,
@@ -305,45 +302,8 @@ impl Job {
     }
 }
 
-impl Sized for Job {
-    type Output = Result<Solution, String>;
-
-    fn run<const NQ: usize, const NC: usize, const NU: usize>(
-        self,
-        model: &Padded<'_, NQ, NC, NU>,
-    ) -> Self::Output {
-        // The inverse dynamics holds every pad coordinate that no pad
-        // constraint fixes: `NQ - NC` prescribed and held coordinates when
-        // the real ones are all determined. One size per rung of the ladder.
-        const P0: usize = LADDER[0].0 - LADDER[0].1;
-        const P1: usize = LADDER[1].0 - LADDER[1].1;
-        const P2: usize = LADDER[2].0 - LADDER[2].1;
-        const P3: usize = LADDER[3].0 - LADDER[3].1;
-        match NQ - NC {
-            P0 => self.solve::<NQ, NC, NU, P0>(model),
-            P1 => self.solve::<NQ, NC, NU, P1>(model),
-            P2 => self.solve::<NQ, NC, NU, P2>(model),
-            P3 => self.solve::<NQ, NC, NU, P3>(model),
-            n => Err(format!(
-                "internal: no inverse-dynamics size for {n} prescribed coordinates"
-            )),
-        }
-    }
-}
-
 impl Job {
-    fn solve<const NQ: usize, const NC: usize, const NU: usize, const NP: usize>(
-        self,
-        model: &Padded<'_, NQ, NC, NU>,
-    ) -> Result<Solution, String> {
-        let held_inputs = model.pad_input_coordinates();
-        // The pad constraints' coordinates: the one column of each pad row.
-        let mut phi_q = SMatrix::<f64, NC, NQ>::zeros();
-        model.constraint_jacobian(&SVector::zeros(), 0.0, &mut phi_q);
-        let constrained = |i: usize| (model.nc()..NC).any(|r| phi_q[(r, i)] != 0.0);
-        let held_free = (model.nq()..NQ)
-            .filter(|&i| !constrained(i) && !held_inputs.contains(&i))
-            .collect();
+    fn solve(self, model: &dyn crate::dynamic::DynModel) -> Result<Solution, String> {
         let motions: Vec<_> = self
             .prescribed
             .iter()
@@ -359,8 +319,6 @@ impl Job {
                     motion,
                 })
                 .collect(),
-            held_inputs,
-            held_free,
             coordinates: self.coordinates,
             constraints: self.constraints,
             actuators: self.actuators,
@@ -368,6 +326,6 @@ impl Job {
             times: self.times,
             free_rates: self.free_rates,
         };
-        solve::<_, NQ, NC, NU, NP>(model, &problem)
+        solve(model, &problem)
     }
 }

@@ -1065,7 +1065,7 @@ where
     let mut phi_t = SVector::<f64, NC>::zeros();
     model.constraint_jacobian(&q, t, &mut phi_q);
     model.constraint_time_derivative(&q, t, &mut phi_t);
-    let qd = flexdyn::inverse::needed_velocities(&phi_q, &phi_t, &layout.platform, &v.into(), t)
+    let qd = flexdyn::inverse::needed_velocities(&phi_q, &phi_t, &layout.platform, &v, t)
         .map_err(|e| format!("initial state: {e}"))?;
     let state = flexdyn_runtime::State::new(q, qd, t);
     let drift = flexdyn_runtime::constraint_drift(model, &state);

@@ -59,7 +59,6 @@ mod solver;
 pub use forces::forces;
 pub use solver::{InverseDynamics, InverseDynamicsOf};
 
-
 use crate::scalar::Scalar;
 use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DefaultAllocator, Dim, OVector, U1};
@@ -209,4 +208,3 @@ pub struct ForceReport<T: Scalar = f64> {
     /// How the system was solved.
     pub path: SolvePath,
 }
-

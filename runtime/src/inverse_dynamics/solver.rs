@@ -100,8 +100,13 @@ where
 
 /// [`InverseDynamicsOf`] of a model of fixed size: no heap, everything on
 /// the stack.
-pub type InverseDynamics<const NQ: usize, const NC: usize, const NU: usize, const NP: usize, T = f64> =
-    InverseDynamicsOf<T, Const<NQ>, Const<NC>, Const<NU>, Const<NP>>;
+pub type InverseDynamics<
+    const NQ: usize,
+    const NC: usize,
+    const NU: usize,
+    const NP: usize,
+    T = f64,
+> = InverseDynamicsOf<T, Const<NQ>, Const<NC>, Const<NU>, Const<NP>>;
 
 impl<T: Scalar, const NQ: usize, const NC: usize, const NU: usize, const NP: usize> Copy
     for InverseDynamics<NQ, NC, NU, NP, T>
