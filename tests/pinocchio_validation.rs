@@ -4,7 +4,9 @@
 //! states by `tests/pinocchio/validate.py`: UR5, Panda (arm joints; the
 //! fingers held fixed), Baxter (a tree with prismatic joints), xArm7 and
 //! Unitree Z1, to 1e-12
-//! of each term's scale. Plus a negative run: with one inertia entry of
+//! of each term's scale; and `flexdyn inverse` with every joint of Baxter
+//! (19) and a fixed-base TALOS (32) prescribed, its torques against `rnea`
+//! along the motion. Plus a negative run: with one inertia entry of
 //! each imported scene changed by a relative 1e-6 the comparison must fail.
 //! The shipped `scenes/ur5.toml` must be the import of today. The Python
 //! environment is the CasADi validation's (`common/python_env.rs`).
@@ -58,6 +60,13 @@ fn a_perturbed_inertia_fails_the_comparison() {
                     .lines()
                     .any(|l| l.starts_with(&format!("{robot}: M:")) && l.ends_with("FAILED")),
             "the perturbed {robot} passed:\n{text}"
+        );
+    }
+    for robot in ["baxter", "talos"] {
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with(&format!("{robot}: inverse")) && l.ends_with("FAILED")),
+            "the perturbed {robot}'s inverse dynamics passed:\n{text}"
         );
     }
 }

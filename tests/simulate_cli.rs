@@ -10,6 +10,10 @@ use std::process::Command;
 
 use flexdyn::table::Table;
 
+#[path = "common/large_scenes.rs"]
+mod large_scenes;
+use large_scenes::{hub_beam, spatial_chain};
+
 const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
 
 fn scene(name: &str) -> PathBuf {
@@ -420,59 +424,6 @@ expression = "x*x + y*y - 1"
     assert!(e.contains("has 2 coordinates, got 3 positions"), "{e}");
 }
 
-/// The spatial serial chain of `benches/chain_scaling.py`: `n` rigid bodies
-/// with full inertia tensors on revolute joints whose axes alternate z, y,
-/// x, under gravity, one actuator per joint.
-fn spatial_chain(n: usize) -> String {
-    let mut out = vec![
-        format!("name = \"chain{n}\""),
-        format!("description = \"Spatial serial chain of {n} rigid bodies\""),
-        "gravity = [0, 0, -9.81]".into(),
-    ];
-    for k in 0..n {
-        out.push(format!(
-            "[[coordinates]]\nname = \"q{k}\"\nrange = [-3.1, 3.1]\n\
-             velocity_range = [-3.0, 3.0]\ninitial = {}",
-            0.1 * ((k % 5) as f64 - 2.0)
-        ));
-    }
-    for k in 0..n {
-        let parent = match k {
-            0 => "world".to_string(),
-            _ => format!("link{}", k - 1),
-        };
-        let translation = if k == 0 {
-            "[0, 0, 0]"
-        } else {
-            "[0.05, 0.02, 0.3]"
-        };
-        let axis = ["z", "y", "x"][k % 3];
-        out.push(format!(
-            "[[frames]]\nname = \"link{k}\"\nparent = \"{parent}\"\ntranslation = {translation}\n\
-             rotation = [{{ axis = \"{axis}\", angle = \"q{k}\" }}]"
-        ));
-    }
-    for k in 0..n {
-        let m = 1.0 + 0.1 * (k % 4) as f64;
-        // The moments cycle every 30 links: beyond 34 links a steady growth
-        // would break the triangle inequality (no body has such an inertia).
-        let j = (k % 30) as f64;
-        let (ixx, iyy, izz) = (0.02 + 0.001 * j, 0.025, 0.012 + 0.0005 * j);
-        let (ixy, ixz, iyz) = (0.001, -0.0007, 0.0004);
-        out.push(format!(
-            "[[components]]\nname = \"body{k}\"\ntype = \"rigid_body\"\nmass = {m}\n\
-             frame = \"link{k}\"\nposition = [0.01, -0.015, 0.15]\n\
-             inertia = [[{ixx}, {ixy}, {ixz}], [{ixy}, {iyy}, {iyz}], [{ixz}, {iyz}, {izz}]]"
-        ));
-    }
-    for k in 0..n {
-        out.push(format!(
-            "[[actuators]]\nname = \"tau{k}\"\ncoordinate = \"q{k}\""
-        ));
-    }
-    out.join("\n\n")
-}
-
 /// A 100-link spatial chain with an actuator per joint (far above the old
 /// capacity of 64 coordinates and 8 actuators) runs at its own size, under
 /// a constant torque on every joint: the energy it gains equals the work of
@@ -512,4 +463,35 @@ fn hundred_link_chain_with_every_joint_actuated_balances_energy_and_work() {
         let q = column(&t, &format!("q{k}"));
         assert!(q[last] != q[0], "q{k} did not move");
     }
+}
+
+/// A flexible link with the most modes a scene may keep (60; 61
+/// coordinates) under gravity and a constant hub torque, with the default
+/// integrator: the energy gained equals the torque's work `tau (theta -
+/// theta0)` (the modes are undamped).
+#[test]
+fn sixty_mode_beam_balances_energy_and_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "beam.toml", &hub_beam(60, 9.81));
+    let args = [
+        "--scene",
+        scene.to_str().unwrap(),
+        "--duration",
+        "0.05",
+        "--input",
+        "hub_torque=1",
+    ];
+    let (t, _) = simulate(dir.path(), &args).unwrap();
+    assert!(t.columns.contains(&"beam_eta60".to_string()));
+    let last = column(&t, "t").len() - 1;
+    let energy = |r: usize| column(&t, "T")[r] + column(&t, "V")[r];
+    let theta = column(&t, "theta");
+    let work = theta[last] - theta[0];
+    let gained = energy(last) - energy(0);
+    println!("60 modes: energy gained {gained:e} J, work {work:e} J");
+    assert!(work > 1e-4, "the torque does work: {work:e}");
+    assert!(
+        (gained - work).abs() <= 1e-6 * work,
+        "energy gained {gained:e} vs work {work:e}"
+    );
 }

@@ -175,11 +175,12 @@ impl Rigid {
     }
 }
 
+/// The slider-crank servo of [`slider_servo`].
+type SliderServo<'a> =
+    Servo<'a, SliderCrank, Coordinates<[usize; 1]>, fn(f64) -> Target<1>, Const<1>>;
+
 /// The slider-crank with its slider following [`slider_path`].
-fn slider_servo(
-    model: &SliderCrank,
-    config: ServoConfig,
-) -> Servo<'_, SliderCrank, Coordinates<[usize; 1]>, fn(f64) -> Target<1>, Const<1>> {
+fn slider_servo(model: &SliderCrank, config: ServoConfig) -> SliderServo<'_> {
     Servo::new(
         model,
         Coordinates([2]),

@@ -34,6 +34,7 @@ import os
 import re
 import subprocess
 import sys
+import tomllib
 
 import numpy as np
 import pinocchio as pin
@@ -234,6 +235,87 @@ def validate(name, path, fixed, scan, args, armature=None):
     return ok
 
 
+# Robots whose every joint is prescribed in `flexdyn inverse` (interpreted,
+# at the scene's own size) and the torques compared with Pinocchio's `rnea`
+# along the prescribed motion: Baxter (19 joints) and a fixed-base TALOS
+# (32 joints), both beyond the 8 actuators the command once took.
+INVERSE = [
+    ("baxter", "baxter_description/urdf/baxter.urdf"),
+    ("talos", "talos_data/robots/talos_reduced.urdf"),
+]
+
+
+def inverse_check(name, path, args):
+    """`flexdyn inverse` with q_i = a_i sin(w_i t + p_i) on every joint
+    against `rnea` at every output time, to TOLERANCE of the torques' scale."""
+    scene = os.path.join(args.work, f"{name}_inverse.toml")
+    run([args.flexdyn, "import", "urdf", path, "--out", scene])
+    if args.perturb:
+        with open(scene) as f:
+            text = perturb(f.read())
+        with open(scene, "w") as f:
+            f.write(text)
+    with open(scene, "rb") as f:
+        parsed = tomllib.load(f)
+    coordinates = [c["name"] for c in parsed["coordinates"]]
+    actuators = parsed["actuators"]
+    n = len(coordinates)
+    motion = {}
+    for i, c in enumerate(coordinates):
+        amp, w, ph = 0.2 + 0.01 * i, 1.0 + 0.1 * i, 0.37 * i
+        motion[c] = (amp, w, ph)
+    motion_file = os.path.join(args.work, f"{name}_motion.toml")
+    with open(motion_file, "w") as f:
+        f.write("[prescribe]\n")
+        for c, (amp, w, ph) in motion.items():
+            f.write(f'{c} = "{amp!r}*sin({w!r}*t + {ph!r})"\n')
+    csv_file = os.path.join(args.work, f"{name}_inverse.csv")
+    run([args.flexdyn, "inverse", "--scene", scene, "--interpret", "--duration", "1",
+         "--dt", "0.05", "--motion", motion_file, "--csv", csv_file, "--quiet"])
+    with open(csv_file) as f:
+        header = f.readline().strip().split(",")
+        rows = [[float(x) for x in line.split(",")] for line in f if line.strip()]
+    taken = {"t", *coordinates}
+    column = {}
+    for a in actuators:
+        col = a["name"]
+        while col in taken or col.startswith("lambda_"):
+            col = "tau_" + col
+        taken.add(col)
+        column[a["coordinate"]] = header.index(col)
+    model = reference_model(path, [])
+    joints = {identifier(model.names[j]): model.joints[j] for j in range(1, model.njoints)}
+    if model.nv != n or any(c not in joints for c in coordinates):
+        sys.exit(f"{name}: coordinates {coordinates} do not match Pinocchio's joints {list(joints)}")
+    data = model.createData()
+    worst, scale = 0.0, 0.0
+    for row in rows:
+        t = row[0]
+        qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+        for c in coordinates:
+            amp, w, ph = motion[c]
+            x = amp * np.sin(w * t + ph)
+            j = joints[c]
+            if j.nq == 2:
+                qp[j.idx_q : j.idx_q + 2] = [np.cos(x), np.sin(x)]
+            else:
+                qp[j.idx_q] = x
+            vp[j.idx_v] = amp * w * np.cos(w * t + ph)
+            ap[j.idx_v] = -amp * w * w * np.sin(w * t + ph)
+        tau = pin.rnea(model, data, qp, vp, ap) + model.damping * vp
+        for c in coordinates:
+            want = tau[joints[c].idx_v]
+            worst = max(worst, abs(row[column[c]] - want))
+            scale = max(scale, abs(want))
+    rel = worst / scale
+    good = rel <= TOLERANCE and len(rows) == 21
+    print(
+        f"{name}: inverse ({n} joints prescribed, {len(rows)} samples): max torque error "
+        f"{worst:.3e}, scale {scale:.3e}, relative {rel:.3e} {'ok' if good else 'FAILED'}"
+    )
+    return good
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--flexdyn", required=True)
@@ -248,6 +330,8 @@ def main():
         ok &= validate(name, os.path.join(base, rel), fixed, scan, args)
         if name in ARMATURE:
             ok &= validate(name, os.path.join(base, rel), fixed, False, args, ARMATURE[name])
+    for name, rel in INVERSE:
+        ok &= inverse_check(name, os.path.join(base, rel), args)
     print("pinocchio validation:", "passed" if ok else "FAILED")
     sys.exit(0 if ok else 1)
 

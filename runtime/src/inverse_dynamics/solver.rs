@@ -64,10 +64,24 @@ where
     phi_t: OVector<T, C>,
     gamma: OVector<T, C>,
     jacobian_condition: T,
-    /// On the fast path: `J_f^-1` (in the caller's `local`) found, with
-    /// `X = J_f^-1 J_p` and `|J_p|_F^2`.
-    fast: Option<(FreeInverse<T>, OMatrix<T, C, P>, T)>,
+    /// On the fast path: `J_f^-1` (in the caller's `local`) found.
+    fast: Option<Fast<T, C, P>>,
 }
+
+/// What the fast path's force solve reuses from the rates.
+struct Fast<T: Scalar, C: Dim, P: Dim>
+where
+    DefaultAllocator: Allocator<C, P>,
+{
+    inverse: FreeInverse<T>,
+    /// `X = J_f^-1 J_p`.
+    x: OMatrix<T, C, P>,
+    /// `|J_p|_F^2`.
+    jp_norm2: T,
+}
+
+/// Time, velocities and accelerations of a solution.
+type Motion<T, Q> = (T, OVector<T, Q>, OVector<T, Q>);
 
 /// Inverse dynamics with `P` prescribed coordinates of a model with `Q`
 /// coordinates, `C` constraints and `U` inputs, of fixed or run-time size
@@ -91,7 +105,7 @@ where
     jacobian_inverse: Option<OMatrix<T, C, C>>,
     /// Time, velocities and accelerations of the solution `guess`, for the
     /// second-order predictor of the next starting point.
-    motion: Option<(T, OVector<T, Q>, OVector<T, Q>)>,
+    motion: Option<Motion<T, Q>>,
     /// Scratch for the Jacobians of two Newton iterates (overwritten before
     /// every read; kept here so that a call does not clear them).
     jacobians: [OMatrix<T, C, Q>; 2],
@@ -205,10 +219,8 @@ where
             ));
         }
         let mut free = OVector::<usize, Q>::from_element_generic(nq, U1, 0);
-        let mut k = 0;
-        for i in (0..n).filter(|i| !prescribed.contains(i)) {
+        for (k, i) in (0..n).filter(|i| !prescribed.contains(i)).enumerate() {
             free[k] = i;
-            k += 1;
         }
         let jacobian = OMatrix::<T, C, Q>::zeros_generic(nc, nq);
         Ok(InverseDynamicsOf {
@@ -379,9 +391,9 @@ where
         let mut r = OVector::<T, Q>::zeros_generic(q.shape_generic().0, U1);
         eval::inverse_dynamics_into(model, q, &rates.qd, &rates.qdd, t, &mut r)?;
         let fast_forces = match &rates.fast {
-            Some((f, x, jp_norm2)) => {
-                let phi_q_inv_norm2 = (f.jf_norm2 + *jp_norm2) * f.inv_norm2;
-                self.forces_eliminated(&cfg, &inv, x, phi_q_inv_norm2, phi_q, &b, &r, t)?
+            Some(f) => {
+                let phi_q_inv_norm2 = (f.inverse.jf_norm2 + f.jp_norm2) * f.inverse.inv_norm2;
+                self.forces_eliminated(&cfg, &inv, &f.x, phi_q_inv_norm2, phi_q, &b, &r, t)?
             }
             None => None,
         };
@@ -585,7 +597,12 @@ where
             let mut qdd_f = OVector::<T, C>::zeros_generic(nc, U1);
             mul_vec_acc(inv, (u + &gamma).as_slice(), qdd_f.as_mut_slice());
             self.scatter_free(&qdd_f, &mut qdd);
-            (gamma, f.condition, Some((f, x, jp_norm2)))
+            let fast = Fast {
+                inverse: f,
+                x,
+                jp_norm2,
+            };
+            (gamma, f.condition, Some(fast))
         } else {
             let jsvd = svd(&self.free_jacobian(phi_q).transpose(), cfg.max_sweeps, t)?;
             let condition = check_condition(&jsvd, nf, cfg.max_condition, t)?;
