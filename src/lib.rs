@@ -17,6 +17,7 @@ pub mod plot;
 pub mod progress;
 pub mod sized;
 pub mod spline;
+pub mod steps;
 pub mod table;
 
 /// The generated scene modules (one per file in `scenes/`).
