@@ -1,7 +1,8 @@
 //! Numeric CSV tables: a header row of column names, then rows of numbers.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
 
 pub use crate::codegen::{check_output, write_atomic, OutputFiles};
 
@@ -97,13 +98,7 @@ impl Table {
         let mut s = self.columns.join(",");
         s.push('\n');
         for r in &self.rows {
-            for (k, x) in r.iter().enumerate() {
-                if k > 0 {
-                    s.push(',');
-                }
-                let _ = write!(s, "{x:?}");
-            }
-            s.push('\n');
+            csv_row(&mut s, r);
         }
         s
     }
@@ -168,6 +163,69 @@ impl Table {
     }
 }
 
+/// Append one CSV line of `row` to `s`: numbers in shortest round-trip
+/// form, comma-separated.
+fn csv_row(s: &mut String, row: &[f64]) {
+    for (k, x) in row.iter().enumerate() {
+        if k > 0 {
+            s.push(',');
+        }
+        let _ = write!(s, "{x:?}");
+    }
+    s.push('\n');
+}
+
+/// A CSV written row by row as a run produces it (the text of
+/// [`Table::to_csv`], never all in memory), through
+/// [`OutputFiles::create`]: a regular file appears whole when the outputs
+/// are committed, or not at all; a device or FIFO gets the rows as they
+/// come.
+pub struct CsvWriter {
+    out: BufWriter<std::fs::File>,
+    line: String,
+    path: PathBuf,
+}
+
+impl CsvWriter {
+    /// Open the output `path` in `outputs` and write the header of
+    /// `columns`; errors name `path`.
+    pub fn create(
+        outputs: &mut OutputFiles,
+        path: &Path,
+        columns: &[String],
+    ) -> Result<CsvWriter, String> {
+        let mut writer = CsvWriter {
+            out: BufWriter::new(outputs.create(path)?),
+            line: columns.join(","),
+            path: path.to_path_buf(),
+        };
+        writer.line.push('\n');
+        writer.flush_line()?;
+        Ok(writer)
+    }
+
+    /// Append a row (as long as the columns).
+    pub fn row(&mut self, row: &[f64]) -> Result<(), String> {
+        csv_row(&mut self.line, row);
+        self.flush_line()
+    }
+
+    /// Write out what is buffered; the writer is done.
+    pub fn finish(mut self) -> Result<(), String> {
+        self.out.flush().map_err(|e| self.failed(e))
+    }
+
+    fn flush_line(&mut self) -> Result<(), String> {
+        let written = self.out.write_all(self.line.as_bytes());
+        self.line.clear();
+        written.map_err(|e| self.failed(e))
+    }
+
+    fn failed(&self, e: std::io::Error) -> String {
+        format!("cannot write {}: {e}", self.path.display())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -194,5 +252,22 @@ mod tests {
         assert!(e.len() < 6 * SHOWN_CHARS && e.ends_with("...)"), "{e}");
         let e = Table::parse(&format!("t\n{}\n", "x".repeat(100_000))).unwrap_err();
         assert!(e.len() < 2 * SHOWN_CHARS, "{e}");
+    }
+
+    #[test]
+    fn streamed_csv_is_the_tables_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.csv");
+        let mut t = Table::new(&["t", "x"]);
+        t.push(vec![0.0, 0.1]);
+        t.push(vec![0.5, -1e-300]);
+        let mut outputs = OutputFiles::default();
+        let mut csv = CsvWriter::create(&mut outputs, &path, &t.columns).unwrap();
+        for r in &t.rows {
+            csv.row(r).unwrap();
+        }
+        csv.finish().unwrap();
+        outputs.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), t.to_csv());
     }
 }
