@@ -64,8 +64,10 @@ pub struct Problem<'a> {
     pub held_free: Vec<usize>,
     /// Newton's starting point for the first sample (real coordinates).
     pub guess: Vec<f64>,
-    /// Output times, uniformly spaced from the first.
-    pub times: Vec<f64>,
+    /// Output step: outputs at `k dt` for `k = 0..=steps`.
+    pub dt: f64,
+    /// Output steps (one output more).
+    pub steps: usize,
     /// Initial rates of the free coordinates (servo case).
     pub free_rates: FreeRates,
 }
@@ -96,29 +98,32 @@ pub enum Method {
     Servo,
 }
 
-/// The solution at the output times (real sizes).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Solution {
-    /// How it was solved.
-    pub method: Method,
-    /// Output times.
-    pub t: Vec<f64>,
-    /// Actuator inputs per time.
-    pub tau: Vec<Vec<f64>>,
-    /// Coordinates per time.
-    pub q: Vec<Vec<f64>>,
-    /// Constraint forces (multipliers) per time.
-    pub lambda: Vec<Vec<f64>>,
+/// The solution at one output time (real sizes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample<'s> {
+    /// Output time.
+    pub t: f64,
+    /// Actuator inputs.
+    pub tau: &'s [f64],
+    /// Coordinates.
+    pub q: &'s [f64],
+    /// Constraint forces (multipliers).
+    pub lambda: &'s [f64],
 }
 
-/// Solves `problem` on `model` (module docs). Errors name the time, the
-/// coordinates and the condition involved. `NP` is the number of prescribed
-/// and held coordinates, `NQ - NC` when every coordinate is determined
-/// (otherwise unused).
+/// Where the solution goes: each [`Sample`], in time order, as it is
+/// solved (never all in memory); an error stops the solve.
+pub type Sink<'s> = &'s mut dyn FnMut(&Sample<'_>) -> Result<(), String>;
+
+/// Solves `problem` on `model` (module docs), each sample to `sink`; how it
+/// was solved. Errors name the time, the coordinates and the condition
+/// involved. `NP` is the number of prescribed and held coordinates,
+/// `NQ - NC` when every coordinate is determined (otherwise unused).
 pub fn solve<M, const NQ: usize, const NC: usize, const NU: usize, const NP: usize>(
     model: &M,
     problem: &Problem<'_>,
-) -> Result<Solution, String>
+    sink: Sink<'_>,
+) -> Result<Method, String>
 where
     M: Model<NQ, NC, NU>,
 {
@@ -192,7 +197,7 @@ where
             ));
         }
         let index = core::array::from_fn(|k| motions[k].0);
-        determined(model, problem, index, &target, guess, &rank_error)
+        determined(model, problem, index, &target, guess, &rank_error, sink)
     } else {
         if servo_count != NU || NP < NU {
             return Err(format!(
@@ -208,7 +213,15 @@ where
                 acceleration: SVector::from_fn(|k, _| x.acceleration[k]),
             }
         };
-        servo(model, problem, index, &servo_target, guess, &rank_error)
+        servo(
+            model,
+            problem,
+            index,
+            &servo_target,
+            guess,
+            &rank_error,
+            sink,
+        )
     }
 }
 
@@ -222,15 +235,15 @@ fn determined<M, const NQ: usize, const NC: usize, const NU: usize, const NP: us
     target: Targets<'_, NP>,
     guess: SVector<f64, NQ>,
     rank_error: &dyn Fn(flexdyn_runtime::Error) -> String,
-) -> Result<Solution, String>
+    sink: Sink<'_>,
+) -> Result<Method, String>
 where
     M: Model<NQ, NC, NU>,
 {
     let mut solver = InverseDynamics::<NQ, NC, NU, NP>::new(index, guess, InverseConfig::default())
         .map_err(|e| e.to_string())?;
-    let mut out = Solution::new(Method::Determined);
     let mut sol = InverseSolution::<NQ, NC, NU>::default();
-    for &t in &problem.times {
+    for t in (0..=problem.steps).map(|k| k as f64 * problem.dt) {
         let x = target(t);
         let start = *solver.guess();
         solver
@@ -250,15 +263,15 @@ where
                 }
                 _ => e.to_string(),
             })?;
-        out.push(
+        sink(&Sample::cut(
             problem,
             t,
             sol.tau.as_slice(),
             sol.q.as_slice(),
             sol.lambda.as_slice(),
-        );
+        ))?;
     }
-    Ok(out)
+    Ok(Method::Determined)
 }
 
 /// The error of a failed position solve, with the constraint that is
@@ -319,18 +332,12 @@ fn servo<M, const NQ: usize, const NC: usize, const NU: usize>(
     target: Targets<'_, NU>,
     guess: SVector<f64, NQ>,
     rank_error: &dyn Fn(flexdyn_runtime::Error) -> String,
-) -> Result<Solution, String>
+    sink: Sink<'_>,
+) -> Result<Method, String>
 where
     M: Model<NQ, NC, NU>,
 {
-    let mut out = Solution::new(Method::Servo);
-    let Some(&t0) = problem.times.first() else {
-        return Ok(out);
-    };
-    let dt = match problem.times.get(1) {
-        Some(t1) => t1 - t0,
-        None => 1.0,
-    };
+    let (t0, dt) = (0.0, problem.dt);
     let x0 = target(t0);
     let q = static_equilibrium(model, &index, &problem.held_free, &x0.position, guess, t0)?;
     let qd = initial_velocities(model, &index, &x0.velocity, &q, t0, problem.free_rates)?;
@@ -348,30 +355,34 @@ where
         ..Default::default()
     };
     let mut integrator = GeneralizedAlpha::<NQ, NC>::new(StepSettings::with_projection(), config);
-    let mut failed = None;
+    let (mut failed, mut k) = (None, 0);
     servo_run(
         &servo,
         &mut integrator,
         &mut state,
         dt,
-        problem.times.len() - 1,
-        |s| match servo.solve::<NQ, NC, NU>(&s.state.q, &s.state.qd, s.state.t) {
+        problem.steps,
+        |s| {
             // The output times exactly (the state's time sums the steps).
-            Ok(x) => out.push(
-                problem,
-                problem.times[out.t.len().min(problem.times.len() - 1)],
-                s.tau.as_slice(),
-                s.state.q.as_slice(),
-                x.lambda.as_slice(),
-            ),
-            Err(e) => failed = failed.or(Some(e)),
+            let t = k.min(problem.steps) as f64 * dt;
+            k += 1;
+            if failed.is_none() {
+                failed = match servo.solve::<NQ, NC, NU>(&s.state.q, &s.state.qd, s.state.t) {
+                    Ok(x) => sink(&Sample::cut(
+                        problem,
+                        t,
+                        s.tau.as_slice(),
+                        s.state.q.as_slice(),
+                        x.lambda.as_slice(),
+                    ))
+                    .err(),
+                    Err(e) => Some(rank_error(e)),
+                };
+            }
         },
     )
     .map_err(rank_error)?;
-    match failed {
-        Some(e) => Err(rank_error(e)),
-        None => Ok(out),
-    }
+    failed.map_or(Ok(Method::Servo), Err)
 }
 
 /// Newton on `h(q, 0, t) - Phi_q^T lambda - B tau = 0`, `Phi(q, t) = 0`,
@@ -584,23 +595,20 @@ pub fn needed_velocities<const NQ: usize, const NC: usize, const NU: usize>(
     Ok(qd)
 }
 
-impl Solution {
-    fn new(method: Method) -> Solution {
-        Solution {
-            method,
-            t: Vec::new(),
-            tau: Vec::new(),
-            q: Vec::new(),
-            lambda: Vec::new(),
+impl<'s> Sample<'s> {
+    /// One sample, cut to the real sizes.
+    fn cut(
+        problem: &Problem<'_>,
+        t: f64,
+        tau: &'s [f64],
+        q: &'s [f64],
+        lambda: &'s [f64],
+    ) -> Sample<'s> {
+        Sample {
+            t,
+            tau: &tau[..problem.actuators.len()],
+            q: &q[..problem.coordinates.len()],
+            lambda: &lambda[..problem.constraints.len()],
         }
-    }
-
-    /// Appends one sample, cut to the real sizes.
-    fn push(&mut self, problem: &Problem<'_>, t: f64, tau: &[f64], q: &[f64], lambda: &[f64]) {
-        self.t.push(t);
-        self.tau.push(tau[..problem.actuators.len()].to_vec());
-        self.q.push(q[..problem.coordinates.len()].to_vec());
-        self.lambda
-            .push(lambda[..problem.constraints.len()].to_vec());
     }
 }
