@@ -4,6 +4,8 @@ use std::fmt::Write as _;
 use std::io::{BufWriter, Write as _};
 use std::path::{Path, PathBuf};
 
+use flexdyn_runtime::Time;
+
 pub use crate::codegen::{check_output, write_atomic, OutputFiles};
 
 /// Largest input file the commands read (inputs and prescriptions CSV,
@@ -179,7 +181,9 @@ fn csv_row(s: &mut String, row: &[f64]) {
 /// [`Table::to_csv`], never all in memory), through
 /// [`OutputFiles::create`]: a regular file appears whole when the outputs
 /// are committed, or not at all; a device or FIFO gets the rows as they
-/// come.
+/// come. While it exists, an interrupt (SIGINT, SIGTERM) does not kill the
+/// process: the next row fails (and the run with it, leaving no partial
+/// temporary file); a second one kills it.
 pub struct CsvWriter {
     out: BufWriter<std::fs::File>,
     line: String,
@@ -201,11 +205,21 @@ impl CsvWriter {
         };
         writer.line.push('\n');
         writer.flush_line()?;
+        interrupt::catch(true);
         Ok(writer)
     }
 
-    /// Append a row (as long as the columns).
+    /// Append a row (as long as the columns); an error after an interrupt.
     pub fn row(&mut self, row: &[f64]) -> Result<(), String> {
+        if interrupt::caught() {
+            return Err(format!(
+                "interrupted at t = {} s: {} not written",
+                row.first()
+                    .copied()
+                    .map_or(String::new(), |t| Time(t).to_string()),
+                self.path.display()
+            ));
+        }
         csv_row(&mut self.line, row);
         self.flush_line()
     }
@@ -223,6 +237,60 @@ impl CsvWriter {
 
     fn failed(&self, e: std::io::Error) -> String {
         format!("cannot write {}: {e}", self.path.display())
+    }
+}
+
+impl Drop for CsvWriter {
+    fn drop(&mut self) {
+        interrupt::catch(false);
+    }
+}
+
+/// SIGINT and SIGTERM noted instead of killing the process, while a
+/// [`CsvWriter`] streams (Unix; elsewhere they kill it as before).
+mod interrupt {
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    static CAUGHT: AtomicBool = AtomicBool::new(false);
+
+    /// Whether an interrupt arrived since [`catch`]`(true)`.
+    pub fn caught() -> bool {
+        CAUGHT.load(Ordering::Relaxed)
+    }
+
+    #[cfg(unix)]
+    extern "C" fn note(_: libc::c_int) {
+        CAUGHT.store(true, Ordering::Relaxed);
+    }
+
+    /// Note the next interrupt (`on`; the one after it kills as usual), or
+    /// restore the default (kill). A signal the process ignores stays
+    /// ignored.
+    pub fn catch(on: bool) {
+        CAUGHT.store(false, Ordering::Relaxed);
+        #[cfg(unix)]
+        // SAFETY: `sigaction` reads and sets plain, zero-initialised
+        // actions; the handler only stores to an atomic
+        // (async-signal-safe).
+        unsafe {
+            let noted = note as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            let (from, to) = match on {
+                true => (libc::SIG_DFL, noted),
+                false => (noted, libc::SIG_DFL),
+            };
+            for signal in [libc::SIGINT, libc::SIGTERM] {
+                let mut action: libc::sigaction = std::mem::zeroed();
+                libc::sigaction(signal, std::ptr::null(), &mut action);
+                if action.sa_sigaction == from {
+                    action.sa_sigaction = to;
+                    action.sa_flags = libc::SA_RESETHAND | libc::SA_RESTART;
+                    libc::sigemptyset(&mut action.sa_mask);
+                    libc::sigaction(signal, &action, std::ptr::null_mut());
+                }
+            }
+        }
+        #[cfg(not(unix))]
+        let _ = on;
     }
 }
 
