@@ -132,7 +132,7 @@ impl Progress {
                 format!(
                     "{}: t = {} s of {} s ({} %), {steps} steps, {elapsed} s elapsed",
                     self.message,
-                    Time(t),
+                    Time(rounded(t)),
                     Time(end),
                     percent(t - t0, end - t0)
                 )
@@ -152,4 +152,9 @@ impl Progress {
             bar.finish_and_clear();
         }
     }
+}
+
+/// `x` to four significant digits (a time of the progress line).
+fn rounded(x: f64) -> f64 {
+    format!("{x:.3e}").parse().unwrap_or(x)
 }

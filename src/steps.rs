@@ -5,6 +5,8 @@
 //! endless run. The commands stream their rows, so a raised limit costs
 //! time, not memory.
 
+use flexdyn_runtime::Time;
+
 /// The default of `--max-steps`: 10^7 steps.
 pub const MAX_STEPS: u64 = 10_000_000;
 
@@ -51,8 +53,10 @@ pub fn count(duration: f64, dt: f64, last: Last, max_steps: u64) -> Result<u64, 
     // Infinite when `duration / dt` overflows: refused too.
     if steps > max_steps as f64 {
         return Err(format!(
-            "--duration {duration} s at --dt {dt:e} s is {steps:.3e} steps; at most {max_steps} \
-             are allowed (`--max-steps N` raises the limit)"
+            "--duration {} s at --dt {} s is {steps:.3e} steps; at most {max_steps} are allowed \
+             (`--max-steps N` raises the limit)",
+            Time(duration),
+            Time(dt)
         ));
     }
     Ok(steps as u64)
@@ -73,8 +77,11 @@ mod tests {
         for (duration, dt) in [(1.0, 1e-300), (1e12, 0.01), (1e300, 1e-320), (1e5, 0.0099)] {
             let e = count(duration, dt, Last::Within, MAX_STEPS).unwrap_err();
             assert!(
-                e.contains(&format!("--duration {duration} s"))
-                    && e.contains("at most 10000000 are allowed")
+                e.contains(&format!(
+                    "--duration {} s at --dt {} s",
+                    Time(duration),
+                    Time(dt)
+                )) && e.contains("at most 10000000 are allowed")
                     && e.contains("--max-steps"),
                 "{e}"
             );
