@@ -18,7 +18,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use cli::{p, refused, refused_with, run};
+use cli::{p, refused, refused_by, run, run_with};
 use flexdyn::table::Table;
 
 const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
@@ -86,7 +86,8 @@ fn swinging(dir: &Path) -> String {
 /// in `dir` but the scene, within [`SMALL`] memory.
 fn refused_at_once(dir: &Path, args: &[&str], needles: &[&str]) {
     let start = Instant::now();
-    refused_with(limited(), dir, &["swinging.toml"], args, needles[0]);
+    let result = run_with(limited(), args);
+    refused_by(result, dir, &["swinging.toml"], args, needles[0]);
     assert!(
         start.elapsed() < Duration::from_secs(5),
         "{args:?} took {:?}",

@@ -27,12 +27,18 @@ pub fn run_with(mut command: Command, args: &[&str]) -> (Option<i32>, String) {
 /// Runs `args`, expecting failure with `needle` in the error and no file
 /// left in `dir` besides those listed in `keep`.
 pub fn refused(dir: &Path, keep: &[&str], args: &[&str], needle: &str) {
-    refused_with(Command::new(super::BIN), dir, keep, args, needle);
+    refused_by(run(args), dir, keep, args, needle);
 }
 
-/// [`refused`], running `command` (see [`run_with`]).
-pub fn refused_with(command: Command, dir: &Path, keep: &[&str], args: &[&str], needle: &str) {
-    let (code, err) = run_with(command, args);
+/// [`refused`] on the exit status and standard error of a run of `args`
+/// (by [`run`] or [`run_with`]).
+pub fn refused_by(
+    (code, err): (Option<i32>, String),
+    dir: &Path,
+    keep: &[&str],
+    args: &[&str],
+    needle: &str,
+) {
     assert_eq!(code, Some(1), "{args:?} should fail with status 1: {err}");
     assert!(
         err.starts_with("error: ") && err.contains(needle),
