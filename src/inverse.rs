@@ -67,8 +67,10 @@ pub struct Problem<'a> {
     /// Newton's starting point for the first sample (one value per
     /// coordinate; missing ones are 0).
     pub guess: Vec<f64>,
-    /// Output times, uniformly spaced from the first.
-    pub times: Vec<f64>,
+    /// Output step: outputs at `k dt` for `k = 0..=steps`.
+    pub dt: f64,
+    /// Output steps (one output more).
+    pub steps: usize,
     /// Initial rates of the free coordinates (servo case).
     pub free_rates: FreeRates,
 }
@@ -99,25 +101,31 @@ pub enum Method {
     Servo,
 }
 
-/// The solution at the output times.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Solution {
-    /// How it was solved.
-    pub method: Method,
-    /// Output times.
-    pub t: Vec<f64>,
-    /// Actuator inputs per time.
-    pub tau: Vec<Vec<f64>>,
-    /// Coordinates per time.
-    pub q: Vec<Vec<f64>>,
-    /// Constraint forces (multipliers) per time.
-    pub lambda: Vec<Vec<f64>>,
+/// The solution at one output time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample<'s> {
+    /// Output time.
+    pub t: f64,
+    /// Actuator inputs.
+    pub tau: &'s [f64],
+    /// Coordinates.
+    pub q: &'s [f64],
+    /// Constraint forces (multipliers).
+    pub lambda: &'s [f64],
 }
 
-/// Solves `problem` on `model` (module docs). Errors name the time, the
-/// coordinates and the condition involved, and a model whose sizes differ
-/// from the problem's names.
-pub fn solve(model: &dyn DynModel, problem: &Problem<'_>) -> Result<Solution, String> {
+/// Where the solution goes: each [`Sample`], in time order, as it is
+/// solved (never all in memory); an error stops the solve.
+pub type Sink<'s> = &'s mut dyn FnMut(&Sample<'_>) -> Result<(), String>;
+
+/// Solves `problem` on `model` (module docs), each sample to `sink`; how it
+/// was solved. Errors name the time, the coordinates and the condition
+/// involved, and a model whose sizes differ from the problem's names.
+pub fn solve(
+    model: &dyn DynModel,
+    problem: &Problem<'_>,
+    sink: Sink<'_>,
+) -> Result<Method, String> {
     let (nq, nc, nu) = (
         problem.coordinates.len(),
         problem.constraints.len(),
@@ -188,9 +196,9 @@ pub fn solve(model: &dyn DynModel, problem: &Problem<'_>) -> Result<Solution, St
         rank_error: &rank_error,
     };
     if np + nc == nq {
-        job.determined(guess)
+        job.determined(guess, sink)
     } else {
-        job.servo(guess)
+        job.servo(guess, sink)
     }
 }
 
@@ -209,7 +217,7 @@ struct Job<'a> {
 
 impl Job<'_> {
     /// The determined case: [`InverseDynamicsOf`] at every output time.
-    fn determined(&self, guess: DVector<f64>) -> Result<Solution, String> {
+    fn determined(&self, guess: DVector<f64>, sink: Sink<'_>) -> Result<Method, String> {
         let model = self.model;
         let mut solver = InverseDynamicsOf::<f64, Dyn, Dyn, Dyn, Dyn>::for_model(
             model,
@@ -218,9 +226,9 @@ impl Job<'_> {
             InverseConfig::default(),
         )
         .map_err(|e| e.to_string())?;
-        let mut out = Solution::new(Method::Determined);
         let mut sol = InverseSolutionOf::zeros(model.sizes());
-        for &t in &self.problem.times {
+        let problem = self.problem;
+        for t in (0..=problem.steps).map(|k| k as f64 * problem.dt) {
             let x = (self.target)(t);
             let start = solver.guess().clone();
             solver
@@ -240,14 +248,14 @@ impl Job<'_> {
                     }
                     _ => e.to_string(),
                 })?;
-            out.push(
+            sink(&Sample {
                 t,
-                sol.tau.as_slice(),
-                sol.q.as_slice(),
-                sol.lambda.as_slice(),
-            );
+                tau: sol.tau.as_slice(),
+                q: sol.q.as_slice(),
+                lambda: sol.lambda.as_slice(),
+            })?;
         }
-        Ok(out)
+        Ok(Method::Determined)
     }
 
     /// The error of a failed position solve, with the constraint that is
@@ -295,16 +303,9 @@ impl Job<'_> {
 
     /// The servo case: static equilibrium at the first time, then
     /// [`servo_run`] with generalized-alpha.
-    fn servo(&self, guess: DVector<f64>) -> Result<Solution, String> {
+    fn servo(&self, guess: DVector<f64>, sink: Sink<'_>) -> Result<Method, String> {
         let (model, problem) = (self.model, self.problem);
-        let mut out = Solution::new(Method::Servo);
-        let Some(&t0) = problem.times.first() else {
-            return Ok(out);
-        };
-        let dt = match problem.times.get(1) {
-            Some(t1) => t1 - t0,
-            None => 1.0,
-        };
+        let (t0, dt) = (0.0, problem.dt);
         let x0 = (self.target)(t0);
         let q = static_equilibrium(model, self.index, &x0.position, guess, t0)?;
         let qd = initial_velocities(model, self.index, &x0.velocity, &q, t0, problem.free_rates)?;
@@ -324,29 +325,34 @@ impl Job<'_> {
         };
         let mut integrator =
             GeneralizedAlphaOf::<f64, Dyn, Dyn>::new(StepSettings::with_projection(), config);
-        let mut failed = None;
+        let (mut failed, mut k) = (None, 0);
         servo_run(
             &servo,
             &mut integrator,
             &mut state,
             dt,
-            problem.times.len() - 1,
-            |s| match servo.solve::<Dyn, Dyn, Dyn>(&s.state.q, &s.state.qd, s.state.t) {
+            problem.steps,
+            |s| {
                 // The output times exactly (the state's time sums the steps).
-                Ok(x) => out.push(
-                    problem.times[out.t.len().min(problem.times.len() - 1)],
-                    s.tau.as_slice(),
-                    s.state.q.as_slice(),
-                    x.lambda.as_slice(),
-                ),
-                Err(e) => failed = failed.or(Some(e)),
+                let t = k.min(problem.steps) as f64 * dt;
+                k += 1;
+                if failed.is_none() {
+                    failed = match servo.solve::<Dyn, Dyn, Dyn>(&s.state.q, &s.state.qd, s.state.t)
+                    {
+                        Ok(x) => sink(&Sample {
+                            t,
+                            tau: s.tau.as_slice(),
+                            q: s.state.q.as_slice(),
+                            lambda: x.lambda.as_slice(),
+                        })
+                        .err(),
+                        Err(e) => Some((self.rank_error)(e)),
+                    };
+                }
             },
         )
         .map_err(self.rank_error)?;
-        match failed {
-            Some(e) => Err((self.rank_error)(e)),
-            None => Ok(out),
-        }
+        failed.map_or(Ok(Method::Servo), Err)
     }
 }
 
@@ -546,24 +552,4 @@ where
         ));
     }
     Ok(qd)
-}
-
-impl Solution {
-    fn new(method: Method) -> Solution {
-        Solution {
-            method,
-            t: Vec::new(),
-            tau: Vec::new(),
-            q: Vec::new(),
-            lambda: Vec::new(),
-        }
-    }
-
-    /// Appends one sample.
-    fn push(&mut self, t: f64, tau: &[f64], q: &[f64], lambda: &[f64]) {
-        self.t.push(t);
-        self.tau.push(tau.to_vec());
-        self.q.push(q.to_vec());
-        self.lambda.push(lambda.to_vec());
-    }
 }

@@ -16,6 +16,7 @@ pub mod inverse;
 pub mod plot;
 pub mod progress;
 pub mod spline;
+pub mod steps;
 pub mod table;
 
 /// The generated scene modules (one per file in `scenes/`).

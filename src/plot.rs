@@ -15,6 +15,68 @@ pub struct Series<'a> {
     pub points: Vec<(f64, f64)>,
 }
 
+/// The most rows of a run a plot keeps ([`Decimated`]).
+pub const PLOT_ROWS: usize = 4096;
+
+/// A bounded, evenly spaced copy of a run's rows for its plot: every row
+/// while there are at most `capacity`, then every second one, every fourth,
+/// ... (each time the copy is full, every other row is dropped and the
+/// stride doubles), plus the last row. Its memory does not grow with the
+/// number of rows.
+pub struct Decimated {
+    rows: Vec<Vec<f64>>,
+    capacity: usize,
+    stride: u64,
+    seen: u64,
+    last: Vec<f64>,
+}
+
+impl Decimated {
+    /// An empty copy of at most `capacity` rows (even, at least 2) and the
+    /// last one.
+    pub fn new(capacity: usize) -> Decimated {
+        Decimated {
+            rows: Vec::new(),
+            capacity: capacity.max(2) & !1,
+            stride: 1,
+            seen: 0,
+            last: Vec::new(),
+        }
+    }
+
+    /// Offer the next row of the run.
+    pub fn push(&mut self, row: &[f64]) {
+        if self.seen.is_multiple_of(self.stride) {
+            if self.rows.len() == self.capacity {
+                // Rows 0, s, 2s, ... become 0, 2s, 4s, ...; `seen`, at
+                // `capacity * s`, is a multiple of the new stride.
+                let mut k = 0;
+                self.rows.retain(|_| {
+                    k += 1;
+                    k % 2 == 1
+                });
+                self.stride *= 2;
+            }
+            self.rows.push(row.to_vec());
+        }
+        self.seen += 1;
+        self.last.clear();
+        self.last.extend_from_slice(row);
+    }
+
+    /// The rows kept, the last row of the run included.
+    pub fn rows(mut self) -> Vec<Vec<f64>> {
+        if self
+            .seen
+            .checked_sub(1)
+            .is_some_and(|k| !k.is_multiple_of(self.stride))
+        {
+            self.rows.push(self.last);
+        }
+        self.rows
+    }
+}
+
 /// Axis texts of a plot.
 pub struct Labels<'a> {
     /// Title above the plot.
@@ -263,4 +325,34 @@ fn draw_scatter<DB: DrawingBackend>(
         .map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimated_rows_are_bounded_evenly_spaced_and_end_at_the_last() {
+        for n in [0u64, 1, 7, 8, 9, 100, 1001] {
+            let mut d = Decimated::new(8);
+            for k in 0..n {
+                d.push(&[k as f64]);
+            }
+            let kept: Vec<u64> = d.rows().iter().map(|r| r[0] as u64).collect();
+            assert!(kept.len() <= 9, "{n}: {kept:?}");
+            if n == 0 {
+                assert!(kept.is_empty());
+                continue;
+            }
+            assert_eq!(kept.last(), Some(&(n - 1)), "{n}: {kept:?}");
+            // Every kept row but the last at a multiple of one stride.
+            let body = &kept[..kept.len() - usize::from(kept.len() > 1)];
+            let stride = body.get(1).map_or(1, |s| *s);
+            assert!(body
+                .iter()
+                .enumerate()
+                .all(|(i, k)| *k == i as u64 * stride));
+            assert!(n <= 8 || kept.len() >= 5, "{n}: {kept:?}");
+        }
+    }
 }

@@ -1,7 +1,10 @@
 //! Numeric CSV tables: a header row of column names, then rows of numbers.
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+
+use flexdyn_runtime::Time;
 
 pub use crate::codegen::{check_output, write_atomic, OutputFiles};
 
@@ -97,13 +100,7 @@ impl Table {
         let mut s = self.columns.join(",");
         s.push('\n');
         for r in &self.rows {
-            for (k, x) in r.iter().enumerate() {
-                if k > 0 {
-                    s.push(',');
-                }
-                let _ = write!(s, "{x:?}");
-            }
-            s.push('\n');
+            csv_row(&mut s, r);
         }
         s
     }
@@ -168,6 +165,135 @@ impl Table {
     }
 }
 
+/// Append one CSV line of `row` to `s`: numbers in shortest round-trip
+/// form, comma-separated.
+fn csv_row(s: &mut String, row: &[f64]) {
+    for (k, x) in row.iter().enumerate() {
+        if k > 0 {
+            s.push(',');
+        }
+        let _ = write!(s, "{x:?}");
+    }
+    s.push('\n');
+}
+
+/// A CSV written row by row as a run produces it (the text of
+/// [`Table::to_csv`], never all in memory), through
+/// [`OutputFiles::create`]: a regular file appears whole when the outputs
+/// are committed, or not at all; a device or FIFO gets the rows as they
+/// come. While it exists, an interrupt (SIGINT, SIGTERM) does not kill the
+/// process: the next row fails (and the run with it, leaving no partial
+/// temporary file); a second one kills it.
+pub struct CsvWriter {
+    out: BufWriter<std::fs::File>,
+    line: String,
+    path: PathBuf,
+}
+
+impl CsvWriter {
+    /// Open the output `path` in `outputs` and write the header of
+    /// `columns`; errors name `path`.
+    pub fn create(
+        outputs: &mut OutputFiles,
+        path: &Path,
+        columns: &[String],
+    ) -> Result<CsvWriter, String> {
+        let mut writer = CsvWriter {
+            out: BufWriter::new(outputs.create(path)?),
+            line: columns.join(","),
+            path: path.to_path_buf(),
+        };
+        writer.line.push('\n');
+        writer.flush_line()?;
+        interrupt::catch(true);
+        Ok(writer)
+    }
+
+    /// Append a row (as long as the columns); an error after an interrupt.
+    pub fn row(&mut self, row: &[f64]) -> Result<(), String> {
+        if interrupt::caught() {
+            return Err(format!(
+                "interrupted at t = {} s: {} not written",
+                row.first()
+                    .copied()
+                    .map_or(String::new(), |t| Time(t).to_string()),
+                self.path.display()
+            ));
+        }
+        csv_row(&mut self.line, row);
+        self.flush_line()
+    }
+
+    /// Write out what is buffered; the writer is done.
+    pub fn finish(mut self) -> Result<(), String> {
+        self.out.flush().map_err(|e| self.failed(e))
+    }
+
+    fn flush_line(&mut self) -> Result<(), String> {
+        let written = self.out.write_all(self.line.as_bytes());
+        self.line.clear();
+        written.map_err(|e| self.failed(e))
+    }
+
+    fn failed(&self, e: std::io::Error) -> String {
+        format!("cannot write {}: {e}", self.path.display())
+    }
+}
+
+impl Drop for CsvWriter {
+    fn drop(&mut self) {
+        interrupt::catch(false);
+    }
+}
+
+/// SIGINT and SIGTERM noted instead of killing the process, while a
+/// [`CsvWriter`] streams (Unix; elsewhere they kill it as before).
+mod interrupt {
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    static CAUGHT: AtomicBool = AtomicBool::new(false);
+
+    /// Whether an interrupt arrived since [`catch`]`(true)`.
+    pub fn caught() -> bool {
+        CAUGHT.load(Ordering::Relaxed)
+    }
+
+    #[cfg(unix)]
+    extern "C" fn note(_: libc::c_int) {
+        CAUGHT.store(true, Ordering::Relaxed);
+    }
+
+    /// Note the next interrupt (`on`; the one after it kills as usual), or
+    /// restore the default (kill). A signal the process ignores stays
+    /// ignored.
+    pub fn catch(on: bool) {
+        CAUGHT.store(false, Ordering::Relaxed);
+        #[cfg(unix)]
+        // SAFETY: `sigaction` reads and sets plain, zero-initialised
+        // actions; the handler only stores to an atomic
+        // (async-signal-safe).
+        unsafe {
+            let noted = note as extern "C" fn(libc::c_int) as libc::sighandler_t;
+            let (from, to) = match on {
+                true => (libc::SIG_DFL, noted),
+                false => (noted, libc::SIG_DFL),
+            };
+            for signal in [libc::SIGINT, libc::SIGTERM] {
+                let mut action: libc::sigaction = std::mem::zeroed();
+                libc::sigaction(signal, std::ptr::null(), &mut action);
+                if action.sa_sigaction == from {
+                    action.sa_sigaction = to;
+                    action.sa_flags = libc::SA_RESETHAND | libc::SA_RESTART;
+                    libc::sigemptyset(&mut action.sa_mask);
+                    libc::sigaction(signal, &action, std::ptr::null_mut());
+                }
+            }
+        }
+        #[cfg(not(unix))]
+        let _ = on;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -194,5 +320,22 @@ mod tests {
         assert!(e.len() < 6 * SHOWN_CHARS && e.ends_with("...)"), "{e}");
         let e = Table::parse(&format!("t\n{}\n", "x".repeat(100_000))).unwrap_err();
         assert!(e.len() < 2 * SHOWN_CHARS, "{e}");
+    }
+
+    #[test]
+    fn streamed_csv_is_the_tables_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.csv");
+        let mut t = Table::new(&["t", "x"]);
+        t.push(vec![0.0, 0.1]);
+        t.push(vec![0.5, -1e-300]);
+        let mut outputs = OutputFiles::default();
+        let mut csv = CsvWriter::create(&mut outputs, &path, &t.columns).unwrap();
+        for r in &t.rows {
+            csv.row(r).unwrap();
+        }
+        csv.finish().unwrap();
+        outputs.commit().unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), t.to_csv());
     }
 }

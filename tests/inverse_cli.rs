@@ -11,7 +11,7 @@ use flexdyn::runtime::nalgebra::{DMatrix, DVector};
 
 #[path = "common/large_scenes.rs"]
 mod large_scenes;
-use flexdyn::inverse::{solve, FreeRates, Method, Prescribed, Problem};
+use flexdyn::inverse::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
 use flexdyn::runtime::nalgebra::SVector;
 use flexdyn::runtime::Model;
 use flexdyn::scenes::{cart_pole::CartPole, pendulum::Pendulum, slider_crank::SliderCrank};
@@ -20,10 +20,38 @@ fn names(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
 
-fn times(duration: f64, dt: f64) -> Vec<f64> {
-    (0..=(duration / dt).round() as usize)
-        .map(|k| k as f64 * dt)
-        .collect()
+/// Steps of `dt` in `duration`.
+fn steps(duration: f64, dt: f64) -> usize {
+    (duration / dt).round() as usize
+}
+
+/// Every sample of a solve, collected (the library streams them to a sink).
+#[derive(Debug)]
+struct Solution {
+    method: Method,
+    t: Vec<f64>,
+    tau: Vec<Vec<f64>>,
+    q: Vec<Vec<f64>>,
+    lambda: Vec<Vec<f64>>,
+}
+
+/// Runs `solve` with a sink that keeps every sample.
+fn collect(solve: impl FnOnce(Sink<'_>) -> Result<Method, String>) -> Result<Solution, String> {
+    let (mut t, mut tau, mut q, mut lambda) = (vec![], vec![], vec![], vec![]);
+    let method = solve(&mut |s: &Sample<'_>| {
+        t.push(s.t);
+        tau.push(s.tau.to_vec());
+        q.push(s.q.to_vec());
+        lambda.push(s.lambda.to_vec());
+        Ok(())
+    })?;
+    Ok(Solution {
+        method,
+        t,
+        tau,
+        q,
+        lambda,
+    })
 }
 
 #[test]
@@ -42,10 +70,11 @@ fn pendulum_torque_is_the_closed_form() {
             motion: &motion,
         }],
         guess: vec![0.0],
-        times: times(2.0, 0.01),
+        dt: 0.01,
+        steps: steps(2.0, 0.01),
         free_rates: FreeRates::LeastEnergy,
     };
-    let out = solve(&*erase(Pendulum::default()), &problem).unwrap();
+    let out = collect(|sink| solve(&*erase(Pendulum::default()), &problem, sink)).unwrap();
     assert_eq!(out.method, Method::Determined);
     let (m, l, g) = (1.0, 0.5, 9.81);
     for (k, &t) in out.t.iter().enumerate() {
@@ -69,7 +98,7 @@ fn crank_pose(theta: f64) -> [f64; 3] {
 }
 
 /// The compiled slider-crank with `theta` prescribed, over 1 s at 0.01 s.
-fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> flexdyn::inverse::Solution {
+fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> Solution {
     let problem = Problem {
         coordinates: names(&["theta", "phi", "x"]),
         constraints: names(&["closure_x", "closure_y"]),
@@ -79,10 +108,11 @@ fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> flexdyn::inverse::Solution {
             motion,
         }],
         guess: vec![0.3, 0.1, 0.4],
-        times: times(1.0, 0.01),
+        dt: 0.01,
+        steps: steps(1.0, 0.01),
         free_rates: FreeRates::LeastEnergy,
     };
-    solve(&*erase(SliderCrank), &problem).unwrap()
+    collect(|sink| solve(&*erase(SliderCrank), &problem, sink)).unwrap()
 }
 
 #[test]
@@ -158,10 +188,11 @@ fn cart_pole_servo_integrates_the_free_pole_and_gives_the_cart_force() {
             motion: &motion,
         }],
         guess: vec![0.0, 3.0],
-        times: times(1.0, 0.001),
+        dt: 0.001,
+        steps: steps(1.0, 0.001),
         free_rates: FreeRates::LeastEnergy,
     };
-    let out = solve(&*erase(CartPole), &problem).unwrap();
+    let out = collect(|sink| solve(&*erase(CartPole), &problem, sink)).unwrap();
     assert_eq!(out.method, Method::Servo);
     assert_eq!(out.t.len(), 1001);
     let (mc, m, l) = (1.0, 0.1, 1.0);
@@ -196,11 +227,12 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
         actuators: names(&["tau"]),
         prescribed: vec![],
         guess: vec![0.3, 0.1, 0.4],
-        times: times(0.1, 0.01),
+        dt: 0.01,
+        steps: steps(0.1, 0.01),
         free_rates: FreeRates::LeastEnergy,
     };
     // No prescription at all: fewer than the actuators.
-    let e = solve(&*erase(SliderCrank), &base()).unwrap_err();
+    let e = collect(|sink| solve(&*erase(SliderCrank), &base(), sink)).unwrap_err();
     assert!(e.contains("does not determine the actuator inputs"), "{e}");
     // Two prescriptions for one actuator.
     let mut two = base();
@@ -214,7 +246,7 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
             motion: &motion,
         },
     ];
-    let e = solve(&*erase(SliderCrank), &two).unwrap_err();
+    let e = collect(|sink| solve(&*erase(SliderCrank), &two, sink)).unwrap_err();
     assert!(e.contains("2 prescribed") && e.contains("`x`"), "{e}");
     // The slider's position prescribed: it determines the pose (two
     // branches), but at the dead centre the crank's torque cannot move it.
@@ -225,9 +257,62 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
         motion: &dead_centre,
     }];
     slider.guess = vec![0.0, 0.0, 0.4];
-    let e = solve(&*erase(SliderCrank), &slider).unwrap_err();
+    let e = collect(|sink| solve(&*erase(SliderCrank), &slider, sink)).unwrap_err();
     assert!(e.contains("at t = 0 s"), "{e}");
     println!("{e}");
+}
+
+/// A sink's error (a full disk under the CSV) stops the solve with that
+/// error, after the samples before it, in both cases (exact inverse
+/// dynamics and servo integration).
+#[test]
+fn an_error_of_the_sink_stops_the_solve() {
+    let motion = |t: f64| [0.1 * t, 0.1, 0.0];
+    let problem = |coordinates: &[&str], actuator: &str| Problem {
+        coordinates: names(coordinates),
+        constraints: vec![],
+        actuators: names(&[actuator]),
+        prescribed: vec![Prescribed {
+            coordinate: 0,
+            motion: &motion,
+        }],
+        guess: vec![0.0, 3.0],
+        dt: 0.01,
+        steps: 1000,
+        free_rates: FreeRates::LeastEnergy,
+    };
+    let mut seen = Vec::new();
+    let mut sink = |s: &Sample<'_>| {
+        seen.push(s.t);
+        match seen.len() {
+            3 => Err(format!("disk full at t = {}", s.t)),
+            _ => Ok(()),
+        }
+    };
+    let e = solve(
+        &*erase(Pendulum::default()),
+        &problem(&["theta"], "tau"),
+        &mut sink,
+    )
+    .unwrap_err();
+    assert_eq!(e, "disk full at t = 0.02");
+    assert_eq!(seen, [0.0, 0.01, 0.02]);
+    seen.clear();
+    let mut sink = |s: &Sample<'_>| {
+        seen.push(s.t);
+        match seen.len() {
+            3 => Err(format!("disk full at t = {}", s.t)),
+            _ => Ok(()),
+        }
+    };
+    let e = solve(
+        &*erase(CartPole),
+        &problem(&["x", "theta"], "force"),
+        &mut sink,
+    )
+    .unwrap_err();
+    assert_eq!(e, "disk full at t = 0.02");
+    assert_eq!(seen, [0.0, 0.01, 0.02]);
 }
 
 const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
@@ -478,11 +563,12 @@ fn hundred_link_chain_with_every_joint_prescribed_gives_m_qdd_plus_h() {
             })
             .collect(),
         guess: vec![0.0; n],
-        times: times(0.2, 0.05),
+        dt: 0.05,
+        steps: 4,
         free_rates: FreeRates::LeastEnergy,
     };
     let dynamic: &dyn DynModel = &model;
-    let out = solve(dynamic, &problem).unwrap();
+    let out = collect(|sink| solve(dynamic, &problem, sink)).unwrap();
     assert_eq!(out.method, Method::Determined);
     assert_eq!(out.t.len(), 5);
     let mut worst = 0.0f64;

@@ -331,8 +331,8 @@ fn bad_input_is_refused_clearly_and_leaves_no_files() {
         &["--input", "f=1", "--pd", "f=1,1", "--target", "x=0"],
         "actuator `f` is given twice",
     );
-    fails(&["--dt", "0"], "--dt must be a positive");
-    fails(&["--dt=-0.1"], "--dt must be a positive");
+    fails(&["--dt", "0"], "--dt: the step must be a positive");
+    fails(&["--dt=-0.1"], "--dt: the step must be a positive");
     fails(&["--integrator", "euler"], "unknown integrator `euler`");
     fails(&["--pd", "f=1,1"], "no target for coordinate `x`");
     let u = write(d, "bad_column.csv", "t,f,g\n0,1,2\n1,1,2\n");

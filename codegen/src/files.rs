@@ -8,7 +8,8 @@
 //! A destination that is not a regular file (a device such as `/dev/null`
 //! or `/dev/stdout`, a FIFO) cannot be replaced: it is written through,
 //! opened as it is, after the run (its temporary copy lives in the system's
-//! temporary directory).
+//! temporary directory), or, for an output streamed as it is produced
+//! ([`OutputFiles::create`]: the rows of a long run), during the run.
 //!
 //! Input files are read up to a size limit ([`read_limited`]), never whole
 //! before their size is known.
@@ -98,6 +99,26 @@ impl OutputFiles {
         write: impl FnOnce(&Path) -> Result<(), String>,
     ) -> Result<(), String> {
         let destination = destination(path)?;
+        let tmp = self.stage(path, destination);
+        write(&tmp).map_err(|e| e.replace(&tmp.display().to_string(), &path.display().to_string()))
+    }
+
+    /// Open the output destined for `path` to be written as it is produced
+    /// (the rows of a long run, never all in memory): a regular file's
+    /// temporary file, moved into place by [`OutputFiles::commit`]; any
+    /// other destination (a device, a FIFO) itself, written through as the
+    /// run goes. Errors name `path`.
+    pub fn create(&mut self, path: &Path) -> Result<fs::File, String> {
+        let fail = |e: std::io::Error| format!("cannot write {}: {e}", path.display());
+        match destination(path)? {
+            Destination::Through(dest) => open_through(&dest).map_err(fail),
+            replace => fs::File::create(self.stage(path, replace)).map_err(fail),
+        }
+    }
+
+    /// The temporary file of the output destined for `path`, registered
+    /// (before it is written, so that a partly written file is removed too).
+    fn stage(&mut self, path: &Path, destination: Destination) -> PathBuf {
         let name = path.file_name().unwrap_or(path.as_os_str());
         let mut tmp_name = OsString::from(format!(
             ".flexdyn-{}-{}-",
@@ -109,13 +130,12 @@ impl OutputFiles {
             Destination::Replace(real) => real.with_file_name(tmp_name),
             Destination::Through(_) => std::env::temp_dir().join(tmp_name),
         };
-        // Registered before writing, so that a partly written file is removed too.
         self.staged.push(Staged {
             tmp: tmp.clone(),
             destination,
             shown: path.to_path_buf(),
         });
-        write(&tmp).map_err(|e| e.replace(&tmp.display().to_string(), &path.display().to_string()))
+        tmp
     }
 
     /// [`OutputFiles::write`] of a text.
@@ -132,12 +152,7 @@ impl OutputFiles {
             if let Destination::Through(dest) = &s.destination {
                 let fail = |e: std::io::Error| format!("cannot write {}: {e}", s.shown.display());
                 let mut from = fs::File::open(&s.tmp).map_err(fail)?;
-                let mut to = OpenOptions::new()
-                    .write(true)
-                    .create(true)
-                    .truncate(true)
-                    .open(dest)
-                    .map_err(fail)?;
+                let mut to = open_through(dest).map_err(fail)?;
                 std::io::copy(&mut from, &mut to).map_err(fail)?;
             }
         }
@@ -149,6 +164,15 @@ impl OutputFiles {
         }
         Ok(())
     }
+}
+
+/// A destination that is not a regular file, opened to be written through.
+fn open_through(dest: &Path) -> std::io::Result<fs::File> {
+    OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(dest)
 }
 
 impl Drop for OutputFiles {
@@ -223,6 +247,38 @@ mod tests {
         assert!(e.contains("no/such.csv") && e.contains("directory"), "{e}");
         let e = check_output(&a.join("x.csv")).unwrap_err();
         assert!(e.to_lowercase().contains("not a directory"), "{e}");
+    }
+
+    #[test]
+    fn streamed_outputs_are_staged_or_written_through() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.csv");
+        let listing = || fs::read_dir(dir.path()).unwrap().count();
+        // A regular file: only its temporary file until the commit.
+        let mut outputs = OutputFiles::default();
+        let mut file = outputs.create(&a).unwrap();
+        file.write_all(b"t\n0\n").unwrap();
+        assert!(!a.exists());
+        assert_eq!(listing(), 1);
+        outputs.commit().unwrap();
+        assert_eq!(fs::read_to_string(&a).unwrap(), "t\n0\n");
+        // Not committed: nothing left, the old file untouched.
+        let mut outputs = OutputFiles::default();
+        outputs.create(&a).unwrap().write_all(b"partial").unwrap();
+        drop(outputs);
+        assert_eq!(listing(), 1);
+        assert_eq!(fs::read_to_string(&a).unwrap(), "t\n0\n");
+        // A device is written through, nothing staged.
+        let mut outputs = OutputFiles::default();
+        outputs
+            .create(Path::new("/dev/null"))
+            .unwrap()
+            .write_all(b"x")
+            .unwrap();
+        assert!(outputs.staged.is_empty());
+        let e = outputs.create(dir.path()).unwrap_err();
+        assert!(e.contains("is a directory"), "{e}");
     }
 
     #[test]

@@ -21,9 +21,11 @@ use std::path::{Path, PathBuf};
 
 use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
-use crate::inverse::{solve, FreeRates, Prescribed, Problem, Solution};
+use crate::inverse::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
+use crate::progress::Progress;
 use crate::spline::Spline;
-use crate::table::{check_output, read_input, OutputFiles, Table};
+use crate::steps::{count, Last, MAX_STEPS};
+use crate::table::{check_output, read_input, CsvWriter, OutputFiles, Table};
 
 /// Inverse dynamics of a scene along prescribed coordinates.
 #[derive(Debug, clap::Args)]
@@ -38,9 +40,13 @@ pub struct Args {
     #[arg(long)]
     pub duration: f64,
     /// Output step, s (also the integration step when free coordinates are
-    /// integrated).
+    /// integrated). At most --max-steps steps of it fit in --duration.
     #[arg(long)]
     pub dt: f64,
+    /// Largest number of output steps (--duration over --dt), refused
+    /// before the run beyond it.
+    #[arg(long, default_value_t = MAX_STEPS)]
+    pub max_steps: u64,
     /// A prescribed coordinate: `NAME=EXPR`, a function of `t` and the
     /// scene's parameters (repeat for each).
     #[arg(long = "prescribe", value_name = "NAME=EXPR")]
@@ -67,11 +73,14 @@ pub struct Args {
     pub free_rates: FreeRates,
     /// Output CSV: `t`, the actuators (an actuator named like a coordinate
     /// as `tau_<name>`), the coordinates, `lambda_<k>` for each constraint
-    /// `k`.
+    /// `k`. Written row by row as the run goes (a regular file appears
+    /// whole when the run succeeds, or not at all; a device or FIFO gets
+    /// the rows as they come).
     #[arg(long)]
     pub csv: PathBuf,
-    /// Nothing on stderr unless it fails, as `simulate --quiet` (the
-    /// command prints no notes of its own).
+    /// Nothing on stderr unless it fails, as `simulate --quiet`: no
+    /// progress (a bar on a terminal, otherwise a line every 5 s, or every
+    /// FLEXDYN_PROGRESS_INTERVAL s).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -79,8 +88,8 @@ pub struct Args {
 /// Run the command on the scenes of `compiled`.
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     check_output(&args.csv)?;
+    let steps = count(args.duration, args.dt, Last::Within, args.max_steps)?;
     let scene = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
-    let times = output_times(args.duration, args.dt)?;
     let prescribed = prescriptions(
         &scene,
         &args.prescribe,
@@ -88,7 +97,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         args.prescriptions.as_deref(),
     )?;
     if let Some(path) = &args.prescriptions {
-        let end = times.last().copied().unwrap_or(0.0);
+        let end = steps as f64 * args.dt;
         for (i, p) in &prescribed {
             if let Prescription::Sampled(spline) = p {
                 let (a, b) = spline.span();
@@ -108,44 +117,39 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         None => scene.coordinates.iter().map(|c| c.initial).collect(),
     };
     let model = compiled.load(&args.scene, &scene.name, args.interpret)?;
+    let coordinates: Vec<String> = scene.coordinates.iter().map(|c| c.name.clone()).collect();
+    let constraints: Vec<String> = scene.constraints.iter().map(|c| c.name.clone()).collect();
+    let actuators: Vec<String> = scene.actuators.iter().map(|a| a.name.clone()).collect();
+    let mut outputs = OutputFiles::default();
+    let columns = Job::columns(&coordinates, &constraints, &actuators);
+    let mut csv = CsvWriter::create(&mut outputs, &args.csv, &columns)?;
+    let mut progress =
+        Progress::new(steps + 1, "inverse", args.quiet).timed(0.0, steps as f64 * args.dt);
+    let mut row = Vec::with_capacity(columns.len());
+    let mut sink = |s: &Sample<'_>| {
+        row.clear();
+        row.push(s.t);
+        row.extend_from_slice(s.tau);
+        row.extend_from_slice(s.q);
+        row.extend_from_slice(s.lambda);
+        progress.inc_to(s.t);
+        csv.row(&row)
+    };
     let job = Job {
-        coordinates: scene.coordinates.iter().map(|c| c.name.clone()).collect(),
-        constraints: scene.constraints.iter().map(|c| c.name.clone()).collect(),
-        actuators: scene.actuators.iter().map(|a| a.name.clone()).collect(),
+        coordinates,
+        constraints,
+        actuators,
         prescribed,
         guess,
-        times,
+        dt: args.dt,
+        steps: usize::try_from(steps).map_err(|_| format!("{steps} steps: too many here"))?,
         free_rates: args.free_rates,
+        sink: &mut sink,
     };
-    let columns = job.columns();
-    let solution = job.solve(model.as_ref())?;
-    let mut table = Table::new(&columns.iter().map(String::as_str).collect::<Vec<_>>());
-    for (k, &t) in solution.t.iter().enumerate() {
-        let mut row = vec![t];
-        row.extend(&solution.tau[k]);
-        row.extend(&solution.q[k]);
-        row.extend(&solution.lambda[k]);
-        table.push(row);
-    }
-    let mut outputs = OutputFiles::default();
-    outputs.write(&args.csv, |path| table.write(path))?;
+    job.solve(model.as_ref())?;
+    progress.finish();
+    csv.finish()?;
     outputs.commit()
-}
-
-/// Output times `0, dt, ..., duration` (the last within rounding).
-pub fn output_times(duration: f64, dt: f64) -> Result<Vec<f64>, String> {
-    if !(dt.is_finite() && dt > 0.0) {
-        return Err(format!(
-            "--dt must be a positive number of seconds, got {dt}"
-        ));
-    }
-    if !(duration.is_finite() && duration >= 0.0) {
-        return Err(format!(
-            "--duration must be a non-negative number of seconds, got {duration}"
-        ));
-    }
-    let steps = (duration / dt * (1.0 + 1e-12)).floor() as usize;
-    Ok((0..=steps).map(|k| k as f64 * dt).collect())
 }
 
 /// A prescribed motion of one coordinate.
@@ -269,28 +273,35 @@ fn initial_guess(path: &Path, nq: usize) -> Result<Vec<f64>, String> {
 }
 
 /// The inverse-dynamics problem of a scene.
-struct Job {
+struct Job<'a> {
     coordinates: Vec<String>,
     constraints: Vec<String>,
     actuators: Vec<String>,
     prescribed: Vec<(usize, Prescription)>,
     guess: Vec<f64>,
-    times: Vec<f64>,
+    dt: f64,
+    steps: usize,
     free_rates: FreeRates,
+    /// Where the rows go.
+    sink: Sink<'a>,
 }
 
-impl Job {
+impl Job<'_> {
     /// The CSV's columns: `t`, the actuators, the coordinates, the multipliers: unique names,
     /// an actuator named like a coordinate or a multiplier (a URDF import
     /// names both after the joint) as `tau_<name>` (prefixed again while
     /// that is taken too).
-    fn columns(&self) -> Vec<String> {
+    fn columns(
+        coordinates: &[String],
+        constraints: &[String],
+        actuators: &[String],
+    ) -> Vec<String> {
         let others: Vec<String> = std::iter::once("t".to_owned())
-            .chain(self.coordinates.iter().cloned())
-            .chain((0..self.constraints.len()).map(|k| format!("lambda_{k}")))
+            .chain(coordinates.iter().cloned())
+            .chain((0..constraints.len()).map(|k| format!("lambda_{k}")))
             .collect();
         let mut columns = vec!["t".to_owned()];
-        for a in &self.actuators {
+        for a in actuators {
             let mut name = a.clone();
             while others.contains(&name) || columns.contains(&name) {
                 name = format!("tau_{name}");
@@ -302,8 +313,8 @@ impl Job {
     }
 }
 
-impl Job {
-    fn solve(self, model: &dyn crate::dynamic::DynModel) -> Result<Solution, String> {
+impl Job<'_> {
+    fn solve(self, model: &dyn crate::dynamic::DynModel) -> Result<Method, String> {
         let motions: Vec<_> = self
             .prescribed
             .iter()
@@ -323,9 +334,10 @@ impl Job {
             constraints: self.constraints,
             actuators: self.actuators,
             guess: self.guess,
-            times: self.times,
+            dt: self.dt,
+            steps: self.steps,
             free_rates: self.free_rates,
         };
-        solve(model, &problem)
+        solve(model, &problem, self.sink)
     }
 }

@@ -27,9 +27,10 @@ use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
 use crate::dynamic::{matrix, vector, DynModel};
 use crate::eval::check_state;
-use crate::plot::{line_plot, Labels, Series};
+use crate::plot::{line_plot, Decimated, Labels, Series, PLOT_ROWS};
 use crate::progress::Progress;
-use crate::table::{check_output, read_input, OutputFiles, Table};
+use crate::steps::{count, Last, MAX_STEPS};
+use crate::table::{check_output, read_input, CsvWriter, OutputFiles, Table};
 
 /// The integrators `--integrator` accepts.
 pub const INTEGRATORS: [&str; 5] = [
@@ -54,7 +55,9 @@ pub struct Args {
     /// Simulated time span, s.
     #[arg(long)]
     pub duration: f64,
-    /// Output step, s; also the step of the fixed-step integrators.
+    /// Output step, s; also the step of the fixed-step integrators. At most
+    /// --max-steps steps of it fit in --duration (the last one shortened to
+    /// end there).
     #[arg(long, default_value_t = 0.01)]
     pub dt: f64,
     /// Initial state as JSON (`{"q": [..], "qd": [..], "t": 0}`); default:
@@ -84,17 +87,28 @@ pub struct Args {
     /// Relative tolerance of adaptive-rk4 (absolute: 1/100 of it).
     #[arg(long, default_value_t = 1e-8)]
     pub tolerance: f64,
-    /// Output CSV.
+    /// Largest number of steps: of --dt in --duration (refused before the
+    /// run), and of adaptive-rk4's accepted steps (the run stops with an
+    /// error naming the time reached).
+    #[arg(long, default_value_t = MAX_STEPS)]
+    pub max_steps: u64,
+    /// Output CSV, written row by row as the run goes (a regular file
+    /// appears whole when the run succeeds, or not at all; a device or FIFO
+    /// gets the rows as they come).
     #[arg(long)]
     pub csv: PathBuf,
-    /// Plot of the chosen columns (`.png` or `.svg`).
+    /// Plot of the chosen columns (`.png` or `.svg`); of a run longer than
+    /// 4096 rows, a plot of evenly spaced rows (every second, fourth, ...:
+    /// at most 4096 and the last; the CSV has them all).
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Columns to plot, comma-separated (default: the coordinates).
     #[arg(long, value_delimiter = ',')]
     pub columns: Vec<String>,
-    /// Nothing on stderr unless it fails: no progress bar, no notes (the
-    /// integrator and its tolerance, the initial state's projection).
+    /// Nothing on stderr unless it fails: no progress (a bar on a terminal,
+    /// otherwise a line every 5 s, or every FLEXDYN_PROGRESS_INTERVAL s),
+    /// no notes (the integrator and its tolerance, the initial state's
+    /// projection).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -148,6 +162,8 @@ struct Setup<'a> {
     state: crate::eval::State,
     duration: f64,
     dt: f64,
+    steps: u64,
+    max_steps: u64,
     integrator: &'a str,
     tolerance: f64,
     quiet: bool,
@@ -155,18 +171,7 @@ struct Setup<'a> {
 
 /// Run the command on the scenes of `compiled`.
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
-    if !(args.dt > 0.0 && args.dt.is_finite()) {
-        return Err(format!(
-            "--dt must be a positive number of seconds, got {}",
-            args.dt
-        ));
-    }
-    if !(args.duration > 0.0 && args.duration.is_finite()) {
-        return Err(format!(
-            "--duration must be positive, got {}",
-            args.duration
-        ));
-    }
+    let steps = count(args.duration, args.dt, Last::Shortened, args.max_steps)?;
     if !INTEGRATORS.contains(&args.integrator.as_str()) {
         return Err(format!(
             "unknown integrator `{}` (integrators: {})",
@@ -206,26 +211,39 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         state,
         duration: args.duration,
         dt: args.dt,
+        steps,
+        max_steps: args.max_steps,
         integrator: &args.integrator,
         tolerance: args.tolerance,
         quiet: args.quiet,
     };
-    let table = setup.run()?;
     let mut outputs = OutputFiles::default();
-    outputs.write(&args.csv, |tmp| table.write(tmp))?;
-    if let Some(plot) = &args.plot {
+    let mut csv = CsvWriter::create(&mut outputs, &args.csv, &columns)?;
+    // The plotted columns (after `t`, column 0) of a bounded copy of the rows.
+    let picked: Vec<usize> = plotted
+        .iter()
+        .filter_map(|c| columns.iter().position(|x| x == c))
+        .collect();
+    let mut kept = args.plot.as_ref().map(|_| Decimated::new(PLOT_ROWS));
+    let mut picked_row = Vec::with_capacity(picked.len() + 1);
+    setup.run(&mut |row| {
+        if let Some(kept) = &mut kept {
+            picked_row.clear();
+            picked_row.push(row[0]);
+            picked_row.extend(picked.iter().map(|&k| row[k]));
+            kept.push(&picked_row);
+        }
+        csv.row(row)
+    })?;
+    csv.finish()?;
+    if let (Some(plot), Some(kept)) = (&args.plot, kept) {
+        let rows = kept.rows();
         let series: Vec<Series> = plotted
             .iter()
-            .map(|c| {
-                let (t, v) = (table.column("t"), table.column(c));
-                Series {
-                    label: c,
-                    points: t
-                        .into_iter()
-                        .flatten()
-                        .zip(v.into_iter().flatten())
-                        .collect(),
-                }
+            .enumerate()
+            .map(|(k, c)| Series {
+                label: c,
+                points: rows.iter().map(|r| (r[0], r[k + 1])).collect(),
             })
             .collect();
         let title = format!("{} ({})", model.name(), args.integrator);
@@ -447,8 +465,9 @@ fn output_columns(model: &dyn DynModel) -> Vec<String> {
 }
 
 impl Setup<'_> {
-    /// The simulation, on the model at its own size.
-    fn run(self) -> Result<Table, String> {
+    /// The simulation, on the model at its own size: its rows to `emit`, as
+    /// they come.
+    fn run(self, emit: Emit<'_>) -> Result<(), String> {
         let model = self.model;
         let (nq, nu) = (Dyn(model.nq()), Dyn(model.nu()));
         let mut state = StateOf::new(
@@ -505,7 +524,11 @@ impl Setup<'_> {
             model,
             duration: self.duration,
             dt: self.dt,
+            steps: self.steps,
+            max_steps: self.max_steps,
+            adaptive: self.integrator == "adaptive-rk4",
             quiet: self.quiet,
+            emit,
         };
         match self.integrator {
             "rk4" => run.go(Rk4::new(settings), &closed, &open, state),
@@ -537,6 +560,9 @@ impl Setup<'_> {
 
 /// A state of a model of run-time size.
 type DynState = StateOf<f64, Dyn>;
+
+/// Where the rows of a run go, as they come; an error stops the run.
+type Emit<'e> = &'e mut dyn FnMut(&[f64]) -> Result<(), String>;
 
 /// Project the initial state onto the constraints, reporting what changed
 /// (unless `quiet`); an error when it cannot be done.
@@ -581,37 +607,43 @@ fn make_consistent(model: &dyn DynModel, state: &mut DynState, quiet: bool) -> R
 }
 
 /// The time loop and its output.
-struct Run<'a> {
+struct Run<'a, 'e> {
     model: &'a dyn DynModel,
     duration: f64,
     dt: f64,
+    /// Steps of `dt` (the last one shortened to end at `duration`).
+    steps: u64,
+    /// Most accepted steps of the adaptive integrator.
+    max_steps: u64,
+    adaptive: bool,
     quiet: bool,
+    emit: Emit<'e>,
 }
 
-impl Run<'_> {
+impl Run<'_, '_> {
     fn go<G, M, I>(
-        &self,
+        self,
         mut integrator: G,
         model: &M,
         input: &I,
         mut state: DynState,
-    ) -> Result<Table, String>
+    ) -> Result<(), String>
     where
         G: IntegratorOf<Dyn, Dyn, Dyn>,
         M: Equations<Dyn, Dyn, Dyn>,
         I: InputOf<Dyn>,
     {
-        let columns = output_columns(self.model);
-        let names: Vec<&str> = columns.iter().map(String::as_str).collect();
-        let mut table = Table::new(&names);
         let t0 = state.t;
-        let steps = (self.duration / self.dt - 1e-9).ceil().max(1.0) as usize;
-        table.push(self.row(&state));
-        let mut progress = Progress::new(steps as u64, "simulate", self.quiet);
-        for k in 1..=steps {
-            let end = (t0 + k as f64 * self.dt).min(t0 + self.duration);
-            let h = end - state.t;
-            integrator.step(model, &mut state, input, h).map_err(|e| {
+        let end = t0 + self.duration;
+        let mut row = Vec::new();
+        self.row(&state, &mut row);
+        (self.emit)(&row)?;
+        let mut progress = Progress::new(self.steps, "simulate", self.quiet).timed(t0, end);
+        let mut taken = 0u64;
+        for k in 1..=self.steps {
+            let to = (t0 + k as f64 * self.dt).min(end);
+            let h = to - state.t;
+            let report = integrator.step(model, &mut state, input, h).map_err(|e| {
                 let hint = match e.kind {
                     ErrorKind::MassMatrixNotPositiveDefinite { pivot, .. } => self
                         .model
@@ -632,22 +664,38 @@ impl Run<'_> {
                     Time(h)
                 )
             })?;
-            state.t = end;
-            table.push(self.row(&state));
-            progress.inc();
+            state.t = to;
+            if self.adaptive {
+                // The report counts the accepted substeps.
+                taken += u64::from(report.iterations);
+                if taken > self.max_steps {
+                    return Err(format!(
+                        "adaptive-rk4 took {taken} steps to reach t = {} s of {} s, more than \
+                         --max-steps {}; `--max-steps N` raises the limit (a larger --tolerance \
+                         takes fewer steps)",
+                        Time(state.t),
+                        Time(end),
+                        self.max_steps
+                    ));
+                }
+            }
+            self.row(&state, &mut row);
+            (self.emit)(&row)?;
+            progress.inc_to(state.t);
         }
         progress.finish();
-        Ok(table)
+        Ok(())
     }
 
-    fn row(&self, s: &DynState) -> Vec<f64> {
+    /// The output row of `s` into `row`.
+    fn row(&self, s: &DynState, row: &mut Vec<f64>) {
         let (q, qd) = (s.q.as_slice(), s.qd.as_slice());
-        let mut row = vec![s.t];
+        row.clear();
+        row.push(s.t);
         row.extend_from_slice(q);
         row.extend_from_slice(qd);
         row.push(self.model.kinetic_energy(q, qd, s.t));
         row.push(self.model.potential_energy(q, s.t));
         row.push(vector(self.model.nc(), |o| self.model.constraints(q, s.t, o)).norm());
-        row
     }
 }

@@ -7,7 +7,13 @@ use std::process::Command;
 
 /// Runs the binary with `args`: its exit status and standard error.
 pub fn run(args: &[&str]) -> (Option<i32>, String) {
-    let out = Command::new(super::BIN)
+    run_with(Command::new(super::BIN), args)
+}
+
+/// Runs `command` (the binary, with limits or an environment of its own)
+/// with `args`: its exit status and standard error.
+pub fn run_with(mut command: Command, args: &[&str]) -> (Option<i32>, String) {
+    let out = command
         .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
@@ -21,7 +27,18 @@ pub fn run(args: &[&str]) -> (Option<i32>, String) {
 /// Runs `args`, expecting failure with `needle` in the error and no file
 /// left in `dir` besides those listed in `keep`.
 pub fn refused(dir: &Path, keep: &[&str], args: &[&str], needle: &str) {
-    let (code, err) = run(args);
+    refused_by(run(args), dir, keep, args, needle);
+}
+
+/// [`refused`] on the exit status and standard error of a run of `args`
+/// (by [`run`] or [`run_with`]).
+pub fn refused_by(
+    (code, err): (Option<i32>, String),
+    dir: &Path,
+    keep: &[&str],
+    args: &[&str],
+    needle: &str,
+) {
     assert_eq!(code, Some(1), "{args:?} should fail with status 1: {err}");
     assert!(
         err.starts_with("error: ") && err.contains(needle),

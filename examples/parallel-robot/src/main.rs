@@ -47,6 +47,9 @@ enum Command {
         /// Output step, s.
         #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
         dt: f64,
+        /// Largest number of steps of --dt in --duration (refused beyond).
+        #[arg(long, default_value_t = flexdyn::steps::MAX_STEPS)]
+        max_steps: u64,
         /// Radius of the circle, m.
         #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
         radius: f64,
@@ -104,6 +107,9 @@ enum Command {
         /// Integration step, s.
         #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
         dt: f64,
+        /// Largest number of steps of --dt in --duration (refused beyond).
+        #[arg(long, default_value_t = flexdyn::steps::MAX_STEPS)]
+        max_steps: u64,
         /// Output step, s (a multiple of --dt).
         #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
         output_dt: f64,
@@ -160,6 +166,7 @@ fn main() -> ExitCode {
             omega,
             duration,
             dt,
+            max_steps,
             radius,
             center,
             csv,
@@ -175,8 +182,7 @@ fn main() -> ExitCode {
             inverse(
                 &scene,
                 &circle,
-                duration,
-                dt,
+                (duration, dt, max_steps),
                 &InverseOutputs { csv, plot, states },
                 quiet,
             )
@@ -190,6 +196,7 @@ fn main() -> ExitCode {
             kp,
             kd,
             dt,
+            max_steps,
             output_dt,
             duration,
             integrator,
@@ -203,6 +210,7 @@ fn main() -> ExitCode {
             kp,
             kd,
             dt,
+            max_steps,
             output_dt,
             duration,
             integrator,
@@ -235,11 +243,11 @@ struct InverseOutputs {
     states: Option<PathBuf>,
 }
 
+/// `(duration, dt, max_steps)`: the run's span, step and step limit.
 fn inverse(
     scene: &Path,
     circle: &robot_crate::robot::Circle,
-    duration: f64,
-    dt: f64,
+    (duration, dt, max_steps): (f64, f64, u64),
     files: &InverseOutputs,
     quiet: bool,
 ) -> Result<(), String> {
@@ -248,7 +256,7 @@ fn inverse(
     if !(circle.omega.is_finite() && circle.radius.is_finite() && circle.radius >= 0.0) {
         return Err("--omega must be finite and --radius finite and non-negative".into());
     }
-    let times = output_times(duration, dt)?;
+    let times = output_times(duration, dt, max_steps)?;
     let mut progress =
         flexdyn::progress::Progress::new(times.len() as u64, "inverse dynamics", quiet);
     let solutions = robot_crate::with_robot_model!(parsed.name.as_str(), model => {
@@ -337,6 +345,7 @@ struct SimulateArgs {
     kp: Option<f64>,
     kd: Option<f64>,
     dt: f64,
+    max_steps: u64,
     output_dt: f64,
     duration: Option<f64>,
     integrator: Option<robot_crate::robot::Scheme>,
@@ -344,7 +353,8 @@ struct SimulateArgs {
 }
 
 fn simulate(a: &SimulateArgs) -> Result<(), String> {
-    use robot_crate::robot::{output_times, simulate_rows, PdSettings, Scheme, TorqueTable};
+    use flexdyn::steps::{count, Last};
+    use robot_crate::robot::{simulate_rows, PdSettings, Scheme, TorqueTable};
     let (parsed, geometry) = robot_scene(&a.scene, "simulate")?;
     let flexible = parsed.nq() > 12;
     let table = flexdyn::table::Table::read(&a.torques)?;
@@ -398,7 +408,8 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
             a.output_dt
         ));
     }
-    let steps = output_times(duration, a.dt)?.len() - 1;
+    let steps = usize::try_from(count(duration, a.dt, Last::Within, a.max_steps)?)
+        .map_err(|_| "too many steps for this machine".to_string())?;
     let ratio = a.output_dt / a.dt;
     if (ratio - ratio.round()).abs() > 1e-9 * ratio || ratio.round() < 1.0 {
         return Err(format!(

@@ -305,6 +305,7 @@ impl Study {
         let times = output_times(
             settings.duration + settings.grid,
             settings.forward_reference,
+            flexdyn::steps::MAX_STEPS,
         )?;
         let rows = crate::with_robot_model!("parallel_robot_rigid", m => {
             inverse_rows(&m, &geometry, &circle, &times, &mut || {})
@@ -340,7 +341,7 @@ impl Study {
         dt: f64,
     ) -> Result<(Vec<[f64; 3]>, f64), String> {
         let s = &self.settings;
-        let steps = output_times(s.duration, dt)?.len() - 1;
+        let steps = output_times(s.duration, dt, flexdyn::steps::MAX_STEPS)?.len() - 1;
         let every = every(s.grid, dt)?;
         let [p, v, _] = self.circle.at(0.0);
         let start = Instant::now();
@@ -363,7 +364,7 @@ impl Study {
     /// wall time, s.
     pub fn inverse(&self, scene: &str, dt: f64) -> Result<(Vec<[f64; 3]>, f64), String> {
         let s = &self.settings;
-        let times = output_times(s.duration, dt)?;
+        let times = output_times(s.duration, dt, flexdyn::steps::MAX_STEPS)?;
         let every = every(s.grid, dt)?;
         let start = Instant::now();
         let rows = crate::with_robot_model!(scene, m => {

@@ -223,25 +223,12 @@ impl Circle {
 }
 
 /// Output times `0, dt, 2 dt, ...` up to `duration` (inclusive, to rounding),
-/// after checking that the request is sensible.
-pub fn output_times(duration: f64, dt: f64) -> Result<Vec<f64>, String> {
-    if !(dt.is_finite() && dt > 0.0) {
-        return Err(format!(
-            "the step must be a positive number of seconds, got {dt}"
-        ));
-    }
-    if !(duration.is_finite() && duration >= 0.0) {
-        return Err(format!(
-            "the duration must be a non-negative number of seconds, got {duration}"
-        ));
-    }
-    let steps = (duration / dt + 1e-9).floor();
-    if steps > 1e7 {
-        return Err(format!(
-            "{duration} s at a step of {dt:e} s is {steps:.3e} steps; at most 10^7 are allowed"
-        ));
-    }
-    Ok((0..=steps as usize).map(|k| k as f64 * dt).collect())
+/// after checking that the request is sensible: at most `max_steps` steps
+/// ([`flexdyn::steps::count`], whose errors name `--dt`, `--duration` and
+/// `--max-steps`).
+pub fn output_times(duration: f64, dt: f64, max_steps: u64) -> Result<Vec<f64>, String> {
+    let steps = flexdyn::steps::count(duration, dt, flexdyn::steps::Last::Within, max_steps)?;
+    Ok((0..=steps).map(|k| k as f64 * dt).collect())
 }
 
 /// Solution of the rigid robot's inverse dynamics at one time.

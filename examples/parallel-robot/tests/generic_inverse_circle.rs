@@ -42,6 +42,7 @@ fn generic(
         interpret: false,
         duration,
         dt,
+        max_steps: flexdyn::steps::MAX_STEPS,
         prescribe: vec![],
         motion: Some(here("motions/circle.toml")),
         prescriptions: None,

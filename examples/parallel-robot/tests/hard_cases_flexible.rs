@@ -649,7 +649,10 @@ fn flexible_robot_at_10_rad_per_s() {
         reference: table_of(rigid, |r| r.th),
     };
     let [p, v, _] = circle.at(0.0);
-    let steps = output_times(rigid.last().unwrap().t, 0.005).unwrap().len() - 1;
+    let steps = output_times(rigid.last().unwrap().t, 0.005, flexdyn::steps::MAX_STEPS)
+        .unwrap()
+        .len()
+        - 1;
     let forward = |tau: &TorqueTable| {
         let rows = simulate_rows(
             &model,
@@ -686,7 +689,7 @@ fn flexible_robot_at_10_rad_per_s() {
         center: [-0.7, 0.0, 0.7],
         ..circle
     };
-    let times = output_times(1.0, 0.005).unwrap();
+    let times = output_times(1.0, 0.005, flexdyn::steps::MAX_STEPS).unwrap();
     let t_ik = *times
         .iter()
         .find(|&&t| {

@@ -412,7 +412,7 @@ where
 #[test]
 fn servo_inverse_dynamics_of_the_rigid_scene_is_the_rigid_inverse_dynamics() {
     // The servo path run on the rigid scene must give its algebraic torques.
-    let times = output_times(0.5, DT).unwrap();
+    let times = output_times(0.5, DT, flexdyn::steps::MAX_STEPS).unwrap();
     let layout = Layout::of(&ParallelRobotRigid).unwrap();
     let samples = flexible_inverse(
         &ParallelRobotRigid,
@@ -442,7 +442,7 @@ fn flexible_torques_track_the_circle_open_loop_better_than_rigid_ones() {
     // against the rigid model's torques replayed the same way. The open-loop
     // robot is unstable (a few mm of error grow to metres within seconds), so
     // both are measured over the first 0.5 s.
-    let times = output_times(0.5, DT).unwrap();
+    let times = output_times(0.5, DT, flexdyn::steps::MAX_STEPS).unwrap();
     let model = ParallelRobotFlexible::default();
     let layout = Layout::of(&model).unwrap();
     let circle = Circle::paper(2.0);
@@ -530,7 +530,7 @@ fn stiffer_links_converge_to_the_rigid_robot() {
     // than with the nominal links.
     // The rigid reference through the same servo path, so that its
     // integration error (about 1e-4 N m) cancels.
-    let times = output_times(0.5, DT).unwrap();
+    let times = output_times(0.5, DT, flexdyn::steps::MAX_STEPS).unwrap();
     let rigid = servo_torques(&ParallelRobotRigid, 2.0, &times).0;
     let text = scene_text("parallel_robot_flexible_links");
     assert!(text.contains("E3 = 2.07e11"));
@@ -588,7 +588,7 @@ fn stiffer_joints_converge_to_the_rigid_robot_carrying_the_joint_members() {
     // evaluated by the tape (the members' rotor inertias, below 2e-5 kg m^2,
     // are left out of the reference). Both through the same servo path, so
     // that its integration error (about 1e-4 N m) cancels.
-    let times = output_times(0.5, DT).unwrap();
+    let times = output_times(0.5, DT, flexdyn::steps::MAX_STEPS).unwrap();
     let mut text = scene_text("parallel_robot_rigid");
     assert!(text.contains("mp = 2.6 "));
     // Three members at p_i move with the translating platform.
@@ -713,7 +713,7 @@ fn explicit_rk4_is_reported_unstable_and_the_implicit_scheme_is_not() {
     let circle = Circle::paper(2.0);
     let [p, v, _] = circle.at(0.0);
     let start = initial_state(&model, &layout, &geometry(), 0.0, p, v).unwrap();
-    let times = output_times(5.0, DT).unwrap();
+    let times = output_times(5.0, DT, flexdyn::steps::MAX_STEPS).unwrap();
     let tau = table(&times, &rigid_torques(2.0, &times));
     // The runtime's own error, not NaN output.
     let mut rk4 = Rk4::new(StepSettings::default());
