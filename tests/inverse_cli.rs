@@ -1,4 +1,4 @@
-//! `flexdyn::inverse` on compiled-in scenes against independent references:
+//! `flexdyn::prescribed_motion` on compiled-in scenes against independent references:
 //! the pendulum's closed-form torque, the slider-crank's closed-form
 //! kinematics and its power balance, the cart-pole's free pole integrated
 //! under the servo against an independent integration of its equation,
@@ -11,7 +11,7 @@ use flexdyn::runtime::nalgebra::{DMatrix, DVector};
 
 #[path = "common/large_scenes.rs"]
 mod large_scenes;
-use flexdyn::inverse::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
+use flexdyn::prescribed_motion::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
 use flexdyn::runtime::nalgebra::SVector;
 use flexdyn::runtime::Model;
 use flexdyn::scenes::{cart_pole::CartPole, pendulum::Pendulum, slider_crank::SliderCrank};

@@ -1,6 +1,6 @@
 //! `flexdyn inverse`: the actuator inputs, constraint forces and coordinates
 //! of any scene along a prescribed motion of some of its coordinates
-//! ([`crate::inverse`] has the method). Prescriptions are functions of `t`
+//! ([`crate::prescribed_motion`] has the method). Prescriptions are functions of `t`
 //! in the scene's expression grammar ([`crate::codegen::TimeFunction`]),
 //! given as `--prescribe NAME=EXPR` or in a motion file:
 //!
@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 
 use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
-use crate::inverse::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
+use crate::prescribed_motion::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
 use crate::progress::Progress;
 use crate::spline::Spline;
 use crate::steps::{count, Last, MAX_STEPS};

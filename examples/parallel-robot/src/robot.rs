@@ -1023,7 +1023,7 @@ impl Layout {
 /// not start by releasing the undeformed structure under load. Rates: the
 /// platform's `v`, and those the velocity constraints need on the first
 /// coordinates in the scene's order whose constraint columns are independent
-/// ([`flexdyn::inverse::needed_velocities`], as `flexdyn inverse
+/// ([`flexdyn::prescribed_motion::needed_velocities`], as `flexdyn inverse
 /// --free-rates zero`): the joint rates and the platform's rotation rates
 /// (the robot scenes list them before the elastic coordinates); the elastic
 /// rates are zero. Checked to satisfy the position and velocity constraints
@@ -1052,7 +1052,7 @@ where
     let mut phi_t = SVector::<f64, NC>::zeros();
     model.constraint_jacobian(&q, t, &mut phi_q);
     model.constraint_time_derivative(&q, t, &mut phi_t);
-    let qd = flexdyn::inverse::needed_velocities(&phi_q, &phi_t, &layout.platform, &v, t)
+    let qd = flexdyn::prescribed_motion::needed_velocities(&phi_q, &phi_t, &layout.platform, &v, t)
         .map_err(|e| format!("initial state: {e}"))?;
     let state = flexdyn_runtime::State::new(q, qd, t);
     let drift = flexdyn_runtime::constraint_drift(model, &state);

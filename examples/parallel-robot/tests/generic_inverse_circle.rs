@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use flexdyn::cli::inverse::{run, Args};
 use flexdyn::compiled::Compiled;
-use flexdyn::inverse::FreeRates;
+use flexdyn::prescribed_motion::FreeRates;
 use flexdyn::table::Table;
 use flexdyn_parallel_robot::robot::{inverse_rows, Circle, Geometry};
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible::ParallelRobotFlexible;
