@@ -4,8 +4,9 @@
 //! stack-probe loop (`mov r11, rsp; sub r11, SIZE; ...`) after code that
 //! already holds a live value in `r11`, the probe loop overwrites it.
 //!
-//! The test disassembles its own executable (which holds every padded
-//! instance of the runtime's solvers, through `flexdyn inverse`) with
+//! The test disassembles its own executable (which holds the flexible
+//! robot's fixed-size instances of the runtime's solvers, through the
+//! example's study, and the command line's run-time-size ones) with
 //! `objdump` and fails on any function where such a probe loop follows a
 //! write of `r11` and `r11` is read after the loop before being written
 //! again. `FLEXDYN_SCAN_BINARY` scans another executable instead (e.g. a
@@ -68,7 +69,14 @@ fn no_stack_probe_overwrites_a_live_r11() {
     let binary = std::env::var_os("FLEXDYN_SCAN_BINARY")
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| std::env::current_exe().unwrap());
-    // Keep the padded inverse-dynamics path in this executable.
+    // Keep the robot's fixed-size solvers (the flexible robot's 39
+    // coordinates: frames of tens of KiB, with inline stack probes) and the
+    // generic inverse command in this executable.
+    type Study = fn(
+        &flexdyn_parallel_robot::report::Study,
+        &mut dyn FnMut(&str),
+    ) -> Result<flexdyn_parallel_robot::report::Results, String>;
+    std::hint::black_box(flexdyn_parallel_robot::report::run as Study);
     type Run = fn(&flexdyn::cli::inverse::Args, &flexdyn::compiled::Compiled) -> Result<(), String>;
     std::hint::black_box(flexdyn::cli::inverse::run as Run);
     let out = Command::new("objdump")
