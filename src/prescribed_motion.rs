@@ -39,6 +39,8 @@ use flexdyn_runtime::{
     InverseDynamicsOf, InverseSolutionOf, StateOf,
 };
 
+use std::ops::ControlFlow;
+
 use crate::dynamic::DynModel;
 
 /// A motion `t -> [p, p', p'']`.
@@ -336,18 +338,20 @@ impl Job<'_> {
                 // The output times exactly (the state's time sums the steps).
                 let t = k.min(problem.steps) as f64 * dt;
                 k += 1;
-                if failed.is_none() {
-                    failed = match servo.solve::<Dyn, Dyn, Dyn>(&s.state.q, &s.state.qd, s.state.t)
-                    {
-                        Ok(x) => sink(&Sample {
-                            t,
-                            tau: s.tau.as_slice(),
-                            q: s.state.q.as_slice(),
-                            lambda: x.lambda.as_slice(),
-                        })
-                        .err(),
-                        Err(e) => Some((self.rank_error)(e)),
-                    };
+                failed = match servo.solve::<Dyn, Dyn, Dyn>(&s.state.q, &s.state.qd, s.state.t) {
+                    Ok(x) => sink(&Sample {
+                        t,
+                        tau: s.tau.as_slice(),
+                        q: s.state.q.as_slice(),
+                        lambda: x.lambda.as_slice(),
+                    })
+                    .err(),
+                    Err(e) => Some((self.rank_error)(e)),
+                };
+                // The first failure stops the run.
+                match failed {
+                    Some(_) => ControlFlow::Break(()),
+                    None => ControlFlow::Continue(()),
                 }
             },
         )

@@ -233,7 +233,11 @@ fn control_loops_allocate_nothing() {
     let mut g = GeneralizedAlpha::<6, 4>::new(settings, GeneralizedAlphaConfig::default());
     let mut samples = 0;
     let n = allocations_in(|| {
-        servo_run(&servo, &mut g, &mut s, 2e-3, 500, |_| samples += 1).expect("servo run");
+        servo_run(&servo, &mut g, &mut s, 2e-3, 500, |_| {
+            samples += 1;
+            core::ops::ControlFlow::Continue(())
+        })
+        .expect("servo run");
         let bad = V::<6>::from_element(f64::NAN);
         assert!(servo.solve(&bad, &bad, 0.0).is_err());
     });

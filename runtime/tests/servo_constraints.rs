@@ -7,6 +7,7 @@
 
 mod models;
 
+use core::ops::ControlFlow;
 use flexdyn_runtime::control::{
     servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, Target, Trajectory,
 };
@@ -94,6 +95,27 @@ fn pendulum_servo_torque_is_the_closed_form_inverse_dynamics() {
 }
 
 #[test]
+fn servo_run_stops_when_the_record_says_so() {
+    let p = pendulum();
+    let servo = Servo::new(&p, Coordinates([0]), swing, ServoConfig::default()).expect("servo");
+    let d = swing(0.0);
+    let mut state = State::new(d.position, d.velocity, 0.0);
+    let mut integrator = GeneralizedAlpha::<1, 0>::default();
+    let mut samples = 0;
+    let summary = servo_run(&servo, &mut integrator, &mut state, 1e-3, 2000, |_| {
+        samples += 1;
+        match samples {
+            10 => ControlFlow::Break(()),
+            _ => ControlFlow::Continue(()),
+        }
+    })
+    .expect("servo run");
+    // The start and nine steps recorded; the run ends with the tenth sample.
+    assert_eq!((summary.steps, samples), (9, 10));
+    assert!(close(state.t, 9e-3, 1e-12), "{}", state.t);
+}
+
+#[test]
 fn pendulum_servo_run_follows_the_path_with_the_closed_form_torque() {
     let p = pendulum();
     let servo = Servo::new(&p, Coordinates([0]), swing, ServoConfig::default()).expect("servo");
@@ -107,6 +129,7 @@ fn pendulum_servo_run_follows_the_path_with_the_closed_form_torque() {
         let expected = pendulum_torque(&p, d.position[0], d.velocity[0], d.acceleration[0]);
         torque_error = torque_error.max((s.tau[0] - expected).abs());
         samples += 1;
+        ControlFlow::Continue(())
     })
     .expect("servo run");
     println!("pendulum: path error {path_error:.3e} rad, torque error {torque_error:.3e} N m");
@@ -259,7 +282,8 @@ fn rigid_servo_run_reproduces_the_rigid_inverse_dynamics() {
         GeneralizedAlpha::<3, 2>::new(StepSettings::with_projection(), Default::default());
     let mut samples: Vec<ServoSample<3, 1>> = Vec::new();
     servo_run(&servo, &mut integrator, &mut state, 2e-3, 1000, |s| {
-        samples.push(*s)
+        samples.push(*s);
+        ControlFlow::Continue(())
     })
     .expect("servo run");
     let (mut torque_error, mut path_error, mut scale) = (0.0f64, 0.0f64, 0.0f64);
@@ -362,6 +386,7 @@ fn parallel_robot_platform_servo_matches_the_rigid_inverse_dynamics() {
             .solve(&reference.q, &reference.qd, reference.t)
             .expect("servo solve");
         at_state = at_state.max((sol.tau - reference.tau).amax());
+        ControlFlow::Continue(())
     })
     .expect("servo run");
     println!("five-bar: torque error {along:.3e} along the run, {at_state:.3e} at the same states, of {scale:.3e} N m");
@@ -455,6 +480,7 @@ fn arm_errors(integrator: &mut (impl flexdyn_runtime::Integrator<2, 0, 1> + Clon
         r_error = r_error.max((s.state.q[1] - r).abs());
         tau_error = tau_error.max((s.tau[0] - tau).abs());
         k += 1;
+        ControlFlow::Continue(())
     })
     .expect("servo run");
     assert_eq!(k, steps + 1);
@@ -566,6 +592,7 @@ fn constrained_mechanism_with_an_unprescribed_absorber() {
         tau_error = tau_error.max((s.tau[0] - exact.tau[0]).abs());
         scale = scale.max(exact.tau[0].abs());
         k += 1;
+        ControlFlow::Continue(())
     })
     .expect("servo run");
     println!(
@@ -728,7 +755,10 @@ fn servo_run_reports_the_servo_failure_inside_a_step() {
         &mut state,
         1e-2,
         200,
-        |s| last = Some(*s),
+        |s| {
+            last = Some(*s);
+            ControlFlow::Continue(())
+        },
     ));
     assert!(
         matches!(e.kind, ErrorKind::SingularServo { condition, limit } if condition > 20.0 && limit == 20.0),
@@ -762,7 +792,7 @@ fn non_finite_path_is_reported_as_such_through_the_integrator() {
         &mut state,
         1e-3,
         10,
-        |_| {},
+        |_| ControlFlow::Continue(()),
     ));
     assert_eq!(
         e.kind,

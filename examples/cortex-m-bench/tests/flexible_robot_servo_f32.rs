@@ -78,7 +78,8 @@ fn servo_inverse<T: Scalar, M: Model<39, NC, 3, T>, const NC: usize>(
     let mut state = start;
     let mut samples = Vec::with_capacity(steps + 1);
     let result = servo_run(&servo, &mut integrator, &mut state, T::of(dt), steps, |s| {
-        samples.push(*s)
+        samples.push(*s);
+        std::ops::ControlFlow::Continue(())
     });
     (samples, result.map(|_| ()))
 }

@@ -490,6 +490,7 @@ where
     servo_run(&servo, &mut integ, &mut state, dt, times.len() - 1, |s| {
         out.push(*s);
         tick();
+        std::ops::ControlFlow::Continue(())
     })
     .map_err(|e| e.to_string())?;
     Ok(out)

@@ -62,6 +62,7 @@ use crate::scalar::Scalar;
 use crate::state::{Drift, StateOf};
 use core::cell::Cell;
 use core::marker::PhantomData;
+use core::ops::ControlFlow;
 use nalgebra::allocator::Allocator;
 #[cfg(feature = "alloc")]
 use nalgebra::Dyn;
@@ -662,6 +663,10 @@ pub struct ServoSummary<T: Scalar = f64> {
 /// [`ServoConfig::trial_projection`] off, the trial step is taken without
 /// the integrator's coordinate projection.
 ///
+/// `record` returns whether to go on: [`ControlFlow::Break`] stops the run
+/// after that sample (the summary counts the steps taken), e.g. when the
+/// caller cannot store the sample.
+///
 /// Stops at the first error (the state is then the last one recorded): a
 /// failure of the servo solve inside the trial step is returned as such
 /// (e.g. [`ErrorKind::SingularServo`]), not as the non-finite bias forces
@@ -679,7 +684,7 @@ where
     O: Outputs<Q, N, T>,
     P: Trajectory<N, T>,
     G: IntegratorOf<Q, C, U, T> + Clone,
-    F: FnMut(&ServoSampleOf<T, Q, U>),
+    F: FnMut(&ServoSampleOf<T, Q, U>) -> ControlFlow<()>,
     Servo<'a, M, O, P, N, T>: Equations<Q, C, U, T>,
     DefaultAllocator: PrescribedSizes<Q, C, U, N>,
 {
@@ -693,7 +698,9 @@ where
         max_condition: first.condition,
         ..ServoSummary::default()
     };
-    record(&sample);
+    if record(&sample).is_break() {
+        return Ok(summary);
+    }
     let zero = OVector::<T, U>::zeros_generic(sample.tau.shape_generic().0, U1);
     for _ in 0..steps {
         servo.take_failure();
@@ -721,7 +728,9 @@ where
             state: state.clone(),
             tau: input.tau1,
         };
-        record(&sample);
+        if record(&sample).is_break() {
+            break;
+        }
     }
     Ok(summary)
 }

@@ -121,7 +121,8 @@ pub fn control(steps: usize) -> Result<([State<2>; 2], f64), Error> {
     let servo = Servo::new(&model, Coordinates([0]), hold(0.6), ServoConfig::default())?;
     let mut last = 0.0;
     servo_run(&servo, &mut Rk4::new(settings), &mut out[1], 1e-3, steps, |s| {
-        last = s.tau[0]
+        last = s.tau[0];
+        core::ops::ControlFlow::Continue(())
     })?;
     Ok((out, last))
 }
