@@ -495,3 +495,38 @@ fn sixty_mode_beam_balances_energy_and_work() {
         "energy gained {gained:e} vs work {work:e}"
     );
 }
+
+/// A pendulum released at 0.4 rad with a declared `range` of [-0.3, 0.5]:
+/// `simulate` warns once, when the swing leaves it near the closed-form
+/// time of the small-amplitude motion (`0.4 cos(w t) = -0.3`, t = 0.546 s
+/// for `w = sqrt(g / l)`), and says nothing with `--quiet`.
+#[test]
+fn leaving_a_declared_range_is_warned_once_with_the_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scene("pendulum")).unwrap().replace(
+        "range = [-3.14159, 3.14159]",
+        "range = [-0.3, 0.5]\ninitial = 0.4",
+    );
+    let path = write(dir.path(), "pendulum.toml", &text);
+    let args = ["--scene", path.to_str().unwrap(), "--duration", "3"];
+    let (_, notes) = simulate_noted(dir.path(), &args).unwrap();
+    let warnings: Vec<&str> = notes
+        .lines()
+        .filter(|l| l.contains("left its declared range"))
+        .collect();
+    assert_eq!(warnings.len(), 1, "{notes}");
+    let t: f64 = warnings[0]
+        .split("at t = ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|x| x.parse().ok())
+        .unwrap();
+    let w = (9.81f64 / 0.5).sqrt();
+    let expected = (-0.75f64).acos() / w;
+    assert!(
+        t >= expected && t < expected + 0.03,
+        "{t} vs {expected}: {notes}"
+    );
+    let (_, quiet) = simulate(dir.path(), &args).unwrap();
+    assert!(quiet.is_empty(), "{quiet}");
+}

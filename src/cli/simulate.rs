@@ -226,7 +226,9 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         .collect();
     let mut kept = args.plot.as_ref().map(|_| Decimated::new(PLOT_ROWS));
     let mut picked_row = Vec::with_capacity(picked.len() + 1);
+    let mut ranges = RangeWatch::new(&parsed, args.quiet);
     setup.run(&mut |row| {
+        ranges.check(row);
         if let Some(kept) = &mut kept {
             picked_row.clear();
             picked_row.push(row[0]);
@@ -553,6 +555,54 @@ impl Setup<'_> {
                 let mut g = AdaptiveRk4::new(self.tolerance, atol);
                 g.settings = settings;
                 run.go(g, &closed, &open, state)
+            }
+        }
+    }
+}
+
+/// Warns on stderr (unless quiet) the first time each coordinate, or its
+/// rate, leaves the `range` (`velocity_range`) the scene declares for it:
+/// where the model is meant to hold (a diverging motion, a linear model
+/// taken beyond its validity). Once per coordinate and kind, with the time.
+struct RangeWatch {
+    /// The checks not yet warned of.
+    checks: Vec<Option<RangeCheck>>,
+}
+
+/// One declared range: the row column, the coordinate's name, which range,
+/// its bounds.
+type RangeCheck = (usize, String, &'static str, [f64; 2]);
+
+impl RangeWatch {
+    /// The declared ranges of `scene`'s coordinates (none when `quiet`), for
+    /// rows laid out as `t`, the coordinates, their rates.
+    fn new(scene: &crate::codegen::Model, quiet: bool) -> RangeWatch {
+        let n = scene.coordinates.len();
+        let mut checks = Vec::new();
+        for (i, c) in scene.coordinates.iter().enumerate().filter(|_| !quiet) {
+            if let Some(r) = c.range {
+                checks.push(Some((1 + i, c.name.clone(), "range", r)));
+            }
+            if let Some(r) = c.velocity_range {
+                checks.push(Some((1 + n + i, c.name.clone(), "velocity_range", r)));
+            }
+        }
+        RangeWatch { checks }
+    }
+
+    /// Checks one output row.
+    fn check(&mut self, row: &[f64]) {
+        for slot in &mut self.checks {
+            if let Some((k, name, what, [lo, hi])) = slot {
+                let x = row[*k];
+                if !(x >= *lo && x <= *hi) {
+                    eprintln!(
+                        "warning: `{name}` left its declared {what} [{lo}, {hi}] at t = {} s \
+                         (value {x:e}): the scene's model is meant to hold inside it",
+                        Time(row[0])
+                    );
+                    *slot = None;
+                }
             }
         }
     }
