@@ -172,13 +172,15 @@ pub fn solve(
     }
     let index: Vec<usize> = problem.prescribed.iter().map(|p| p.coordinate).collect();
     let target = |t: f64| {
-        let values: Vec<[f64; 3]> = problem.prescribed.iter().map(|p| (p.motion)(t)).collect();
-        let column = |k: usize| DVector::from_iterator(np, values.iter().map(|x| x[k]));
-        TargetOf {
-            position: column(0),
-            velocity: column(1),
-            acceleration: column(2),
+        let mut x = TargetOf {
+            position: DVector::zeros(np),
+            velocity: DVector::zeros(np),
+            acceleration: DVector::zeros(np),
+        };
+        for (k, p) in problem.prescribed.iter().enumerate() {
+            [x.position[k], x.velocity[k], x.acceleration[k]] = (p.motion)(t);
         }
+        x
     };
     let guess = DVector::from_fn(nq, |i, _| problem.guess.get(i).copied().unwrap_or(0.0));
     let rank_error = |e: flexdyn_runtime::Error| {

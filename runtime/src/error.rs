@@ -376,6 +376,11 @@ impl Error {
     }
 }
 
+/// [`ErrorKind::InvalidConfiguration`] at time 0 (a set-up error).
+pub(crate) fn invalid_configuration(reason: &'static str) -> Error {
+    Error::new(ErrorKind::InvalidConfiguration { reason }, 0.0)
+}
+
 /// Checks that every entry of `indices` is below `len` and, if `distinct`,
 /// that none repeats an earlier one ([`ErrorKind::InvalidIndex`] naming the
 /// first offender).

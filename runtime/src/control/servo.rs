@@ -52,7 +52,7 @@
 use super::feedback::subtract_input;
 use super::{TargetOf, Trajectory};
 use crate::dynamics::{stabilised_rhs, Baumgarte, DynamicsConfig, Kkt};
-use crate::error::{check_indices, Error, ErrorKind, Quantity};
+use crate::error::{check_indices, invalid_configuration, Error, ErrorKind, Quantity};
 use crate::eval::{self, Terms};
 use crate::input::LinearOf;
 use crate::integrate::IntegratorOf;
@@ -115,7 +115,7 @@ where
     /// [`ErrorKind::InvalidConfiguration`] if `N` is fixed to another number.
     fn validate(&self, nq: usize) -> Result<(), Error> {
         if N::try_to_usize().is_some_and(|n| n != self.0.as_ref().len()) {
-            return Err(invalid(
+            return Err(invalid_configuration(
                 "servo: the number of prescribed coordinates differs from the outputs' size",
             ));
         }
@@ -248,13 +248,13 @@ impl<'a, M: ?Sized, O, P, N: Dim, T: Scalar> Servo<'a, M, O, P, N, T> {
         outputs.validate(nq.value())?;
         let np = outputs.count().value();
         if np > nu.value() {
-            return Err(invalid(
+            return Err(invalid_configuration(
                 "servo: more prescribed outputs than actuator inputs (NP > NU): \
                  the prescription over-determines the inputs",
             ));
         }
         if np < nu.value() {
-            return Err(invalid(
+            return Err(invalid_configuration(
                 "servo: fewer prescribed outputs than actuator inputs (NP < NU): \
                  the prescription does not determine the inputs",
             ));
@@ -375,7 +375,7 @@ impl<'a, M: ?Sized, O, P, N: Dim, T: Scalar> Servo<'a, M, O, P, N, T> {
             (&target.acceleration, Quantity::PrescribedAcceleration),
         ] {
             if x.nrows() != np.value() {
-                return Err(invalid(
+                return Err(invalid_configuration(
                     "servo: the path gives another number of values than there are outputs",
                 ));
             }
@@ -414,11 +414,6 @@ impl<'a, M: ?Sized, O, P, N: Dim, T: Scalar> Servo<'a, M, O, P, N, T> {
             condition,
         })
     }
-}
-
-/// [`ErrorKind::InvalidConfiguration`] at time 0.
-fn invalid(reason: &'static str) -> Error {
-    Error::new(ErrorKind::InvalidConfiguration { reason }, 0.0)
 }
 
 /// Solves the square system `a x = rhs` with `a` normalised to

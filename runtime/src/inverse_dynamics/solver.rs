@@ -4,7 +4,7 @@
 
 use super::forces::{finish_forces, forces_from, svd, ForceSolution};
 use super::{InverseConfig, InverseReport, InverseSolutionOf, SolvePath};
-use crate::error::{check_indices, Error, ErrorKind, Quantity};
+use crate::error::{check_indices, invalid_configuration, Error, ErrorKind, Quantity};
 use crate::eval;
 use crate::linalg::{
     all_finite, first_non_finite, invert_in_place, mul_vec_acc, norm_squared, tr_mul_vec_acc, Svd,
@@ -182,7 +182,7 @@ where
     {
         let (nq, nc, _) = model.sizes();
         if initial_guess.nrows() != nq.value() {
-            return Err(invalid(
+            return Err(invalid_configuration(
                 "inverse dynamics: the initial guess needs one value per coordinate",
             ));
         }
@@ -199,13 +199,13 @@ where
         let (n, np) = (nq.value(), prescribed.len());
         check_indices("prescribed coordinate", prescribed, n, true)?;
         if P::try_to_usize().is_some_and(|fixed| fixed != np) {
-            return Err(invalid(
+            return Err(invalid_configuration(
                 "inverse dynamics: the number of prescribed coordinates differs from the \
                  solver's",
             ));
         }
         if np > n || nc.value() < n - np {
-            return Err(invalid(
+            return Err(invalid_configuration(
                 "fewer constraints than free coordinates: the motion is not determined",
             ));
         }
@@ -713,11 +713,6 @@ where
         )
         .map(Some)
     }
-}
-
-/// [`ErrorKind::InvalidConfiguration`] at time 0.
-fn invalid(reason: &'static str) -> Error {
-    Error::new(ErrorKind::InvalidConfiguration { reason }, 0.0)
 }
 
 /// Checks that `t` and the prescription are finite.
