@@ -77,6 +77,40 @@ pub trait DynModel {
         h_q: &mut [f64],
         h_qd: &mut [f64],
     ) -> bool;
+    /// Marker names, in index order.
+    fn markers(&self) -> Vec<&str>;
+    /// Position (3) and rotation (3 x 3) of marker `marker`; `false`
+    /// (nothing written) when there is no such marker.
+    fn marker_pose(
+        &self,
+        marker: usize,
+        q: &[f64],
+        t: f64,
+        position: &mut [f64],
+        rotation: &mut [f64],
+    ) -> bool;
+    /// Position, rotation and Jacobian (6 x nq) of marker `marker`.
+    fn marker_jacobian(&self, marker: usize, q: &[f64], t: f64, out: MarkerPose<'_>) -> bool;
+    /// Velocity (6) and acceleration bias (6) of marker `marker`.
+    fn marker_motion(
+        &self,
+        marker: usize,
+        q: &[f64],
+        qd: &[f64],
+        t: f64,
+        velocity: &mut [f64],
+        acceleration_bias: &mut [f64],
+    ) -> bool;
+}
+
+/// Where `marker_jacobian` writes `(position, rotation, jacobian)`.
+pub struct MarkerPose<'a> {
+    /// Position (3).
+    pub position: &'a mut [f64],
+    /// Rotation (3 x 3).
+    pub rotation: &'a mut [f64],
+    /// Jacobian (6 x nq).
+    pub jacobian: &'a mut [f64],
 }
 
 /// Where `dynamics_terms` writes `(M, h, Phi_q, gamma)`.
@@ -254,6 +288,60 @@ where
             .then(|| {
                 store(&a, h_q);
                 store(&b, h_qd);
+            })
+            .is_some()
+    }
+    fn markers(&self) -> Vec<&str> {
+        M::MARKERS.to_vec()
+    }
+    fn marker_pose(
+        &self,
+        marker: usize,
+        q: &[f64],
+        t: f64,
+        position: &mut [f64],
+        rotation: &mut [f64],
+    ) -> bool {
+        let (mut p, mut r) = (SVector::<f64, 3>::zeros(), SMatrix::<f64, 3, 3>::zeros());
+        let given = self.0.marker_pose(marker, &fixed(q), t, &mut p, &mut r);
+        given
+            .then(|| {
+                store(&p, position);
+                store(&r, rotation);
+            })
+            .is_some()
+    }
+    fn marker_jacobian(&self, marker: usize, q: &[f64], t: f64, out: MarkerPose<'_>) -> bool {
+        let (mut p, mut r) = (SVector::<f64, 3>::zeros(), SMatrix::<f64, 3, 3>::zeros());
+        let mut j = SMatrix::<f64, 6, NQ>::zeros();
+        let given = self
+            .0
+            .marker_jacobian(marker, &fixed(q), t, &mut p, &mut r, &mut j);
+        given
+            .then(|| {
+                store(&p, out.position);
+                store(&r, out.rotation);
+                store(&j, out.jacobian);
+            })
+            .is_some()
+    }
+    fn marker_motion(
+        &self,
+        marker: usize,
+        q: &[f64],
+        qd: &[f64],
+        t: f64,
+        velocity: &mut [f64],
+        acceleration_bias: &mut [f64],
+    ) -> bool {
+        let (mut v, mut a) = (SVector::<f64, 6>::zeros(), SVector::<f64, 6>::zeros());
+        let given = self
+            .0
+            .marker_motion(marker, &fixed(q), &fixed(qd), t, &mut v, &mut a);
+        given
+            .then(|| {
+                store(&v, velocity);
+                store(&a, acceleration_bias);
             })
             .is_some()
     }

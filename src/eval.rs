@@ -3,7 +3,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::dynamic::{matrix, vector, DynModel, Fused};
+use std::collections::BTreeMap;
+
+use crate::dynamic::{matrix, vector, DynModel, Fused, MarkerPose};
 use nalgebra::{DMatrix, DVector};
 
 /// One state to evaluate at.
@@ -87,6 +89,48 @@ pub struct Terms {
     /// `dh/dqd`, when generated.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bias_jacobian_qd: Option<Vec<Vec<f64>>>,
+    /// Each marker's kinematics, by name.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub markers: BTreeMap<String, Marker>,
+}
+
+/// A marker's kinematics at one state (world axes).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct Marker {
+    /// Position of the point.
+    pub position: [f64; 3],
+    /// Rotation from the marker's axes to world axes, as rows.
+    pub rotation: [[f64; 3]; 3],
+    /// Linear velocity of the point, then angular velocity.
+    pub velocity: [f64; 6],
+    /// Jacobian (6 rows of `nq`): `velocity = jacobian qd` plus explicit
+    /// time terms.
+    pub jacobian: Vec<Vec<f64>>,
+    /// Acceleration at `qdd = 0` (the point's classical acceleration, then
+    /// the angular acceleration).
+    pub acceleration_bias: [f64; 6],
+}
+
+/// Marker `k`'s kinematics at `(q, qd, t)`.
+fn marker(model: &dyn DynModel, k: usize, q: &[f64], qd: &[f64], t: f64) -> Marker {
+    let (mut position, mut rotation) = ([0.0; 3], nalgebra::Matrix3::zeros());
+    let mut jacobian = DMatrix::zeros(6, model.nq());
+    let out = MarkerPose {
+        position: &mut position,
+        rotation: rotation.as_mut_slice(),
+        jacobian: jacobian.as_mut_slice(),
+    };
+    let given = model.marker_jacobian(k, q, t, out);
+    let (mut velocity, mut acceleration_bias) = ([0.0; 6], [0.0; 6]);
+    let moving = model.marker_motion(k, q, qd, t, &mut velocity, &mut acceleration_bias);
+    debug_assert!(given && moving, "marker {k} is generated");
+    Marker {
+        position,
+        rotation: std::array::from_fn(|i| std::array::from_fn(|j| rotation[(i, j)])),
+        velocity,
+        jacobian: rows(&jacobian),
+        acceleration_bias,
+    }
 }
 
 fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
@@ -193,6 +237,12 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
             .map(|m| rows(&m)),
         bias_jacobian_q: jacobians.as_ref().map(|(h_q, _)| rows(h_q)),
         bias_jacobian_qd: jacobians.as_ref().map(|(_, h_qd)| rows(h_qd)),
+        markers: model
+            .markers()
+            .into_iter()
+            .enumerate()
+            .map(|(k, name)| (name.to_owned(), marker(model, k, q, qd, t)))
+            .collect(),
     };
     // JSON has no number for infinities and NaN (serde writes `null`).
     let json = serde_json::to_value(&terms).map_err(|e| e.to_string())?;

@@ -7,9 +7,9 @@ use std::cell::RefCell;
 use std::path::Path;
 use std::rc::Rc;
 
-use flexdyn_codegen::interpret::{Function, Interpreted};
+use flexdyn_codegen::interpret::{Function, Interpreted, Tape};
 
-use crate::dynamic::{DynModel, Fused};
+use crate::dynamic::{DynModel, Fused, MarkerPose};
 
 /// An interpreted scene with its runtime parameter values. Clones share
 /// the tapes.
@@ -57,15 +57,32 @@ impl InterpretedModel {
     /// the scene has no such function. One output is written in place, several
     /// through one buffer reused from call to call: no allocation once
     /// warm.
-    fn run(
+    fn run(&self, f: Function, at: (&[f64], &[f64], &[f64], f64), outs: &mut [&mut [f64]]) -> bool {
+        self.scene
+            .tape(f)
+            .is_some_and(|tape| self.run_tape(tape, at, outs))
+    }
+
+    /// [`InterpretedModel::run`] of marker `marker`'s program of a
+    /// per-marker function.
+    fn run_marker(
         &self,
         f: Function,
+        marker: usize,
+        at: (&[f64], &[f64], &[f64], f64),
+        outs: &mut [&mut [f64]],
+    ) -> bool {
+        self.scene
+            .marker_tape(f, marker)
+            .is_some_and(|tape| self.run_tape(tape, at, outs))
+    }
+
+    fn run_tape(
+        &self,
+        tape: &Tape,
         (q, qd, qdd, t): (&[f64], &[f64], &[f64], f64),
         outs: &mut [&mut [f64]],
     ) -> bool {
-        let Some(tape) = self.scene.tape(f) else {
-            return false;
-        };
         let scratch = &mut self.scratch.borrow_mut();
         if let [out] = outs {
             tape.eval_with_accelerations(q, qd, qdd, t, &self.params, scratch, out);
@@ -190,5 +207,36 @@ impl DynModel for InterpretedModel {
         h_qd: &mut [f64],
     ) -> bool {
         self.run(Function::BiasJacobians, (q, qd, &[], t), &mut [h_q, h_qd])
+    }
+    fn markers(&self) -> Vec<&str> {
+        self.scene.markers().iter().map(String::as_str).collect()
+    }
+    fn marker_pose(
+        &self,
+        marker: usize,
+        q: &[f64],
+        t: f64,
+        position: &mut [f64],
+        rotation: &mut [f64],
+    ) -> bool {
+        let at = (q, &[][..], &[][..], t);
+        self.run_marker(Function::MarkerPose, marker, at, &mut [position, rotation])
+    }
+    fn marker_jacobian(&self, marker: usize, q: &[f64], t: f64, out: MarkerPose<'_>) -> bool {
+        let outs: &mut [&mut [f64]] = &mut [out.position, out.rotation, out.jacobian];
+        let at = (q, &[][..], &[][..], t);
+        self.run_marker(Function::MarkerJacobian, marker, at, outs)
+    }
+    fn marker_motion(
+        &self,
+        marker: usize,
+        q: &[f64],
+        qd: &[f64],
+        t: f64,
+        velocity: &mut [f64],
+        acceleration_bias: &mut [f64],
+    ) -> bool {
+        let outs: &mut [&mut [f64]] = &mut [velocity, acceleration_bias];
+        self.run_marker(Function::MarkerMotion, marker, (q, qd, &[], t), outs)
     }
 }

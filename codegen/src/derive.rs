@@ -32,7 +32,9 @@
 //!
 //! The system is `M qdd + c + g + d = Phi_q^T lambda + B tau`. For the
 //! constraints `Phi(q, t)`: `Phi_q`, `Phi_t` and the acceleration right-hand
-//! side `gamma = -d/dt(Phi_q qd + Phi_t)|_(qdd=0)`. `M` is never inverted
+//! side `gamma = -d/dt(Phi_q qd + Phi_t)|_(qdd=0)`. For each marker: its
+//! Jacobian `J = dv/dqd` (its velocity `v` in world axes is linear in `qd`)
+//! and its acceleration bias `dv/dt|_(qdd=0)`. `M` is never inverted
 //! symbolically; the runtime factorises it numerically.
 
 use std::fmt;
@@ -77,6 +79,27 @@ pub struct Equations {
     pub gamma: Vec<Id>,
     /// Actuator map, `actuator_map[i][j]`: force on coordinate `i` per unit input `j`.
     pub actuator_map: Vec<Vec<f64>>,
+    /// Kinematics of each marker, in scene order.
+    pub markers: Vec<MarkerTerms>,
+}
+
+/// The kinematics of a marker, as nodes of the model's graph.
+#[derive(Debug, Clone)]
+pub struct MarkerTerms {
+    /// World position of the point.
+    pub position: [Id; 3],
+    /// Rotation from the marker's axes to world axes.
+    pub rotation: [[Id; 3]; 3],
+    /// Velocity in world axes: the point's linear velocity, then the
+    /// angular velocity.
+    pub velocity: [Id; 6],
+    /// `J = d(velocity)/dqd` (6 x nq, rows as in `velocity`): Pinocchio's
+    /// `LOCAL_WORLD_ALIGNED` frame Jacobian at the point.
+    pub jacobian: Matrix,
+    /// The time derivative of `velocity` at `qdd = 0`: `J' qd` plus the
+    /// explicit time terms (the point's classical acceleration, and the
+    /// angular acceleration, when the coordinates do not accelerate).
+    pub acceleration_bias: [Id; 6],
 }
 
 /// A scene whose energies do not fit the requested derivation.
@@ -214,6 +237,22 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     let rates = g.time_derivative_at_zero_acceleration(&velocity_residual);
     let gamma: Vec<Id> = rates.iter().map(|&r| g.neg(r)).collect();
 
+    let markers = model
+        .markers
+        .iter()
+        .map(|m| {
+            let jacobian = g.jacobian(&m.velocity, &qd_vars);
+            let rates = g.time_derivative_at_zero_acceleration(&m.velocity);
+            MarkerTerms {
+                position: m.position,
+                rotation: m.rotation,
+                velocity: m.velocity,
+                jacobian,
+                acceleration_bias: std::array::from_fn(|k| rates[k]),
+            }
+        })
+        .collect();
+
     let mut actuator_map = vec![vec![0.0; model.actuators.len()]; n];
     for (j, a) in model.actuators.iter().enumerate() {
         actuator_map[a.coordinate][j] += a.gain;
@@ -235,6 +274,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         phi_t,
         gamma,
         actuator_map,
+        markers,
     })
 }
 

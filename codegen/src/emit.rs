@@ -10,8 +10,8 @@ use quote::{format_ident, quote};
 use crate::expr::Symbol;
 use crate::model::{Model, Precision};
 use crate::schedule::{
-    lower, Binary, Code, Inputs, Op, OpCount, Operand, OutputSpec, Program, Scheduled, Shape, Stmt,
-    Value,
+    lower, Binary, Code, Inputs, Lowered, Op, OpCount, Operand, OutputSpec, Program, Scheduled,
+    Shape, Stmt, Value,
 };
 
 /// Operation counts of one emitted function.
@@ -19,6 +19,8 @@ use crate::schedule::{
 pub struct FunctionReport {
     /// Function name.
     pub name: &'static str,
+    /// The marker, for a per-marker function's program.
+    pub marker: Option<String>,
     /// Its operations.
     pub ops: OpCount,
 }
@@ -305,30 +307,123 @@ impl Emitter<'_> {
         }
     }
 
-    /// Record the operation count of function `name`, and apply the
-    /// test-only perturbation when it targets this function.
-    fn record(&mut self, name: &'static str, p: &mut Program) {
-        self.reports.push(FunctionReport { name, ops: p.ops });
+    /// Record the operation count of function `name` (of one marker's
+    /// program), and apply the test-only perturbation when it targets this
+    /// function.
+    fn record(&mut self, name: &'static str, marker: Option<String>, p: &mut Program) {
+        self.reports.push(FunctionReport {
+            name,
+            marker,
+            ops: p.ops,
+        });
         if let Some(c) = self.perturbation.filter(|c| c.function == name) {
             self.perturbed |= scale_coefficient(p, c.index, 1.0 + c.relative);
         }
     }
 
-    /// The function `f`: its lowered operations printed, in a signature
-    /// with the inputs it takes (named `_x` where unread) and its outputs
-    /// (`&mut` arguments, or the returned value). Programs longer than
-    /// [`FLAT_STATEMENTS`] declare their variables up front in groups of
-    /// [`DECLARATION_GROUP`] (`let [v0, v1, ...]: [f64; 64];`) and then
-    /// assign them: every `let` opens a lexical scope nested in the
-    /// previous one, and LLVM builds the debug information of nested scopes
-    /// recursively (a 4282-statement function overflowed rustc's stack in
-    /// debug builds).
-    fn function(&mut self, f: &mut Scheduled) -> TokenStream {
-        let spec = f.spec();
-        if spec.inputs != Inputs::Constant {
-            self.record(spec.name, &mut f.program);
+    /// The function of `group` (one scheduled function, or a per-marker
+    /// function's programs in marker order, selected by a `match` on the
+    /// marker index): its lowered operations printed, in a signature with
+    /// the inputs it takes (named `_x` where unread) and its outputs (`&mut`
+    /// arguments, or the returned value).
+    fn function(&mut self, group: &mut [Scheduled]) -> TokenStream {
+        let spec = group[0].spec();
+        let mut lowered = Vec::with_capacity(group.len());
+        for f in group.iter_mut() {
+            if spec.inputs != Inputs::Constant {
+                let marker = f.marker.map(|k| self.model.markers[k].name.clone());
+                self.record(spec.name, marker, &mut f.program);
+            }
+            lowered.push(lower(f, self.model.precision == Precision::F64));
         }
-        let lowered = lower(f, self.model.precision == Precision::F64);
+        let touched = |k: usize| {
+            lowered.iter().flat_map(|l| &l.ops).any(
+                |op| matches!(op, Op::Zero { output } | Op::Store { output, .. } if *output == k),
+            )
+        };
+        let names: Vec<proc_macro2::Ident> = spec
+            .outputs
+            .iter()
+            .enumerate()
+            .map(|(k, o)| argument(o.name, touched(k)))
+            .collect();
+        let mut tail = TokenStream::new();
+        let bodies: Vec<TokenStream> = lowered
+            .iter()
+            .map(|l| self.body(l, &names, &mut tail))
+            .collect();
+        let body = if spec.per_marker {
+            let arms = bodies.iter().enumerate().map(|(k, b)| {
+                let k = usize_lit(k);
+                quote!(#k => { #b })
+            });
+            quote! {
+                match marker {
+                    #(#arms)*
+                    _ => return false,
+                }
+            }
+        } else {
+            bodies.into_iter().collect()
+        };
+        let real = self.real();
+        let mut args = TokenStream::new();
+        let mut ret = TokenStream::new();
+        for ((o, name), &(rows, cols)) in spec.outputs.iter().zip(&names).zip(&lowered[0].shapes) {
+            let (r, c) = (usize_lit(rows), usize_lit(cols));
+            match o.shape {
+                Shape::Scalar => ret = quote!(-> #real),
+                Shape::Vector(_) => args.extend(quote!(#name: &mut SVector<#real, #r>,)),
+                Shape::Matrix { .. } => args.extend(quote!(#name: &mut SMatrix<#real, #r, #c>,)),
+            }
+        }
+        if spec.optional {
+            (ret, tail) = (quote!(-> bool), quote!(true));
+        }
+        let read: Vec<Symbol> = lowered.iter().flat_map(Lowered::reads).collect();
+        let nq = usize_lit(self.model.nq());
+        let vector = quote!(&SVector<#real, #nq>);
+        let q = argument("q", read.iter().any(|s| matches!(s, Symbol::Q(_))));
+        let qd = argument("qd", read.iter().any(|s| matches!(s, Symbol::Qd(_))));
+        let qdd = argument("qdd", read.iter().any(|s| matches!(s, Symbol::Qdd(_))));
+        let t = argument("t", read.contains(&Symbol::Time));
+        let marker = if spec.per_marker {
+            quote!(marker: usize,)
+        } else {
+            quote!()
+        };
+        let inputs = match spec.inputs {
+            Inputs::Constant => quote!(),
+            Inputs::Positions => quote!(#q: #vector, #t: #real,),
+            Inputs::Velocities => quote!(#q: #vector, #qd: #vector, #t: #real,),
+            Inputs::Accelerations => quote!(#q: #vector, #qd: #vector, #qdd: #vector, #t: #real,),
+        };
+        let fname = format_ident!("{}", spec.name);
+        let doc = spec.doc;
+        quote! {
+            #[doc = #doc]
+            #[inline]
+            fn #fname(&self, #marker #inputs #args) #ret {
+                #body
+                #tail
+            }
+        }
+    }
+
+    /// The statements of one lowered program writing to the outputs
+    /// `names`, and in `tail` the value a returned output ends with.
+    /// Programs longer than [`FLAT_STATEMENTS`] declare their variables up
+    /// front in groups of [`DECLARATION_GROUP`] (`let [v0, v1, ...]: [f64;
+    /// 64];`) and then assign them: every `let` opens a lexical scope nested
+    /// in the previous one, and LLVM builds the debug information of nested
+    /// scopes recursively (a 4282-statement function overflowed rustc's
+    /// stack in debug builds).
+    fn body(
+        &self,
+        lowered: &Lowered,
+        names: &[proc_macro2::Ident],
+        tail: &mut TokenStream,
+    ) -> TokenStream {
         let real = self.real();
         let vars: Vec<proc_macro2::Ident> = lowered
             .ops
@@ -358,64 +453,17 @@ impl Emitter<'_> {
                 body.extend(quote!(let [#(#group),*]: [#real; #n];));
             }
         }
-        let touched = |k: usize| {
-            lowered.ops.iter().any(
-                |op| matches!(op, Op::Zero { output } | Op::Store { output, .. } if *output == k),
-            )
-        };
-        let names: Vec<proc_macro2::Ident> = spec
-            .outputs
-            .iter()
-            .enumerate()
-            .map(|(k, o)| argument(o.name, touched(k)))
-            .collect();
         let mut printer = Printer {
             emitter: self,
-            outputs: spec.outputs,
-            names: names.clone(),
+            outputs: lowered.function.spec().outputs,
+            names: names.to_vec(),
             texts: vec![None; lowered.temps as usize],
             bind: if flat { quote!(let) } else { quote!() },
         };
-        let mut tail = TokenStream::new();
         for op in &lowered.ops {
-            printer.op(op, &mut body, &mut tail);
+            printer.op(op, &mut body, tail);
         }
-        let mut args = TokenStream::new();
-        let mut ret = TokenStream::new();
-        for ((o, name), &(rows, cols)) in spec.outputs.iter().zip(&names).zip(&lowered.shapes) {
-            let (r, c) = (usize_lit(rows), usize_lit(cols));
-            match o.shape {
-                Shape::Scalar => ret = quote!(-> #real),
-                Shape::Vector(_) => args.extend(quote!(#name: &mut SVector<#real, #r>,)),
-                Shape::Matrix { .. } => args.extend(quote!(#name: &mut SMatrix<#real, #r, #c>,)),
-            }
-        }
-        if spec.optional {
-            (ret, tail) = (quote!(-> bool), quote!(true));
-        }
-        let read: Vec<Symbol> = lowered.reads().collect();
-        let nq = usize_lit(self.model.nq());
-        let vector = quote!(&SVector<#real, #nq>);
-        let q = argument("q", read.iter().any(|s| matches!(s, Symbol::Q(_))));
-        let qd = argument("qd", read.iter().any(|s| matches!(s, Symbol::Qd(_))));
-        let qdd = argument("qdd", read.iter().any(|s| matches!(s, Symbol::Qdd(_))));
-        let t = argument("t", read.contains(&Symbol::Time));
-        let inputs = match spec.inputs {
-            Inputs::Constant => quote!(),
-            Inputs::Positions => quote!(#q: #vector, #t: #real,),
-            Inputs::Velocities => quote!(#q: #vector, #qd: #vector, #t: #real,),
-            Inputs::Accelerations => quote!(#q: #vector, #qd: #vector, #qdd: #vector, #t: #real,),
-        };
-        let fname = format_ident!("{}", spec.name);
-        let doc = spec.doc;
-        quote! {
-            #[doc = #doc]
-            #[inline]
-            fn #fname(&self, #inputs #args) #ret {
-                #body
-                #tail
-            }
-        }
+        body
     }
 }
 
@@ -438,6 +486,7 @@ pub fn emit(
     let nc = model.constraints.len();
     let nu = model.actuators.len();
     let (nq_l, nc_l, nu_l) = (usize_lit(n), usize_lit(nc), usize_lit(nu));
+    let nm_l = usize_lit(model.markers.len());
     let sname = format_ident!("{}", struct_name(&model.name));
     let real = e.real();
     let scene = model.name.as_str();
@@ -445,11 +494,12 @@ pub fn emit(
     // The trait's functions, then the runtime parameters, then the optional
     // outputs (the trait's methods default to "not generated").
     let (mut required, mut optional) = (TokenStream::new(), TokenStream::new());
-    for mut f in functions {
-        if f.spec().optional {
-            optional.extend(e.function(&mut f));
+    let mut functions = functions;
+    for group in functions.chunk_by_mut(|a, b| a.function == b.function) {
+        if group[0].spec().optional {
+            optional.extend(e.function(group));
         } else {
-            required.extend(e.function(&mut f));
+            required.extend(e.function(group));
         }
     }
 
@@ -520,10 +570,17 @@ pub fn emit(
             unused_parens
         )]
     };
+    let marker_names = model.markers.iter().map(|m| m.name.as_str());
+    let markers = if model.markers.is_empty() {
+        quote!()
+    } else {
+        quote!(const MARKERS: &'static [&'static str] = &[#(#marker_names),*];)
+    };
     let consts = quote! {
         const NAME: &'static str = #scene;
         const COORDINATES: [&'static str; #nq_l] = [#(#coords),*];
         const ACTUATORS: [&'static str; #nu_l] = [#(#acts),*];
+        #markers
     };
     let members = quote! {
         #consts
@@ -553,6 +610,8 @@ pub fn emit(
         pub const NC: usize = #nc_l;
         /// Number of actuator inputs.
         pub const NU: usize = #nu_l;
+        /// Number of markers.
+        pub const NM: usize = #nm_l;
 
         #struct_def
 
@@ -569,13 +628,17 @@ pub fn emit(
     );
     for r in &e.reports {
         total += r.ops;
+        let name = match &r.marker {
+            Some(m) => format!("{} ({m})", r.name),
+            None => r.name.to_owned(),
+        };
         header.push_str(&format!(
-            "//   {:<28} {:>6} {:>6} {:>6} {:>6}\n",
-            r.name, r.ops.adds, r.ops.muls, r.ops.divs, r.ops.calls
+            "//   {:<40} {:>6} {:>6} {:>6} {:>6}\n",
+            name, r.ops.adds, r.ops.muls, r.ops.divs, r.ops.calls
         ));
     }
     header.push_str(&format!(
-        "//   {:<28} {:>6} {:>6} {:>6} {:>6}\n\
+        "//   {:<40} {:>6} {:>6} {:>6} {:>6}\n\
          // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,\n\
          // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)\n\n",
         "total", total.adds, total.muls, total.divs, total.calls

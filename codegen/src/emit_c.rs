@@ -41,7 +41,11 @@ const STATUS: [(&str, i32, &str); 5] = [
         2,
         "an output is NaN or infinite (non-finite inputs or a singular configuration); outputs were written",
     ),
-    ("INVALID_ARGUMENT", 3, "a prescribed coordinate index is out of range or repeated"),
+    (
+        "INVALID_ARGUMENT",
+        3,
+        "a prescribed coordinate index is out of range or repeated, or a marker index out of range",
+    ),
     (
         "SOLVER_FAILED",
         4,
@@ -113,6 +117,7 @@ pub struct CInterface {
     nc: usize,
     nu: usize,
     coordinates: Vec<String>,
+    markers: Vec<String>,
     parameters: Vec<(String, f64)>,
     functions: Vec<Wrapped>,
 }
@@ -122,8 +127,11 @@ impl CInterface {
     /// are emitted).
     pub fn new(model: &Model, functions: &[Scheduled]) -> CInterface {
         let nq = model.nq();
+        // A per-marker function is scheduled once per marker, and wrapped
+        // once (with the marker index).
         let functions = functions
-            .iter()
+            .chunk_by(|a, b| a.function == b.function)
+            .map(|group| &group[0])
             .map(|f| Wrapped {
                 spec: f.spec(),
                 shapes: f
@@ -142,6 +150,7 @@ impl CInterface {
             nc: model.constraints.len(),
             nu: model.actuators.len(),
             coordinates: model.coordinates.iter().map(|c| c.name.clone()).collect(),
+            markers: model.markers.iter().map(|m| m.name.clone()).collect(),
             parameters: model
                 .runtime_parameters
                 .iter()
@@ -290,7 +299,12 @@ impl CInterface {
             })
         };
         let reads = quote!(#(let #inputs = unsafe { c_read::<#nq>(#inputs) };)*);
-        let pass = quote!(#(&#inputs,)* #t_pass);
+        let (marker_arg, marker_pass) = if f.spec.per_marker {
+            (quote!(marker: usize,), quote!(marker,))
+        } else {
+            (quote!(), quote!())
+        };
+        let pass = quote!(#marker_pass #(&#inputs,)* #t_pass);
         let args = outputs.iter().map(|(id, _)| quote!(#id: *mut f64,));
         let item = if f.is_scalar() {
             quote! {
@@ -317,8 +331,13 @@ impl CInterface {
                 quote!(&mut #local,)
             });
             let call = quote!(<#s as #model_trait>::#method(&model, #pass #(#locals_pass)*));
-            // Optional outputs return `true` (generated).
-            let call = if f.spec.optional {
+            // Optional outputs return `true` (generated); a per-marker
+            // function `false` for a marker the scene does not have.
+            let call = if f.spec.per_marker {
+                quote!(if !#call {
+                    return C_INVALID_ARGUMENT;
+                })
+            } else if f.spec.optional {
                 quote!(let _ = #call;)
             } else {
                 quote!(#call;)
@@ -328,7 +347,7 @@ impl CInterface {
                 quote!(finite &= unsafe { c_write(&#local, #id) };)
             });
             quote! {
-                pub unsafe extern "C" fn #cname(params: *const f64, #(#inputs: *const f64,)* #t_arg #(#args)*) -> i32 {
+                pub unsafe extern "C" fn #cname(params: *const f64, #marker_arg #(#inputs: *const f64,)* #t_arg #(#args)*) -> i32 {
                     #null
                     let model = unsafe { c_model(params) };
                     #reads
@@ -415,6 +434,9 @@ impl CInterface {
 
     fn c_signature(&self, f: &Wrapped) -> String {
         let mut args = vec!["const double *params".to_owned()];
+        if f.spec.per_marker {
+            args.push("size_t marker".into());
+        }
         args.extend(
             f.inputs()
                 .iter()
@@ -467,6 +489,7 @@ impl CInterface {
             ("NC", self.nc, "constraints"),
             ("NU", self.nu, "actuator inputs"),
             ("NPARAMS", self.parameters.len(), "runtime parameters"),
+            ("NM", self.markers.len(), "markers"),
             ("NP", np, "prescribed coordinates of the inverse dynamics"),
         ] {
             h.push_str(&format!("#define {up}_{name} {value} /* {doc} */\n"));
@@ -481,6 +504,12 @@ impl CInterface {
         h.push_str("\n/* Index of each coordinate in q. */\n");
         for (i, c) in self.coordinates.iter().enumerate() {
             h.push_str(&format!("#define {up}_Q_{} {i}\n", c_identifier(c)));
+        }
+        if !self.markers.is_empty() {
+            h.push_str("\n/* Index of each marker (the `marker` argument). */\n");
+            for (i, m) in self.markers.iter().enumerate() {
+                h.push_str(&format!("#define {up}_MARKER_{} {i}\n", c_identifier(m)));
+            }
         }
         if !self.parameters.is_empty() {
             h.push_str(

@@ -93,6 +93,63 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
         false
     }
 
+    /// Names of the scene's markers (`[[markers]]`), in index order: the
+    /// `marker` argument of [`Model::marker_pose`],
+    /// [`Model::marker_jacobian`] and [`Model::marker_motion`].
+    const MARKERS: &'static [&'static str] = &[];
+
+    /// World position of marker `marker` and its rotation (marker axes to
+    /// world axes). Returns `false` (writing nothing) when the scene has no
+    /// marker of that index.
+    fn marker_pose(
+        &self,
+        marker: usize,
+        q: &SVector<T, NQ>,
+        t: T,
+        position: &mut SVector<T, 3>,
+        rotation: &mut SMatrix<T, 3, 3>,
+    ) -> bool {
+        let _ = (marker, q, t, position, rotation);
+        false
+    }
+
+    /// [`Model::marker_pose`] and the marker's Jacobian, from one program:
+    /// `v = J qd (+ explicit time terms)` with `v` the velocity of the marker
+    /// point (rows 0-2) and the angular velocity (rows 3-5), both in world
+    /// axes (Pinocchio's `LOCAL_WORLD_ALIGNED`). `false` (nothing written)
+    /// when the scene has no marker of that index.
+    fn marker_jacobian(
+        &self,
+        marker: usize,
+        q: &SVector<T, NQ>,
+        t: T,
+        position: &mut SVector<T, 3>,
+        rotation: &mut SMatrix<T, 3, 3>,
+        jacobian: &mut SMatrix<T, 6, NQ>,
+    ) -> bool {
+        let _ = (marker, q, t, position, rotation, jacobian);
+        false
+    }
+
+    /// Velocity of marker `marker` (as in [`Model::marker_jacobian`],
+    /// explicit time terms included) and its acceleration bias: its
+    /// acceleration when `qdd = 0`, so that the point's classical
+    /// acceleration and the angular acceleration are `J qdd +
+    /// acceleration_bias`. `false` (nothing written) when the scene has no
+    /// marker of that index.
+    fn marker_motion(
+        &self,
+        marker: usize,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        t: T,
+        velocity: &mut SVector<T, 6>,
+        acceleration_bias: &mut SVector<T, 6>,
+    ) -> bool {
+        let _ = (marker, q, qd, t, velocity, acceleration_bias);
+        false
+    }
+
     /// Optional output (scene `outputs = ["forces"]`): Coriolis/centrifugal
     /// forces `C(q, qd) qd`, the part of [`Model::bias`] from the kinetic
     /// energy. Returns `false` (writing nothing) when not generated.

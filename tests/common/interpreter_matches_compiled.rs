@@ -75,6 +75,7 @@ fn every_term_of_every_scene_is_bitwise_the_compiled_one() {
         assert_eq!(interpreted.coordinates(), compiled.coordinates());
         assert_eq!(interpreted.actuators(), compiled.actuators());
         assert_eq!(interpreted.nc(), compiled.nc());
+        assert_eq!(interpreted.markers(), compiled.markers());
         assert_eq!(interpreted.parameters(), compiled.parameters());
         // Every parameter off its nominal value.
         let moved: BTreeMap<String, f64> = scene

@@ -17,9 +17,16 @@ nonzero and below 1e-14 in magnitude (a round-off of zero; with exact
 constant folding, rotations by multiples of pi/2 leave none).
 
 Exit status 0 when every term of every robot is within the tolerance, 1
-otherwise. `--perturb` changes one inertia entry of each imported scene
-(the first entry of the last rigid body's inertia, times 1 + 1e-6) before
-evaluating it: the comparison must then fail.
+otherwise. Every link's marker (`import urdf` puts one at the origin of every link)
+is compared with Pinocchio's frame of that link: position and rotation
+(`framesForwardKinematics`), the Jacobian in LOCAL_WORLD_ALIGNED
+(`computeFrameJacobian`), the velocity and, at zero joint accelerations, the
+classical acceleration (`getFrameVelocity`, `getFrameClassicalAcceleration`).
+
+`--perturb` changes one inertia entry of each imported scene
+(the first entry of the last rigid body's inertia, times 1 + 1e-6) and
+moves its last marker by 1e-6 m before evaluating it: the comparison must
+then fail.
 
 `--shipped DIR` checks that the scenes shipped in DIR for these robots
 (`ur5.toml` in `scenes/`) are the import of today, below their header
@@ -86,12 +93,58 @@ def robots_dir():
     sys.exit("example-robot-data's robots/ folder not found under " + prefix)
 
 
-def identifier(name):
-    """The scene identifier `flexdyn import urdf` gives a URDF joint name."""
+def identifier(name, prefix="j"):
+    """The scene identifier `flexdyn import urdf` gives a URDF joint name
+    (prefix `l` for a link)."""
     s = re.sub(r"[^A-Za-z0-9_]", "_", name)
     if not s[:1].isalpha():
-        s = "j_" + s
+        s = prefix + "_" + s
     return s
+
+
+MARKER_TERMS = ("position", "rotation", "jacobian", "velocity", "acceleration_bias")
+
+
+def marker_errors(model, data, order, results, pin_states):
+    """Worst error and scale of each marker term over all states and every
+    marker (one per link), against Pinocchio's frame of the link:
+    `framesForwardKinematics` (position, rotation), `computeFrameJacobian`
+    in LOCAL_WORLD_ALIGNED, `getFrameVelocity` and, at zero joint
+    accelerations, `getFrameClassicalAcceleration` (both LOCAL_WORLD_ALIGNED).
+    Also the number of markers compared; an unknown marker name is an error."""
+    frames = {}
+    for fid, f in enumerate(model.frames):
+        if f.type == pin.FrameType.BODY:
+            frames[identifier(f.name, "l")] = fid
+    worst = dict.fromkeys(MARKER_TERMS, 0.0)
+    scale = dict.fromkeys(MARKER_TERMS, 0.0)
+    lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    count = 0
+    for r, (qp, vp) in zip(results, pin_states):
+        markers = r.get("markers", {})
+        count = max(count, len(markers))
+        pin.forwardKinematics(model, data, qp, vp, np.zeros(model.nv))
+        pin.updateFramePlacements(model, data)
+        for name, got in markers.items():
+            if name not in frames:
+                sys.exit(f"marker `{name}` is no link frame of Pinocchio's model")
+            fid = frames[name]
+            placement = data.oMf[fid]
+            v = pin.getFrameVelocity(model, data, fid, lwa)
+            a = pin.getFrameClassicalAcceleration(model, data, fid, lwa)
+            jac = pin.computeFrameJacobian(model, data, qp, fid, lwa)[:, order]
+            want = {
+                "position": placement.translation,
+                "rotation": placement.rotation,
+                "jacobian": jac,
+                "velocity": np.concatenate([v.linear, v.angular]),
+                "acceleration_bias": np.concatenate([a.linear, a.angular]),
+            }
+            for term in MARKER_TERMS:
+                w = np.asarray(want[term])
+                worst[term] = max(worst[term], float(np.abs(np.array(got[term]) - w).max()))
+                scale[term] = max(scale[term], float(np.abs(w).max()))
+    return worst, scale, count
 
 
 def run(cmd):
@@ -101,13 +154,17 @@ def run(cmd):
 
 
 def perturb(text):
-    """The first entry of the last `inertia = ...` line times 1 + 1e-6."""
+    """The first entry of the last `inertia = ...` line times 1 + 1e-6, and
+    the last marker moved by 1e-6 m along z from its link's origin."""
     lines = text.splitlines(keepends=True)
     k = max(i for i, l in enumerate(lines) if l.startswith("inertia = "))
     m = re.match(r"(inertia = \[+)([-0-9.eE+]+)", lines[k])
     value = float(m.group(2)) * (1 + 1e-6)
     lines[k] = m.group(1) + repr(value) + lines[k][m.end():]
-    return "".join(lines)
+    text = "".join(lines)
+    if "[[markers]]" in text:
+        text = text.rstrip("\n") + "\nposition = [0, 0, 1e-6]\n"
+    return text
 
 
 LITERAL = re.compile(r"(?<![A-Za-z0-9_.])(\d+\.\d*(?:e[-+]?\d+)?|\d+e[-+]?\d+)")
@@ -174,7 +231,7 @@ def validate(name, path, fixed, scan, args, armature=None):
         sys.exit(f"{name}: coordinates {coordinates} do not match Pinocchio's joints {list(joints)}")
 
     rng = np.random.default_rng(20261123)
-    states, refs = [], []
+    states, refs, pin_states = [], [], []
     for _ in range(args.states):
         q = rng.uniform(-np.pi, np.pi, n)
         qd = rng.uniform(-3.0, 3.0, n)
@@ -195,6 +252,7 @@ def validate(name, path, fixed, scan, args, armature=None):
         h = pin.nonLinearEffects(model, data, qp, vp) + damping
         tau = pin.rnea(model, data, qp, vp, ap) + damping
         refs.append((m[np.ix_(order, order)], h[order], tau[order], qdd))
+        pin_states.append((qp.copy(), vp.copy()))
         states.append({"q": q.tolist(), "qd": qd.tolist(), "t": 0.0})
     stem = os.path.splitext(os.path.basename(scene))[0]
     states_file = os.path.join(args.work, f"{stem}.states.json")
@@ -217,6 +275,15 @@ def validate(name, path, fixed, scan, args, armature=None):
         ):
             worst[term] = max(worst[term], float(np.abs(got - want).max()))
             scale[term] = max(scale[term], float(np.abs(want).max()))
+    if not armature:
+        m_worst, m_scale, count = marker_errors(model, data, order, results, pin_states)
+        links = len(re.findall(r"^\[\[markers\]\]", open(scene).read(), re.M))
+        good = count == links and count > 0
+        ok &= good
+        print(f"{name}: markers: {count} of {links} links {'ok' if good else 'FAILED'}")
+        for term in MARKER_TERMS:
+            worst[f"marker {term}"] = m_worst[term]
+            scale[f"marker {term}"] = m_scale[term]
     if scan:
         count, small = round_off_literals(name, scene, args)
         ok &= not small
@@ -225,7 +292,7 @@ def validate(name, path, fixed, scan, args, armature=None):
             f"{'ok' if not small else 'FAILED: ' + str(sorted(set(small))[:5])}"
         )
     for term in worst:
-        rel = worst[term] / scale[term]
+        rel = worst[term] / max(scale[term], 1e-300)
         good = rel <= TOLERANCE
         ok &= good
         print(

@@ -30,8 +30,10 @@ pub struct Interpreted {
     coordinates: Vec<String>,
     actuators: Vec<String>,
     nc: usize,
+    markers: Vec<String>,
     parameters: Vec<(String, f64)>,
-    tapes: Vec<(Function, Tape)>,
+    /// Each function's tape, a per-marker function's once per marker.
+    tapes: Vec<(Function, Option<usize>, Tape)>,
 }
 
 impl Interpreted {
@@ -49,13 +51,17 @@ impl Interpreted {
         let params = model.runtime_parameters.len();
         let tapes = functions(model, eq)
             .iter()
-            .map(|f| (f.function, assemble::assemble(&lower(f, true), nq, params)))
+            .map(|f| {
+                let tape = assemble::assemble(&lower(f, true), nq, params);
+                (f.function, f.marker, tape)
+            })
             .collect();
         Interpreted {
             name: model.name.clone(),
             coordinates: model.coordinates.iter().map(|c| c.name.clone()).collect(),
             actuators: model.actuators.iter().map(|a| a.name.clone()).collect(),
             nc,
+            markers: model.markers.iter().map(|m| m.name.clone()).collect(),
             parameters: model
                 .runtime_parameters
                 .iter()
@@ -101,17 +107,35 @@ impl Interpreted {
         &self.parameters
     }
 
+    /// Marker names, in index order.
+    pub fn markers(&self) -> &[String] {
+        &self.markers
+    }
+
     /// The tape of a function; `None` for an optional output the scene does
-    /// not generate.
+    /// not generate, or a per-marker function.
     pub fn tape(&self, f: Function) -> Option<&Tape> {
-        self.tapes.iter().find(|(g, _)| *g == f).map(|(_, t)| t)
+        self.find(f, None)
+    }
+
+    /// The tape of a per-marker function for marker `marker`; `None` where
+    /// the scene has no such marker.
+    pub fn marker_tape(&self, f: Function, marker: usize) -> Option<&Tape> {
+        self.find(f, Some(marker))
+    }
+
+    fn find(&self, f: Function, marker: Option<usize>) -> Option<&Tape> {
+        self.tapes
+            .iter()
+            .find(|(g, k, _)| *g == f && *k == marker)
+            .map(|(_, _, t)| t)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::expr::Symbol;
+    use crate::expr::{Id, Symbol};
     use crate::schedule::Terms;
 
     fn scene(name: &str) -> std::path::PathBuf {
@@ -153,23 +177,37 @@ mod tests {
                     Symbol::Param(i) => params[i as usize],
                 };
                 let mut checked = 0;
+                // Every function (each marker's of a per-marker one), with
+                // its entries column-major.
+                let mut cases = Vec::new();
                 for &f in Function::ALL {
                     let Some(terms) = f.spec().terms(&model, &eq) else {
                         assert!(it.tape(f).is_none(), "{name} {}", f.name());
                         continue;
                     };
-                    // Every entry, column-major.
-                    let want: Vec<f64> = match terms {
-                        Terms::Nodes(outputs) => outputs
+                    let nodes = |outputs: &[Vec<Vec<Id>>]| -> Vec<f64> {
+                        outputs
                             .iter()
                             .flat_map(|o| column_major(o))
                             .map(|id| model.graph.eval(&[id], &env)[0])
-                            .collect(),
-                        Terms::Constants(outputs) => {
-                            outputs.iter().flat_map(|o| column_major(o)).collect()
-                        }
+                            .collect()
                     };
-                    let tape = it.tape(f).unwrap();
+                    match terms {
+                        Terms::Nodes(outputs) => cases.push((f, it.tape(f), nodes(&outputs))),
+                        Terms::Constants(outputs) => {
+                            let want = outputs.iter().flat_map(|o| column_major(o)).collect();
+                            cases.push((f, it.tape(f), want));
+                        }
+                        Terms::Markers(each) => {
+                            for (m, outputs) in each.iter().enumerate() {
+                                cases.push((f, it.marker_tape(f, m), nodes(outputs)));
+                            }
+                            assert!(it.marker_tape(f, each.len()).is_none());
+                        }
+                    }
+                }
+                for (f, tape, want) in cases {
+                    let tape = tape.unwrap();
                     let mut got = vec![f64::NAN; tape.output_len()];
                     tape.eval_with_accelerations(&q, &qd, &qdd, t, &params, &mut scratch, &mut got);
                     assert_eq!(got.len(), want.len(), "{name} {}", f.name());
@@ -229,6 +267,7 @@ mod tests {
         // The constraints of a scene of 2 coordinates and 5 constraints.
         let f = Scheduled {
             function: Function::Constraints,
+            marker: None,
             dims: (2, outputs.len(), 0),
             slots: (0..outputs.len()).map(|i| (0, i, 0)).collect(),
             program: Program::new(Vec::new(), outputs),

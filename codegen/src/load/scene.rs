@@ -443,6 +443,21 @@ pub struct ConstraintEnd {
     pub axis: Option<Spanned<AxisDef>>,
 }
 
+/// A marker: a named point of a frame (its origin by default) whose pose,
+/// velocity, Jacobian and acceleration bias the generated code computes.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MarkerDef {
+    /// Name (an identifier): the index in the generated `MARKERS`, and the
+    /// `<name>_x` columns of a simulation.
+    pub name: Spanned<String>,
+    /// The frame it is fixed in (`world`, or a frame above; a frame at a
+    /// flexible link's station follows its deflection).
+    pub frame: Spanned<String>,
+    /// The point in the frame's axes (default its origin).
+    pub position: Option<Spanned<Vec<SScalar>>>,
+}
+
 /// An actuator input driving one generalized coordinate.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -487,6 +502,9 @@ pub struct SceneDef {
     /// Actuators.
     #[serde(default)]
     pub actuators: Vec<ActuatorDef>,
+    /// Markers (frame and point kinematics).
+    #[serde(default)]
+    pub markers: Vec<MarkerDef>,
     /// Optional outputs beyond the runtime's core set: `coriolis_matrix`,
     /// `forces` (Coriolis, potential and damping forces separately).
     #[serde(default)]

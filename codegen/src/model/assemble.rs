@@ -1,5 +1,6 @@
 //! The model stage in order: the names, the components that add
-//! coordinates, the frames, the energies, the constraints and actuators.
+//! coordinates, the frames, the energies, the constraints, actuators and
+//! markers.
 
 use super::components;
 use super::context::Context;
@@ -81,6 +82,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         cx.constraint(i, c, &mut constraints)?;
     }
     let actuators = cx.actuators(def, &coordinates)?;
+    let markers = cx.markers(&def.markers)?;
     component_energies.extend(cx.armatures(def, &actuators)?);
     let outputs = cx.outputs(def)?;
     let precision = cx.precision(def)?;
@@ -93,6 +95,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         components: component_energies,
         constraints,
         actuators,
+        markers,
         outputs,
         precision,
         flexible_links: cx.flexible,

@@ -21,6 +21,7 @@ mod constraints;
 mod context;
 mod coordinates;
 mod frames;
+mod markers;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -133,6 +134,38 @@ pub struct Constraint {
     pub residual: Id,
 }
 
+/// A marker: a named point of a frame, with its world pose and velocity.
+#[derive(Debug, Clone)]
+pub struct Marker {
+    /// Name.
+    pub name: String,
+    /// World position of the point.
+    pub position: [Id; 3],
+    /// Rotation from the frame's axes to world axes.
+    pub rotation: [[Id; 3]; 3],
+    /// Velocity in world axes: the point's linear velocity, then the
+    /// frame's angular velocity (with explicit time terms).
+    pub velocity: [Id; 6],
+}
+
+impl Marker {
+    /// Its nodes: position, rotation (by rows), velocity.
+    fn nodes(&self) -> impl Iterator<Item = Id> + '_ {
+        self.position
+            .into_iter()
+            .chain(self.rotation.into_iter().flatten())
+            .chain(self.velocity)
+    }
+
+    /// Replace its nodes, in the order of [`Self::nodes`].
+    fn set_nodes(&mut self, it: &mut impl Iterator<Item = Id>) {
+        let mut next = || it.next().expect("one node per root");
+        self.position = std::array::from_fn(|_| next());
+        self.rotation = std::array::from_fn(|_| std::array::from_fn(|_| next()));
+        self.velocity = std::array::from_fn(|_| next());
+    }
+}
+
 /// An actuator input.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Actuator {
@@ -230,6 +263,8 @@ pub struct Model {
     pub constraints: Vec<Constraint>,
     /// Actuators.
     pub actuators: Vec<Actuator>,
+    /// Markers.
+    pub markers: Vec<Marker>,
     /// Optional outputs.
     pub outputs: Outputs,
     /// Scalar type of the generated code.
@@ -263,10 +298,11 @@ impl Model {
     }
 
     /// Every node the model refers to: [`Self::input_roots`], then the
-    /// components' bodies'.
+    /// components' bodies', then the markers'.
     pub fn roots(&self) -> Vec<Id> {
         let mut roots = self.input_roots();
         roots.extend(self.components.iter().flat_map(Component::body_nodes));
+        roots.extend(self.markers.iter().flat_map(Marker::nodes));
         roots
     }
 
@@ -285,6 +321,9 @@ impl Model {
         }
         for c in &mut self.components {
             c.set_body_nodes(&mut it);
+        }
+        for m in &mut self.markers {
+            m.set_nodes(&mut it);
         }
     }
 }

@@ -7,7 +7,7 @@
 //! dispatch) is derived from this table: adding a function is one entry.
 
 use super::{schedule, Code, Program};
-use crate::derive::Equations;
+use crate::derive::{Equations, MarkerTerms};
 use crate::expr::{Graph, Id};
 use crate::model::Model;
 
@@ -20,6 +20,8 @@ pub enum Dim {
     Constraints,
     /// The number of actuator inputs `NU`.
     Actuators,
+    /// A size of its own (a marker's 3-vectors, 6-vectors, 3 x 3 rotation).
+    Fixed(usize),
 }
 
 /// A scene's dimensions, `(NQ, NC, NU)`.
@@ -32,6 +34,7 @@ impl Dim {
             Dim::Coordinates => nq,
             Dim::Constraints => nc,
             Dim::Actuators => nu,
+            Dim::Fixed(n) => n,
         }
     }
 }
@@ -95,6 +98,9 @@ pub enum Terms {
     Nodes(Vec<Vec<Vec<Id>>>),
     /// Constants (the actuator map), written as literals.
     Constants(Vec<Vec<Vec<f64>>>),
+    /// One set of nodes per marker, each computed by a program of its own
+    /// (a function with a `marker` index).
+    Markers(Vec<Vec<Vec<Vec<Id>>>>),
 }
 
 /// What a function of the table is called, reads, writes and computes.
@@ -110,6 +116,10 @@ pub struct Spec {
     pub outputs: &'static [OutputSpec],
     /// Whether it overrides an optional trait method (returns `true`).
     pub optional: bool,
+    /// Whether it computes one marker's kinematics, chosen by a `marker`
+    /// index (its first argument; `false` for an index the scene does not
+    /// have). Such functions are optional.
+    pub per_marker: bool,
     /// Its terms, `None` where the scene does not generate it (an optional
     /// output it does not ask for).
     terms: fn(&Model, &Equations) -> Option<Terms>,
@@ -143,6 +153,32 @@ const SCALAR: OutputSpec = OutputSpec {
 
 const NQ: Dim = Dim::Coordinates;
 const NC: Dim = Dim::Constraints;
+
+/// A marker's position (3).
+const POSITION: OutputSpec = vector("position", Dim::Fixed(3));
+
+/// A marker's rotation (3 x 3).
+const ROTATION: OutputSpec = OutputSpec {
+    name: "rotation",
+    shape: Shape::Matrix {
+        rows: Dim::Fixed(3),
+        cols: Dim::Fixed(3),
+        symmetric: false,
+    },
+};
+
+/// Each marker's outputs from its terms.
+fn per_marker(eq: &Equations, outputs: fn(&MarkerTerms) -> Vec<Vec<Vec<Id>>>) -> Option<Terms> {
+    Some(Terms::Markers(eq.markers.iter().map(outputs).collect()))
+}
+
+/// A marker's position and rotation.
+fn pose(m: &MarkerTerms) -> [Vec<Vec<Id>>; 2] {
+    [
+        column(&m.position),
+        m.rotation.iter().map(|r| r.to_vec()).collect(),
+    ]
+}
 
 /// A vector's entries as one column.
 fn column(ids: &[Id]) -> Vec<Vec<Id>> {
@@ -189,6 +225,7 @@ table! {
         inputs: Inputs::Positions,
         outputs: &[matrix("m", NQ, true)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![eq.mass.clone()]),
     },
     /// `bias`: `h` (nq).
@@ -198,6 +235,7 @@ table! {
         inputs: Inputs::Velocities,
         outputs: &[vector("h", NQ)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![column(&eq.bias)]),
     },
     /// `constraints`: `Phi` (nc).
@@ -207,6 +245,7 @@ table! {
         inputs: Inputs::Positions,
         outputs: &[vector("phi", NC)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![column(&eq.phi)]),
     },
     /// `constraint_jacobian`: `Phi_q` (nc x nq).
@@ -216,6 +255,7 @@ table! {
         inputs: Inputs::Positions,
         outputs: &[matrix("phi_q", NC, false)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![eq.phi_q.clone()]),
     },
     /// `constraint_time_derivative`: `Phi_t` (nc).
@@ -225,6 +265,7 @@ table! {
         inputs: Inputs::Positions,
         outputs: &[vector("phi_t", NC)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![column(&eq.phi_t)]),
     },
     /// `constraint_rhs`: `gamma` (nc).
@@ -234,6 +275,7 @@ table! {
         inputs: Inputs::Velocities,
         outputs: &[vector("gamma", NC)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![column(&eq.gamma)]),
     },
     /// `constraints_and_jacobian`: `Phi`, then `Phi_q`.
@@ -243,6 +285,7 @@ table! {
         inputs: Inputs::Positions,
         outputs: &[vector("phi", NC), matrix("phi_q", NC, false)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![column(&eq.phi), eq.phi_q.clone()]),
     },
     /// `dynamics_terms`: `M`, `h`, `Phi_q`, `gamma`.
@@ -257,6 +300,7 @@ table! {
             vector("gamma", NC),
         ],
         optional: false,
+        per_marker: false,
         terms: |_, eq| {
             nodes(vec![
                 eq.mass.clone(),
@@ -273,6 +317,7 @@ table! {
         inputs: Inputs::Accelerations,
         outputs: &[vector("tau", NQ)],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![column(&eq.inverse_dynamics)]),
     },
     /// `actuator_map`: `B` (nq x nu), constant.
@@ -289,6 +334,7 @@ table! {
             },
         }],
         optional: false,
+        per_marker: false,
         terms: |_, eq| Some(Terms::Constants(vec![eq.actuator_map.clone()])),
     },
     /// `kinetic_energy`: `T` (one value).
@@ -298,6 +344,7 @@ table! {
         inputs: Inputs::Velocities,
         outputs: &[SCALAR],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![vec![vec![eq.kinetic_energy]]]),
     },
     /// `potential_energy`: `V` (one value).
@@ -307,6 +354,7 @@ table! {
         inputs: Inputs::Positions,
         outputs: &[SCALAR],
         optional: false,
+        per_marker: false,
         terms: |_, eq| nodes(vec![vec![vec![eq.potential_energy]]]),
     },
     /// `coriolis_forces` (optional output).
@@ -316,6 +364,7 @@ table! {
         inputs: Inputs::Velocities,
         outputs: &[vector("out", NQ)],
         optional: true,
+        per_marker: false,
         terms: |m, eq| m.outputs.forces.then(|| Terms::Nodes(vec![column(&eq.coriolis)])),
     },
     /// `potential_forces` (optional output).
@@ -325,6 +374,7 @@ table! {
         inputs: Inputs::Positions,
         outputs: &[vector("out", NQ)],
         optional: true,
+        per_marker: false,
         terms: |m, eq| {
             m.outputs
                 .forces
@@ -338,6 +388,7 @@ table! {
         inputs: Inputs::Velocities,
         outputs: &[vector("out", NQ)],
         optional: true,
+        per_marker: false,
         terms: |m, eq| {
             m.outputs
                 .forces
@@ -351,6 +402,7 @@ table! {
         inputs: Inputs::Velocities,
         outputs: &[matrix("out", NQ, false)],
         optional: true,
+        per_marker: false,
         terms: |_, eq| eq.coriolis_matrix.as_ref().map(|c| Terms::Nodes(vec![c.clone()])),
     },
     /// `bias_jacobians`: `dh/dq`, then `dh/dqd` (optional output).
@@ -360,10 +412,59 @@ table! {
         inputs: Inputs::Velocities,
         outputs: &[matrix("h_q", NQ, false), matrix("h_qd", NQ, false)],
         optional: true,
+        per_marker: false,
         terms: |_, eq| {
             eq.bias_jacobians
                 .as_ref()
                 .map(|(h_q, h_qd)| Terms::Nodes(vec![h_q.clone(), h_qd.clone()]))
+        },
+    },
+    /// `marker_pose`: a marker's position (3) and rotation (3 x 3).
+    MarkerPose => Spec {
+        name: "marker_pose",
+        doc: "World position of marker `marker` and its rotation (marker axes to world axes).",
+        inputs: Inputs::Positions,
+        outputs: &[POSITION, ROTATION],
+        optional: true,
+        per_marker: true,
+        terms: |_, eq| per_marker(eq, |m| pose(m).to_vec()),
+    },
+    /// `marker_jacobian`: a marker's position, rotation and Jacobian (6 x nq).
+    MarkerJacobian => Spec {
+        name: "marker_jacobian",
+        doc: "World position and rotation of marker `marker`, and its Jacobian (6 x nq) in world-aligned axes at the marker: rows 0-2 the velocity of the marker point, rows 3-5 the angular velocity (Pinocchio's `LOCAL_WORLD_ALIGNED`), from one program.",
+        inputs: Inputs::Positions,
+        outputs: &[
+            POSITION,
+            ROTATION,
+            OutputSpec {
+                name: "jacobian",
+                shape: Shape::Matrix {
+                    rows: Dim::Fixed(6),
+                    cols: NQ,
+                    symmetric: false,
+                },
+            },
+        ],
+        optional: true,
+        per_marker: true,
+        terms: |_, eq| {
+            per_marker(eq, |m| {
+                let [p, r] = pose(m);
+                vec![p, r, m.jacobian.clone()]
+            })
+        },
+    },
+    /// `marker_motion`: a marker's velocity (6) and acceleration bias (6).
+    MarkerMotion => Spec {
+        name: "marker_motion",
+        doc: "Velocity of marker `marker` in world axes (the point's linear velocity, then the angular velocity; `J qd` plus explicit time terms) and its acceleration bias (its acceleration when `qdd = 0`: `J' qd` plus explicit time terms; the point's classical acceleration, then the angular acceleration).",
+        inputs: Inputs::Velocities,
+        outputs: &[vector("velocity", Dim::Fixed(6)), vector("acceleration_bias", Dim::Fixed(6))],
+        optional: true,
+        per_marker: true,
+        terms: |_, eq| {
+            per_marker(eq, |m| vec![column(&m.velocity), column(&m.acceleration_bias)])
         },
     },
 }
@@ -393,6 +494,8 @@ impl Function {
 pub struct Scheduled {
     /// Which function.
     pub function: Function,
+    /// The marker it computes, for a per-marker function.
+    pub marker: Option<usize>,
     /// The scene's dimensions.
     pub dims: Dims,
     /// Where each computed entry goes: (output, row, column).
@@ -412,7 +515,13 @@ impl Scheduled {
     /// entries that are structurally zero are not computed (the emitted
     /// function zeroes the matrix first); symmetric matrices compute the
     /// upper triangle.
-    fn new(graph: &Graph, function: Function, dims: Dims, terms: Terms) -> Scheduled {
+    fn new(
+        graph: &Graph,
+        function: Function,
+        marker: Option<usize>,
+        dims: Dims,
+        terms: Terms,
+    ) -> Scheduled {
         let outputs = function.spec().outputs;
         // The entries to compute, and where each goes.
         fn place<T: Copy>(
@@ -448,9 +557,11 @@ impl Scheduled {
                 let literals = values.into_iter().map(Code::Lit).collect();
                 (slots, Program::new(Vec::new(), literals))
             }
+            Terms::Markers(_) => unreachable!("a marker's terms are scheduled one by one"),
         };
         Scheduled {
             function,
+            marker,
             dims,
             slots,
             program,
@@ -458,14 +569,22 @@ impl Scheduled {
     }
 }
 
-/// The functions of a scene's module, in emission order, each scheduled.
+/// The functions of a scene's module, in emission order, each scheduled
+/// (a per-marker function once per marker, in marker order).
 pub fn functions(model: &Model, eq: &Equations) -> Vec<Scheduled> {
     let dims = (model.nq(), model.constraints.len(), model.actuators.len());
-    Function::ALL
-        .iter()
-        .filter_map(|&f| {
-            let terms = f.spec().terms(model, eq)?;
-            Some(Scheduled::new(&model.graph, f, dims, terms))
-        })
-        .collect()
+    let g = &model.graph;
+    let mut out = Vec::new();
+    for &f in Function::ALL {
+        match f.spec().terms(model, eq) {
+            None => {}
+            Some(Terms::Markers(each)) => out.extend(
+                each.into_iter()
+                    .enumerate()
+                    .map(|(k, t)| Scheduled::new(g, f, Some(k), dims, Terms::Nodes(t))),
+            ),
+            Some(terms) => out.push(Scheduled::new(g, f, None, dims, terms)),
+        }
+    }
+    out
 }

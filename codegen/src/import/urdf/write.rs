@@ -152,8 +152,8 @@ pub(super) fn write_scene(
         w,
         "# Imported by `flexdyn import urdf` from {}: robot {}, {} links, {} joints \
          ({} moving).\n# Frames are named after the URDF links (prismatic joints also get a frame \
-         for their origin),\n# coordinates and actuators after the URDF joints. Gravity is -9.81 \
-         along z.",
+         for their origin),\n# coordinates and actuators after the URDF joints, a marker at the \
+         origin of every link\n# below the root. Gravity is -9.81 along z.",
         quoted(&file),
         quoted(robot_name),
         links.len(),
@@ -274,6 +274,14 @@ pub(super) fn write_scene(
         let _ = writeln!(w, "\n[[actuators]]");
         let _ = writeln!(w, "name = {}", quoted(&names.joint[j]));
         let _ = writeln!(w, "coordinate = {}", quoted(&names.joint[j]));
+    }
+    // A marker at the origin of every link below the root (the root is the
+    // world), named after it.
+    for &j in &tree.order {
+        let link = quoted(&names.link[joints[j].child]);
+        let _ = writeln!(w, "\n[[markers]]");
+        let _ = writeln!(w, "name = {link}");
+        let _ = writeln!(w, "frame = {link}");
     }
     s
 }
