@@ -19,6 +19,28 @@ pub(crate) struct Frame {
     pub(crate) velocity: [Id; 3],
     /// Angular velocity in the frame's own axes.
     pub(crate) omega: [Id; 3],
+    /// How the frame is placed from the world, step by step, for its
+    /// velocities in world axes ([`Graph::world_velocities`]), which only
+    /// markers need: kept as steps so that scenes without markers build
+    /// no nodes for them.
+    pub(crate) steps: Vec<Step>,
+}
+
+/// One step of a frame's placement, with the world rotation before it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Step {
+    /// A translation, `local` in the axes `rotation`, `offset` in world axes.
+    Translate {
+        rotation: [[Id; 3]; 3],
+        local: [Id; 3],
+        offset: [Id; 3],
+    },
+    /// A rotation by `angle` about the unit `axis` of the axes `rotation`.
+    Rotate {
+        rotation: [[Id; 3]; 3],
+        axis: [f64; 3],
+        angle: Id,
+    },
 }
 
 /// A material point: world position, and velocity in the axes of the frame
@@ -111,6 +133,7 @@ impl Graph {
             origin: [zero; 3],
             velocity: [zero; 3],
             omega: [zero; 3],
+            steps: Vec::new(),
         }
     }
 
@@ -128,7 +151,18 @@ impl Graph {
         let mut velocity = self.moving_point_velocity(parent, translation);
         let mut rotation = parent.rotation;
         let mut omega = parent.omega;
+        let mut steps = parent.steps.clone();
+        steps.push(Step::Translate {
+            rotation,
+            local: translation,
+            offset,
+        });
         for &(axis, angle) in rotations {
+            steps.push(Step::Rotate {
+                rotation,
+                axis,
+                angle,
+            });
             let local = self.axis_rotation(axis, angle);
             rotation = self.matmul(&rotation, &local);
             // omega_child = R_local^T omega_parent + axis * angle_dot
@@ -146,7 +180,57 @@ impl Graph {
             origin,
             velocity,
             omega,
+            steps,
         }
+    }
+
+    /// The angular velocity of `frame` and the velocity of the point at
+    /// `local` in it (`offset` in world axes), both in world axes, built
+    /// along the frame's steps as the recursive algorithms do: a rotation
+    /// adds its rate along its axis in world axes (a column combination of
+    /// the rotation before it, which it leaves unchanged); a translation
+    /// adds the angular velocity across it and its own rate.
+    pub(crate) fn world_velocities(
+        &mut self,
+        frame: &Frame,
+        local: [Id; 3],
+        offset: [Id; 3],
+    ) -> ([Id; 3], [Id; 3]) {
+        let zero = self.constant(0.0);
+        let (mut omega, mut velocity) = ([zero; 3], [zero; 3]);
+        let last = Step::Translate {
+            rotation: frame.rotation,
+            local,
+            offset,
+        };
+        for step in frame.steps.iter().chain([&last]) {
+            match *step {
+                Step::Translate {
+                    rotation,
+                    local,
+                    offset,
+                } => {
+                    let turn = self.cross(omega, offset);
+                    let rate = self.time_derivative_at_zero_acceleration(&local);
+                    let own = self.rotate(&rotation, [rate[0], rate[1], rate[2]]);
+                    velocity = std::array::from_fn(|k| self.sum(&[velocity[k], turn[k], own[k]]));
+                }
+                Step::Rotate {
+                    rotation,
+                    axis,
+                    angle,
+                } => {
+                    let rate = self.time_derivative_at_zero_acceleration(&[angle])[0];
+                    let nodes = [0, 1, 2].map(|k| self.constant(axis[k]));
+                    let world_axis = self.rotate(&rotation, nodes);
+                    omega = std::array::from_fn(|k| {
+                        let term = self.mul(world_axis[k], rate);
+                        self.add(omega[k], term)
+                    });
+                }
+            }
+        }
+        (omega, velocity)
     }
 
     /// Velocity, in `frame`'s axes, of a point at `local` (which may itself

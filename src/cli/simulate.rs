@@ -43,7 +43,8 @@ pub const INTEGRATORS: [&str; 5] = [
 
 /// Simulate a scene from its initial state under inputs; write the motion as
 /// CSV: `t`, every coordinate, `<name>_dot` of every velocity, `T`, `V`,
-/// `drift` (norm of the constraint residuals).
+/// `drift` (norm of the constraint residuals), then `<marker>_x`,
+/// `<marker>_y`, `<marker>_z` (world position) of the scene's markers.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scene file (any; a compiled-in scene runs compiled).
@@ -102,6 +103,11 @@ pub struct Args {
     /// at most 4096 and the last; the CSV has them all).
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// Markers whose world position is written (`<name>_x`, `_y`, `_z`
+    /// after `drift`), comma-separated: all of the scene's by default,
+    /// `none` for none.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub markers: Vec<String>,
     /// Columns to plot, comma-separated (default: the coordinates).
     #[arg(long, value_delimiter = ',')]
     pub columns: Vec<String>,
@@ -167,6 +173,8 @@ struct Setup<'a> {
     integrator: &'a str,
     tolerance: f64,
     quiet: bool,
+    /// Indices of the markers in the rows.
+    markers: Vec<usize>,
 }
 
 /// Run the command on the scenes of `compiled`.
@@ -194,7 +202,8 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     let mut model = compiled.load(&args.scene, &parsed.name, args.interpret)?;
     let state = initial_state(args, &parsed, model.as_mut())?;
     let model = &*model;
-    let columns = output_columns(model);
+    let markers = chosen_markers(&args.markers, model)?;
+    let columns = output_columns(model, &markers)?;
     let plotted: Vec<String> = match args.columns.is_empty() {
         true => model.coordinates().iter().map(|c| c.to_string()).collect(),
         false => args.columns.clone(),
@@ -216,6 +225,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         integrator: &args.integrator,
         tolerance: args.tolerance,
         quiet: args.quiet,
+        markers,
     };
     let mut outputs = OutputFiles::default();
     let mut csv = CsvWriter::create(&mut outputs, &args.csv, &columns)?;
@@ -457,13 +467,55 @@ fn list(names: &[&str]) -> String {
     }
 }
 
-/// `t`, coordinates, `<name>_dot`, `T`, `V`, `drift`.
-fn output_columns(model: &dyn DynModel) -> Vec<String> {
+/// The indices of the markers `--markers` names (all when it names none,
+/// none for `none`).
+fn chosen_markers(names: &[String], model: &dyn DynModel) -> Result<Vec<usize>, String> {
+    let all = model.markers();
+    match names {
+        [] => return Ok((0..all.len()).collect()),
+        [none] if none == "none" => return Ok(Vec::new()),
+        _ => {}
+    }
+    let mut chosen = Vec::with_capacity(names.len());
+    for name in names {
+        let k = all.iter().position(|m| m == name).ok_or_else(|| {
+            format!(
+                "--markers: scene `{}` has no marker `{name}` (markers: {})",
+                model.name(),
+                list(&all)
+            )
+        })?;
+        if chosen.contains(&k) {
+            return Err(format!("--markers: marker `{name}` is named twice"));
+        }
+        chosen.push(k);
+    }
+    Ok(chosen)
+}
+
+/// `t`, coordinates, `<name>_dot`, `T`, `V`, `drift`, then `<marker>_x`,
+/// `_y`, `_z` of each chosen marker; an error when two columns would have
+/// one name.
+fn output_columns(model: &dyn DynModel, markers: &[usize]) -> Result<Vec<String>, String> {
     let mut columns = vec!["t".to_string()];
     columns.extend(model.coordinates().iter().map(|c| c.to_string()));
     columns.extend(model.coordinates().iter().map(|c| format!("{c}_dot")));
     columns.extend(["T", "V", "drift"].map(String::from));
-    columns
+    let names = model.markers();
+    for &k in markers {
+        for axis in ["x", "y", "z"] {
+            let column = format!("{}_{axis}", names[k]);
+            if columns.contains(&column) {
+                return Err(format!(
+                    "the column `{column}` of marker `{}` is also the name of another \
+                     column; leave the marker out with --markers",
+                    names[k]
+                ));
+            }
+            columns.push(column);
+        }
+    }
+    Ok(columns)
 }
 
 impl Setup<'_> {
@@ -530,6 +582,7 @@ impl Setup<'_> {
             max_steps: self.max_steps,
             adaptive: self.integrator == "adaptive-rk4",
             quiet: self.quiet,
+            markers: &self.markers,
             emit,
         };
         match self.integrator {
@@ -667,6 +720,8 @@ struct Run<'a, 'e> {
     max_steps: u64,
     adaptive: bool,
     quiet: bool,
+    /// Indices of the markers whose positions end the rows.
+    markers: &'a [usize],
     emit: Emit<'e>,
 }
 
@@ -747,5 +802,11 @@ impl Run<'_, '_> {
         row.push(self.model.kinetic_energy(q, qd, s.t));
         row.push(self.model.potential_energy(q, s.t));
         row.push(vector(self.model.nc(), |o| self.model.constraints(q, s.t, o)).norm());
+        let (mut position, mut rotation) = ([0.0; 3], [0.0; 9]);
+        for &k in self.markers {
+            self.model
+                .marker_pose(k, q, s.t, &mut position, &mut rotation);
+            row.extend_from_slice(&position);
+        }
     }
 }

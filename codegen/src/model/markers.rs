@@ -1,7 +1,7 @@
 //! Markers: named points of frames (a frame's origin by default), with
-//! their world pose and their velocity in world axes, from the frame's
-//! pose and its velocities ([`crate::geometry::Frame`]). The derive stage
-//! differentiates them into Jacobians and acceleration biases.
+//! their world pose and their velocity in world axes, built along the
+//! frames in world axes ([`crate::geometry::Frame`]). The derive stage differentiates them into
+//! Jacobians and acceleration biases.
 
 use super::context::Context;
 use super::Marker;
@@ -33,9 +33,7 @@ impl Context<'_> {
             let g = &mut self.graph;
             let offset = g.rotate(&frame.rotation, local);
             let position = std::array::from_fn(|k| g.add(frame.origin[k], offset[k]));
-            let linear_local = g.moving_point_velocity(&frame, local);
-            let linear = g.rotate(&frame.rotation, linear_local);
-            let angular = g.rotate(&frame.rotation, frame.omega);
+            let (angular, linear) = g.world_velocities(&frame, local, offset);
             self.check_overflow(m.name.span().start, Some(&ctx), "the marker")?;
             out.push(Marker {
                 name: m.name.get_ref().clone(),

@@ -1,0 +1,312 @@
+//! Markers (`[[markers]]`: named points of frames) against closed forms: a
+//! planar two-link arm on a base that moves with time, its tip marker's
+//! position, rotation, Jacobian, velocity (with the base's explicit time
+//! term) and acceleration bias from `flexdyn eval`'s evaluation, the
+//! positions `flexdyn simulate` writes, and the errors of bad markers.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use flexdyn::dynamic::DynModel;
+use flexdyn::eval::{evaluate, State};
+use flexdyn::interpreted::InterpretedModel;
+use flexdyn::table::Table;
+use nalgebra::{Matrix3, Vector3};
+
+const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
+
+/// A two-link arm turning about y (angles `a`, `b`) on a base sliding
+/// along x as `X(t) = 0.1 sin(3 t)`, with a marker off the forearm's axis.
+const ARM: &str = r#"
+name = "sliding_arm"
+[[coordinates]]
+name = "a"
+[[coordinates]]
+name = "b"
+[[frames]]
+name = "base"
+translation = ["0.1*sin(3*t)", 0, 0]
+[[frames]]
+name = "upper"
+parent = "base"
+rotation = [{ axis = "y", angle = "a" }]
+[[frames]]
+name = "fore"
+parent = "upper"
+translation = [0.5, 0, 0]
+rotation = [{ axis = "y", angle = "b" }]
+[[components]]
+name = "l1"
+type = "rigid_body"
+frame = "upper"
+mass = 1.0
+position = [0.25, 0, 0]
+inertia = [0.02, 0.02, 0.02]
+[[components]]
+name = "l2"
+type = "rigid_body"
+frame = "fore"
+mass = 0.8
+position = [0.2, 0, 0]
+inertia = [0.01, 0.01, 0.01]
+[[markers]]
+name = "tip"
+frame = "fore"
+position = [0.4, 0, 0.05]
+[[markers]]
+name = "elbow"
+frame = "fore"
+"#;
+
+/// The tip marker's point in the forearm's axes.
+const TIP: [f64; 2] = [0.4, 0.05];
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Rotation by `th` about y.
+fn ry(th: f64) -> Matrix3<f64> {
+    let (s, c) = th.sin_cos();
+    Matrix3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c)
+}
+
+/// The tip's closed forms at `(a, b, ad, bd, t)`: position, Jacobian
+/// (6 x 2), velocity and acceleration bias.
+fn tip(
+    a: f64,
+    b: f64,
+    ad: f64,
+    bd: f64,
+    t: f64,
+) -> (Vector3<f64>, [[f64; 2]; 6], [f64; 6], [f64; 6]) {
+    let p = Vector3::new(TIP[0], 0.0, TIP[1]);
+    let phi = a + b;
+    let x = 0.1 * (3.0 * t).sin();
+    let position = Vector3::new(x, 0.0, 0.0) + ry(a) * Vector3::new(0.5, 0.0, 0.0) + ry(phi) * p;
+    // d/dth of Ry(th) [px, 0, pz].
+    let d = |th: f64, v: Vector3<f64>| {
+        let (s, c) = th.sin_cos();
+        Vector3::new(-s * v.x + c * v.z, 0.0, -c * v.x - s * v.z)
+    };
+    let col_b = d(phi, p);
+    let col_a = d(a, Vector3::new(0.5, 0.0, 0.0)) + col_b;
+    let mut jacobian = [[0.0; 2]; 6];
+    for k in 0..3 {
+        jacobian[k] = [col_a[k], col_b[k]];
+    }
+    jacobian[4] = [1.0, 1.0];
+    let mut velocity = [0.0; 6];
+    for k in 0..3 {
+        velocity[k] = col_a[k] * ad + col_b[k] * bd;
+    }
+    velocity[0] += 0.3 * (3.0 * t).cos();
+    velocity[4] = ad + bd;
+    // Second derivatives at zero accelerations: -Ry(th) v th_dot^2.
+    let bias = -ry(a) * Vector3::new(0.5, 0.0, 0.0) * ad * ad - ry(phi) * p * (ad + bd).powi(2);
+    let mut acceleration_bias = [0.0; 6];
+    acceleration_bias[..3].copy_from_slice(bias.as_slice());
+    acceleration_bias[0] += -0.9 * (3.0 * t).sin();
+    (position, jacobian, velocity, acceleration_bias)
+}
+
+fn close(got: f64, want: f64, scale: f64, what: &str) {
+    assert!(
+        (got - want).abs() <= 1e-14 * scale,
+        "{what}: {got:e} vs {want:e}"
+    );
+}
+
+#[test]
+fn a_marker_has_the_closed_form_kinematics_with_explicit_time_terms() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "sliding_arm.toml", ARM);
+    let mut model = InterpretedModel::load(&scene).unwrap();
+    assert_eq!(model.markers(), ["tip", "elbow"]);
+    for (k, &(a, b, ad, bd, t)) in [
+        (0.3, 0.5, 1.0, -2.0, 0.0),
+        (-1.2, 2.4, -0.7, 3.1, 0.45),
+        (2.9, -0.4, 4.0, 0.2, 1.7),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let state = State {
+            q: vec![a, b],
+            qd: vec![ad, bd],
+            qdd: Vec::new(),
+            t,
+            params: Default::default(),
+        };
+        let terms = evaluate(&mut model, &state).unwrap();
+        let got = &terms.markers["tip"];
+        let (position, jacobian, velocity, bias) = tip(a, b, ad, bd, t);
+        let what = |term: &str| format!("state {k}: tip {term}");
+        for i in 0..3 {
+            close(got.position[i], position[i], 1.0, &what("position"));
+            for j in 0..3 {
+                close(
+                    got.rotation[i][j],
+                    ry(a + b)[(i, j)],
+                    1.0,
+                    &what("rotation"),
+                );
+            }
+        }
+        for i in 0..6 {
+            for j in 0..2 {
+                close(got.jacobian[i][j], jacobian[i][j], 1.0, &what("jacobian"));
+            }
+            close(got.velocity[i], velocity[i], 5.0, &what("velocity"));
+            close(
+                got.acceleration_bias[i],
+                bias[i],
+                25.0,
+                &what("acceleration bias"),
+            );
+        }
+        // The pose alone is the pose of the combined call.
+        let (mut p, mut r) = ([0.0; 3], [0.0; 9]);
+        assert!(model.marker_pose(0, &state.q, t, &mut p, &mut r));
+        assert_eq!(p, got.position);
+        assert!(!model.marker_pose(2, &state.q, t, &mut p, &mut r));
+    }
+}
+
+#[test]
+fn simulate_writes_the_marker_positions_of_every_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write(dir.path(), "sliding_arm.toml", ARM);
+    let csv = dir.path().join("out.csv");
+    let out = Command::new(BIN)
+        .args([
+            "simulate",
+            "--duration",
+            "0.3",
+            "--dt",
+            "0.01",
+            "--quiet",
+            "--scene",
+        ])
+        .arg(&scene)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let table = Table::read(&csv).unwrap();
+    let tail: Vec<&str> = table.columns.iter().map(String::as_str).skip(8).collect();
+    assert_eq!(
+        tail,
+        ["tip_x", "tip_y", "tip_z", "elbow_x", "elbow_y", "elbow_z"]
+    );
+    let col = |c: &str| table.column(c).unwrap();
+    let (t, a, b) = (col("t"), col("a"), col("b"));
+    assert_eq!(t.len(), 31);
+    for k in 0..t.len() {
+        let (position, ..) = tip(a[k], b[k], 0.0, 0.0, t[k]);
+        for (axis, want) in ["x", "y", "z"].iter().zip(position.iter()) {
+            close(
+                col(&format!("tip_{axis}"))[k],
+                *want,
+                1.0,
+                &format!("row {k} tip_{axis}"),
+            );
+        }
+    }
+    // Only the markers asked for; none at all.
+    for (choice, columns) in [("elbow", 11), ("none", 8)] {
+        let out = Command::new(BIN)
+            .args([
+                "simulate",
+                "--duration",
+                "0.02",
+                "--quiet",
+                "--markers",
+                choice,
+                "--scene",
+            ])
+            .arg(&scene)
+            .arg("--csv")
+            .arg(&csv)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert_eq!(
+            Table::read(&csv).unwrap().columns.len(),
+            columns,
+            "{choice}"
+        );
+    }
+}
+
+#[test]
+fn bad_markers_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            ARM.replace(
+                "frame = \"fore\"\nposition = [0.4",
+                "frame = \"hand\"\nposition = [0.4",
+            ),
+            "frame `hand` is not defined above",
+        ),
+        (
+            ARM.replace("name = \"elbow\"", "name = \"tip\""),
+            "marker is defined twice",
+        ),
+        (
+            ARM.replace("position = [0.4, 0, 0.05]", "position = [\"a\", 0, 0]"),
+            "a marker's `position` may depend on parameters only",
+        ),
+        (
+            ARM.replace("name = \"elbow\"", "name = \"2nd\""),
+            "is not a valid name",
+        ),
+        (
+            ARM.replace("name = \"elbow\"\nframe = \"fore\"\n", "name = \"elbow\"\n"),
+            "missing field `frame`",
+        ),
+    ];
+    for (k, (text, needle)) in cases.iter().enumerate() {
+        assert_ne!(text, ARM, "case {k} changes the scene");
+        let scene = write(dir.path(), "bad.toml", text);
+        let e = InterpretedModel::load(&scene).unwrap_err();
+        assert!(
+            e.contains(needle) && e.contains("bad.toml"),
+            "case {k}: {e}"
+        );
+    }
+    let scene = write(dir.path(), "sliding_arm.toml", ARM);
+    let out = Command::new(BIN)
+        .args([
+            "simulate",
+            "--duration",
+            "0.02",
+            "--markers",
+            "tip,hand",
+            "--scene",
+        ])
+        .arg(&scene)
+        .arg("--csv")
+        .arg(dir.path().join("out.csv"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && e.contains("no marker `hand` (markers: tip, elbow)")
+            && !dir.path().join("out.csv").exists(),
+        "{e}"
+    );
+}
