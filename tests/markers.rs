@@ -310,3 +310,150 @@ fn bad_markers_are_clear_errors() {
         "{e}"
     );
 }
+
+/// A point mass moving in 3-D on coordinates `x`, `y`, `z`, hung from the
+/// point (0.2, 0, 1) of the world by a spring and a damper; `ENDS` gives
+/// them as two ends, the expression form as the distance written out.
+const HUNG: &str = r#"
+name = "hung_mass"
+[[coordinates]]
+name = "x"
+[[coordinates]]
+name = "y"
+[[coordinates]]
+name = "z"
+[[frames]]
+name = "body"
+translation = ["x", "y", "z"]
+[[components]]
+name = "mass"
+type = "point_mass"
+mass = 1.5
+frame = "body"
+position = [0, 0, 0]
+[[markers]]
+name = "hook"
+frame = "body"
+position = [0, 0, 0.1]
+"#;
+
+const ENDS: &str = r#"
+[[components]]
+name = "spring"
+type = "spring"
+stiffness = 40.0
+rest = 0.5
+a = { frame = "body", position = [0, 0, 0.1] }
+b = { position = [0.2, 0, 1] }
+[[components]]
+name = "damper"
+type = "damper"
+damping = 0.7
+a = { frame = "body", position = [0, 0, 0.1] }
+b = { position = [0.2, 0, 1] }
+[[constraints]]
+name = "plane"
+expression = "hook.y - 0.1*hook.x"
+"#;
+
+const WRITTEN_OUT: &str = r#"
+[[components]]
+name = "spring"
+type = "spring"
+stiffness = 40.0
+rest = 0.5
+expression = "sqrt(powi(x - 0.2, 2) + powi(y, 2) + powi(z + 0.1 - 1, 2))"
+[[components]]
+name = "damper"
+type = "damper"
+damping = 0.7
+expression = "sqrt(powi(x - 0.2, 2) + powi(y, 2) + powi(z + 0.1 - 1, 2))"
+[[constraints]]
+name = "plane"
+expression = "y - 0.1*x"
+"#;
+
+/// A spring and a damper between two points act on their distance, and an
+/// expression reads a marker's coordinates: every term equals the scene
+/// with the distance and the constraint written out.
+#[test]
+fn springs_dampers_and_expressions_between_points_are_their_written_out_forms() {
+    let dir = tempfile::tempdir().unwrap();
+    let ends = write(dir.path(), "ends.toml", &format!("{HUNG}{ENDS}"));
+    let written = write(dir.path(), "written.toml", &format!("{HUNG}{WRITTEN_OUT}"));
+    let (mut a, mut b) = (
+        InterpretedModel::load(&ends).unwrap(),
+        InterpretedModel::load(&written).unwrap(),
+    );
+    for (k, (q, qd)) in [
+        ([0.3, -0.2, 0.1], [0.5, 1.0, -2.0]),
+        ([-1.0, 0.4, 2.5], [-0.3, 0.2, 0.9]),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let state = State {
+            q: q.to_vec(),
+            qd: qd.to_vec(),
+            qdd: vec![0.1, 0.2, 0.3],
+            t: 0.0,
+            params: Default::default(),
+        };
+        let (x, y) = (
+            evaluate(&mut a, &state).unwrap(),
+            evaluate(&mut b, &state).unwrap(),
+        );
+        let pairs: [(&str, Vec<f64>, Vec<f64>); 6] = [
+            (
+                "mass_matrix",
+                x.mass_matrix.concat(),
+                y.mass_matrix.concat(),
+            ),
+            ("bias", x.bias.clone(), y.bias.clone()),
+            ("constraints", x.constraints.clone(), y.constraints.clone()),
+            (
+                "constraint_jacobian",
+                x.constraint_jacobian.concat(),
+                y.constraint_jacobian.concat(),
+            ),
+            (
+                "constraint_rhs",
+                x.constraint_rhs.clone(),
+                y.constraint_rhs.clone(),
+            ),
+            (
+                "potential_energy",
+                vec![x.potential_energy],
+                vec![y.potential_energy],
+            ),
+        ];
+        for (term, got, want) in pairs {
+            let scale = want.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+            for (g, w) in got.iter().zip(&want) {
+                close(*g, *w, scale, &format!("state {k}: {term}"));
+            }
+        }
+        assert!(x.bias.iter().any(|h| h.abs() > 1.0), "the spring pulls");
+    }
+}
+
+#[test]
+fn bad_ends_and_marker_coordinates_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (ENDS.replace("rest = 0.5\na =", "rest = 0.5\nexpression = \"x\"\na ="), "not both"),
+        (ENDS.replace("a = { frame = \"body\", position = [0, 0, 0.1] }\nb = { position = [0.2, 0, 1] }\n[[components]]\nname = \"damper\"", "b = { position = [0.2, 0, 1] }\n[[components]]\nname = \"damper\""), "`b` needs `a`"),
+        (ENDS.replace("b = { position = [0.2, 0, 1] }\n[[constraints]]", "b = { axis = \"x\" }\n[[constraints]]"), "give `position`, not `axis`"),
+        (ENDS.replace("hook.y", "hook.w"), "coordinates `x`, `y` and `z`, not `w`"),
+        (ENDS.replace("hook.y", "hand.y"), "no marker `hand` above (markers: hook)"),
+    ];
+    for (k, (text, needle)) in cases.iter().enumerate() {
+        assert_ne!(text, ENDS, "case {k} changes the scene");
+        let scene = write(dir.path(), "bad.toml", &format!("{HUNG}{text}"));
+        let e = InterpretedModel::load(&scene).unwrap_err();
+        assert!(
+            e.contains(needle) && e.contains("bad.toml"),
+            "case {k}: {e}"
+        );
+    }
+}

@@ -36,6 +36,7 @@ impl TimeFunction {
                 .map(|(name, &value)| (name.clone(), Binding::Value(value)))
                 .collect(),
             allow_velocity: true,
+            points: Default::default(),
         };
         let mut graph = Graph::new();
         let f =

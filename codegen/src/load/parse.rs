@@ -45,6 +45,9 @@ pub struct Scope {
     pub parameters: BTreeMap<String, Binding>,
     /// Whether velocities (`qd[i]`, `dot(x)`) may appear.
     pub allow_velocity: bool,
+    /// Named points (markers) whose world coordinates an expression reads
+    /// as `name.x`, `name.y`, `name.z`.
+    pub points: BTreeMap<String, [Id; 3]>,
 }
 
 /// A parse error at a byte offset within the expression.
@@ -274,6 +277,7 @@ impl Converter<'_> {
                 self.name(&ident.to_string(), at)
             }
             Expr::Index(ix) => self.index(ix, at),
+            Expr::Field(f) => self.point_coordinate(f, at),
             Expr::Call(c) => {
                 let Expr::Path(p) = &*c.func else {
                     return err(at, "only named functions can be called");
@@ -311,6 +315,47 @@ impl Converter<'_> {
             "pi" | "PI" => self.constant(std::f64::consts::PI, at),
             "q" | "qd" => err(at, format!("`{name}` must be indexed, as in `{name}[0]`")),
             _ => err(at, format!("undefined symbol `{name}`")),
+        }
+    }
+
+    /// `marker.x` (`.y`, `.z`): a world coordinate of a marker.
+    fn point_coordinate(&mut self, f: &syn::ExprField, at: usize) -> Result<Id, ParseError> {
+        let base = match &*f.base {
+            Expr::Path(p) => p.path.get_ident().map(|i| i.to_string()),
+            _ => None,
+        };
+        let Some(base) = base else {
+            return err(
+                at,
+                "only a marker's coordinates can be read with `.`, as in `tip.x`",
+            );
+        };
+        let Some(point) = self.scope.points.get(&base) else {
+            let known: Vec<&str> = self.scope.points.keys().map(String::as_str).collect();
+            return err(
+                at,
+                format!(
+                    "no marker `{base}` above (markers: {})",
+                    if known.is_empty() {
+                        "none".to_owned()
+                    } else {
+                        known.join(", ")
+                    }
+                ),
+            );
+        };
+        let axis = match &f.member {
+            syn::Member::Named(m) => m.to_string(),
+            syn::Member::Unnamed(i) => i.index.to_string(),
+        };
+        match axis.as_str() {
+            "x" => Ok(point[0]),
+            "y" => Ok(point[1]),
+            "z" => Ok(point[2]),
+            other => err(
+                at,
+                format!("a marker has coordinates `x`, `y` and `z`, not `{other}`"),
+            ),
         }
     }
 

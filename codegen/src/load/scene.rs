@@ -241,6 +241,10 @@ pub struct ComponentDef {
     pub damping_ratio: Option<Spanned<ScalarList>>,
     /// Centrifugal (geometric) stiffening of a flexible link.
     pub geometric_stiffening: Option<Spanned<bool>>,
+    /// First end of a two-ended `spring` or `damper`: a point of a frame.
+    pub a: Option<Spanned<ConstraintEnd>>,
+    /// Second end (the world's origin when left out).
+    pub b: Option<Spanned<ConstraintEnd>>,
 }
 
 /// An entry of a rigid body's `inertia`: a row of the full tensor, or one

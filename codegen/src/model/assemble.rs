@@ -1,6 +1,6 @@
 //! The model stage in order: the names, the components that add
-//! coordinates, the frames, the energies, the constraints, actuators and
-//! markers.
+//! coordinates, the frames and markers, the energies, the constraints and
+//! actuators.
 
 use super::components;
 use super::context::Context;
@@ -44,6 +44,11 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         }
     }
     cx.frames(&def.frames)?;
+    // Markers next, so that the expressions below may read their positions.
+    let markers = cx.markers(&def.markers)?;
+    for m in &markers {
+        cx.scope.points.insert(m.name.clone(), m.position);
+    }
     let mut component_energies = Vec::with_capacity(def.components.len());
     for (i, (c, early)) in def.components.iter().zip(early).enumerate() {
         let read = match early {
@@ -82,7 +87,6 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         cx.constraint(i, c, &mut constraints)?;
     }
     let actuators = cx.actuators(def, &coordinates)?;
-    let markers = cx.markers(&def.markers)?;
     component_energies.extend(cx.armatures(def, &actuators)?);
     let outputs = cx.outputs(def)?;
     let precision = cx.precision(def)?;

@@ -11,6 +11,23 @@ use crate::expr::Id;
 use crate::load::scene::{ConstraintDef, ConstraintEnd};
 
 impl Context<'_> {
+    /// The world position of an end of a two-ended spring or damper: a
+    /// point of a frame (its origin by default).
+    pub(super) fn point_end(
+        &mut self,
+        end: &Spanned<ConstraintEnd>,
+        ctx: &str,
+    ) -> Result<[Id; 3], Error> {
+        if let Some(a) = &end.get_ref().axis {
+            return Err(self.err(
+                a.span().start,
+                Some(ctx),
+                "an end of a spring or damper is a point: give `position`, not `axis`",
+            ));
+        }
+        self.constraint_end(end, ctx, true)
+    }
+
     /// A point or direction of a vector constraint in world axes.
     fn constraint_end(
         &mut self,

@@ -1,27 +1,28 @@
-//! `damper`: a linear damper of coefficient `d` on the rate of
-//! `expression`: `D = d (de/dt)^2 / 2`.
+//! `damper`: a linear damper of coefficient `d` on the rate of `e`, its
+//! `expression` or the distance between its ends `a` and `b`: `D = d
+//! (de/dt)^2 / 2`.
 
-use super::{required, Energies, Kind, Terms};
+use super::{measure, required, Energies, Kind, Measured, Terms};
 use crate::error::Error;
 use crate::load::scene::{ComponentDef, SScalar};
 use crate::model::context::Context;
 
 pub(super) const KIND: Kind = Kind {
     name: "damper",
-    fields: &["damping", "expression"],
+    fields: &["damping", "expression", "a", "b"],
     adds_coordinates: false,
     read,
 };
 
 struct Damper {
     damping: SScalar,
-    expression: SScalar,
+    measured: Measured,
 }
 
 fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn Energies>, Error> {
     Ok(Box::new(Damper {
         damping: required(cx, c, &c.damping, ctx, "damping")?.clone(),
-        expression: required(cx, c, &c.expression, ctx, "expression")?.clone(),
+        measured: Measured::of(c),
     }))
 }
 
@@ -29,7 +30,7 @@ impl Energies for Damper {
     fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let zero = cx.graph.constant(0.0);
         let d = cx.positive(&self.damping, ctx, "damping", false)?;
-        let e = cx.scalar(&self.expression, Some(ctx), false)?;
+        let e = measure(cx, &self.measured, ctx)?;
         let g = &mut cx.graph;
         let rate = g.time_derivative_at_zero_acceleration(&[e])[0];
         let r2 = g.powi(rate, 2);

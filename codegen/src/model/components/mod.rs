@@ -19,7 +19,8 @@ use super::context::Context;
 use super::{Body, Coordinate, FlexibleLink};
 use crate::error::Error;
 use crate::expr::Id;
-use crate::load::scene::{ComponentDef, SScalar};
+use crate::load::scene::{ComponentDef, ConstraintEnd, SScalar};
+use toml::Spanned;
 
 /// Every component kind, in the order the error messages list them.
 const KINDS: &[Kind] = &[
@@ -143,6 +144,64 @@ pub(super) fn read(cx: &Context, index: usize, c: &ComponentDef) -> Result<Read,
     })
 }
 
+/// The scalar a `spring` or `damper` acts on: its `expression`, or the
+/// distance between its ends `a` and `b` (`b` the world's origin when left
+/// out), never both.
+pub(super) fn measure(cx: &mut Context, c: &Measured, ctx: &str) -> Result<Id, Error> {
+    if let (None, Some(b)) = (&c.a, &c.b) {
+        return Err(cx.err(b.span().start, Some(ctx), "`b` needs `a`"));
+    }
+    match (&c.expression, &c.a) {
+        (Some(e), None) => cx.scalar(e, Some(ctx), false),
+        (None, Some(a)) => {
+            let pa = cx.point_end(a, ctx)?;
+            let pb = match &c.b {
+                Some(b) => cx.point_end(b, ctx)?,
+                None => [cx.graph.constant(0.0); 3],
+            };
+            let g = &mut cx.graph;
+            let d: [Id; 3] = std::array::from_fn(|k| g.sub(pa[k], pb[k]));
+            let squared = g.dot(d, d);
+            Ok(g.sqrt(squared))
+        }
+        (Some(e), Some(_)) => Err(cx.err(
+            e.span().start,
+            Some(ctx),
+            "give `expression` or the ends `a` and `b`, not both",
+        )),
+        (None, None) => Err(cx.err(
+            c.at,
+            Some(ctx),
+            format!(
+                "a `{}` component needs `expression`, or the ends `a` (and `b`, default the \
+                 world's origin)",
+                c.kind
+            ),
+        )),
+    }
+}
+
+/// What a `spring` or `damper` acts on, as written.
+pub(super) struct Measured {
+    kind: String,
+    at: usize,
+    expression: Option<SScalar>,
+    a: Option<Spanned<ConstraintEnd>>,
+    b: Option<Spanned<ConstraintEnd>>,
+}
+
+impl Measured {
+    pub(super) fn of(c: &ComponentDef) -> Measured {
+        Measured {
+            kind: c.kind.get_ref().clone(),
+            at: c.kind.span().start,
+            expression: c.expression.clone(),
+            a: c.a.clone(),
+            b: c.b.clone(),
+        }
+    }
+}
+
 /// The value of a required field of component `c`, or an error at its
 /// `type` naming the field.
 pub(super) fn required<'c, T>(
@@ -163,7 +222,7 @@ pub(super) fn required<'c, T>(
 
 fn check_fields(cx: &Context, c: &ComponentDef, allowed: &[&str], ctx: &str) -> Result<(), Error> {
     let span = |s: &Option<SScalar>| s.as_ref().map(|s| s.span().start);
-    let present: [(&str, Option<usize>); 25] = [
+    let present: [(&str, Option<usize>); 27] = [
         ("kinetic", c.kinetic.as_ref().map(|s| s.span().start)),
         ("potential", c.potential.as_ref().map(|s| s.span().start)),
         (
@@ -204,6 +263,8 @@ fn check_fields(cx: &Context, c: &ComponentDef, allowed: &[&str], ctx: &str) -> 
             "geometric_stiffening",
             c.geometric_stiffening.as_ref().map(|s| s.span().start),
         ),
+        ("a", c.a.as_ref().map(|s| s.span().start)),
+        ("b", c.b.as_ref().map(|s| s.span().start)),
     ];
     for (field, at) in present {
         if let Some(at) = at {

@@ -1,28 +1,29 @@
-//! `spring`: a linear spring of stiffness `k` on the stretch
-//! `expression - rest`: `V = k (e - rest)^2 / 2`.
+//! `spring`: a linear spring of stiffness `k` on the stretch `e - rest`,
+//! `V = k (e - rest)^2 / 2`, with `e` its `expression` or the distance
+//! between its ends `a` and `b`.
 
-use super::{required, Energies, Kind, Terms};
+use super::{measure, required, Energies, Kind, Measured, Terms};
 use crate::error::Error;
 use crate::load::scene::{ComponentDef, SScalar};
 use crate::model::context::Context;
 
 pub(super) const KIND: Kind = Kind {
     name: "spring",
-    fields: &["stiffness", "expression", "rest"],
+    fields: &["stiffness", "expression", "rest", "a", "b"],
     adds_coordinates: false,
     read,
 };
 
 struct Spring {
     stiffness: SScalar,
-    expression: SScalar,
+    measured: Measured,
     rest: Option<SScalar>,
 }
 
 fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn Energies>, Error> {
     Ok(Box::new(Spring {
         stiffness: required(cx, c, &c.stiffness, ctx, "stiffness")?.clone(),
-        expression: required(cx, c, &c.expression, ctx, "expression")?.clone(),
+        measured: Measured::of(c),
         rest: c.rest.clone(),
     }))
 }
@@ -31,7 +32,7 @@ impl Energies for Spring {
     fn energies(&self, cx: &mut Context, ctx: &str) -> Result<Terms, Error> {
         let zero = cx.graph.constant(0.0);
         let k = cx.positive(&self.stiffness, ctx, "stiffness", false)?;
-        let e = cx.scalar(&self.expression, Some(ctx), false)?;
+        let e = measure(cx, &self.measured, ctx)?;
         let rest = match &self.rest {
             Some(r) => cx.scalar(r, Some(ctx), false)?,
             None => zero,
