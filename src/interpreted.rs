@@ -35,6 +35,13 @@ impl InterpretedModel {
             .map_err(|e| e.to_string())
     }
 
+    /// [`InterpretedModel::load`] of a scene file's text.
+    pub fn from_source(source: &flexdyn_codegen::Source) -> Result<InterpretedModel, String> {
+        Interpreted::from_source(source)
+            .map(InterpretedModel::new)
+            .map_err(|e| e.to_string())
+    }
+
     /// A model of an interpreted scene, with its nominal parameters.
     pub fn new(scene: Interpreted) -> InterpretedModel {
         let params = scene.parameters().iter().map(|(_, v)| *v).collect();

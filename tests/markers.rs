@@ -457,3 +457,79 @@ fn bad_ends_and_marker_coordinates_are_clear_errors() {
         );
     }
 }
+
+/// `flexdyn inverse` with a marker's path prescribed (task space) gives the
+/// torques of the joint-space motion that traces it: the arm's joints
+/// follow `a(t)`, `b(t)`, the tip's path is written out from them, and the
+/// two runs agree; an unreachable path is an error naming the marker's
+/// constraint and the time.
+#[test]
+fn a_prescribed_marker_path_gives_the_joint_space_torques() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = format!(
+        "{ARM}\n[[actuators]]\nname = \"ta\"\ncoordinate = \"a\"\n\
+         [[actuators]]\nname = \"tb\"\ncoordinate = \"b\"\n"
+    );
+    let scene = write(dir.path(), "sliding_arm.toml", &text);
+    let guess = write(
+        dir.path(),
+        "guess.json",
+        r#"{"q": [0.3, 1.3], "qd": [0, 0]}"#,
+    );
+    let (a, b) = ("(0.3 + 0.2*sin(2*t))", "(1.0 + 0.3*cos(3*t))");
+    let tip_x =
+        format!("tip_x=0.1*sin(3*t) + 0.5*cos({a}) + 0.4*cos({a} + {b}) + 0.05*sin({a} + {b})");
+    let tip_z = format!("tip_z=-0.5*sin({a}) - 0.4*sin({a} + {b}) + 0.05*cos({a} + {b})");
+    let run = |csv: &str, prescribe: [&str; 2]| -> Result<Table, String> {
+        let path = dir.path().join(csv);
+        let out = Command::new(BIN)
+            .args([
+                "inverse",
+                "--duration",
+                "1",
+                "--dt",
+                "0.05",
+                "--quiet",
+                "--scene",
+            ])
+            .arg(&scene)
+            .arg("--initial")
+            .arg(&guess)
+            .args(prescribe.iter().flat_map(|p| ["--prescribe", p]))
+            .arg("--csv")
+            .arg(&path)
+            .output()
+            .unwrap();
+        match out.status.success() {
+            true => Ok(Table::read(&path).unwrap()),
+            false => Err(String::from_utf8_lossy(&out.stderr).into_owned()),
+        }
+    };
+    let joints = run("joints.csv", [&format!("a={a}"), &format!("b={b}")]).unwrap();
+    let task = run("task.csv", [&tip_x, &tip_z]).unwrap();
+    assert_eq!(
+        task.columns,
+        ["t", "ta", "tb", "a", "b", "tip_x", "tip_z", "lambda_0", "lambda_1"]
+    );
+    for c in ["ta", "tb", "a", "b"] {
+        let (want, got) = (joints.column(c).unwrap(), task.column(c).unwrap());
+        assert_eq!(got.len(), 21);
+        let scale = want.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert!((g - w).abs() <= 1e-9 * scale, "{c} at row {k}: {g} vs {w}");
+        }
+    }
+    // The servo constraints carry no force.
+    for c in ["lambda_0", "lambda_1"] {
+        assert!(
+            task.column(c).unwrap().iter().all(|l| l.abs() < 1e-9),
+            "{c}"
+        );
+    }
+    let e = run("far.csv", ["tip_x=0.5 + t", "tip_z=0"]).unwrap_err();
+    assert!(
+        e.contains("tip_x_servo") && e.contains("at t = ") && e.contains("condition"),
+        "{e}"
+    );
+    assert!(!dir.path().join("far.csv").exists());
+}

@@ -15,12 +15,19 @@
 //! that rates and accelerations are continuous. The CSV's columns replace
 //! the motion file's for the same coordinate, and a `--prescribe` replaces
 //! both. The scene runs compiled in, or interpreted, at its own size.
+//!
+//! A prescribed name may also be a marker's world coordinate,
+//! `<marker>_x`, `_y` or `_z` (task-space inverse dynamics): the scene is
+//! then interpreted with a coordinate of that name and a constraint
+//! `<marker>_<axis>_servo` tying the marker to it, so that the other
+//! coordinates are solved from the constraints as for any prescription.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
+use crate::interpreted::InterpretedModel;
 use crate::prescribed_motion::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
 use crate::progress::Progress;
 use crate::spline::Spline;
@@ -48,7 +55,8 @@ pub struct Args {
     #[arg(long, default_value_t = MAX_STEPS)]
     pub max_steps: u64,
     /// A prescribed coordinate: `NAME=EXPR`, a function of `t` and the
-    /// scene's parameters (repeat for each).
+    /// scene's parameters (repeat for each); NAME may be a marker's world
+    /// coordinate, `<marker>_x`, `_y` or `_z` (task space).
     #[arg(long = "prescribe", value_name = "NAME=EXPR")]
     pub prescribe: Vec<String>,
     /// Motion file (TOML, a `[prescribe]` table of `NAME = "EXPR"`).
@@ -89,13 +97,33 @@ pub struct Args {
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     check_output(&args.csv)?;
     let steps = count(args.duration, args.dt, Last::Within, args.max_steps)?;
-    let scene = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
-    let prescribed = prescriptions(
-        &scene,
+    let mut scene = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    let declared = scene.coordinates.len();
+    let texts = given(
         &args.prescribe,
         args.motion.as_deref(),
         args.prescriptions.as_deref(),
     )?;
+    // Prescribed marker coordinates: the scene with a coordinate and a
+    // constraint for each, interpreted.
+    let axes = marker_axes(&scene, &texts);
+    let augmented = match axes.is_empty() {
+        true => None,
+        false => {
+            if scene.sources.len() > 1 {
+                return Err(format!(
+                    "{}: a marker's coordinates can be prescribed in a full scene, not a \
+                     derived one (prescribe them in its base scene)",
+                    args.scene.display()
+                ));
+            }
+            let text = with_marker_coordinates(read_input(&args.scene, "scene file")?, &axes);
+            let source = crate::codegen::Source::new(&args.scene, text);
+            scene = crate::codegen::Model::from_source(&source).map_err(|e| e.to_string())?;
+            Some(source)
+        }
+    };
+    let prescribed = resolve(&scene, texts)?;
     if let Some(path) = &args.prescriptions {
         let end = steps as f64 * args.dt;
         for (i, p) in &prescribed {
@@ -112,11 +140,18 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
             }
         }
     }
-    let guess = match &args.initial {
-        Some(path) => initial_guess(path, scene.coordinates.len())?,
-        None => scene.coordinates.iter().map(|c| c.initial).collect(),
+    let mut guess = match &args.initial {
+        Some(path) => initial_guess(path, declared)?,
+        None => scene.coordinates[..declared]
+            .iter()
+            .map(|c| c.initial)
+            .collect(),
     };
-    let model = compiled.load(&args.scene, &scene.name, args.interpret)?;
+    guess.resize(scene.coordinates.len(), 0.0);
+    let model: Box<dyn crate::dynamic::DynModel> = match &augmented {
+        Some(source) => Box::new(InterpretedModel::from_source(source)?),
+        None => compiled.load(&args.scene, &scene.name, args.interpret)?,
+    };
     let coordinates: Vec<String> = scene.coordinates.iter().map(|c| c.name.clone()).collect();
     let constraints: Vec<String> = scene.constraints.iter().map(|c| c.name.clone()).collect();
     let actuators: Vec<String> = scene.actuators.iter().map(|a| a.name.clone()).collect();
@@ -176,18 +211,18 @@ enum Source {
     Samples(Vec<f64>, Vec<f64>),
 }
 
+/// The prescriptions as given: by name, what each is and where it was
+/// given.
+type Given = BTreeMap<String, (Source, String)>;
+
 /// The prescriptions of the motion file, then of the CSV, then of the
-/// command line (each replacing the previous for the same coordinate), as
-/// coordinate indices with their motions. Errors name the coordinate
-/// (listing the valid ones), the expression and where in it, or the file
-/// and column.
-pub fn prescriptions(
-    scene: &crate::codegen::Model,
+/// command line (each replacing the previous for the same name), by name.
+fn given(
     prescribe: &[String],
     motion: Option<&Path>,
     samples: Option<&Path>,
-) -> Result<Vec<(usize, Prescription)>, String> {
-    let mut texts = BTreeMap::<String, (Source, String)>::new();
+) -> Result<Given, String> {
+    let mut texts = Given::new();
     if let Some(path) = motion {
         let where_ = path.display().to_string();
         let text = read_input(path, "motion file")?;
@@ -220,25 +255,81 @@ pub fn prescriptions(
             texts.insert(name.clone(), (values, at));
         }
     }
-    let mut given = Vec::new();
+    let mut seen = Vec::new();
     for item in prescribe {
         let (name, expr) = item
             .split_once('=')
             .ok_or_else(|| format!("--prescribe `{item}`: expected NAME=EXPR"))?;
         let name = name.trim();
-        if given.contains(&name) {
+        if seen.contains(&name) {
             return Err(format!("--prescribe: `{name}` is prescribed twice"));
         }
-        given.push(name);
+        seen.push(name);
         let at = format!("--prescribe {name}");
         texts.insert(name.to_owned(), (Source::Text(expr.to_owned()), at));
     }
+    Ok(texts)
+}
+
+/// The prescribed names that are marker coordinates (`<marker>_x`, `_y`,
+/// `_z`) rather than coordinates of `scene`, as `(marker, axis)`.
+fn marker_axes(scene: &crate::codegen::Model, given: &Given) -> Vec<(String, char)> {
+    given
+        .keys()
+        .filter(|name| !scene.coordinates.iter().any(|c| &c.name == *name))
+        .filter_map(|name| {
+            let (marker, axis) = name.rsplit_once('_')?;
+            let axis = match axis {
+                "x" => 'x',
+                "y" => 'y',
+                "z" => 'z',
+                _ => return None,
+            };
+            scene
+                .markers
+                .iter()
+                .any(|m| m.name == marker)
+                .then(|| (marker.to_owned(), axis))
+        })
+        .collect()
+}
+
+/// The scene's text with a coordinate `<marker>_<axis>` per prescribed
+/// marker coordinate and a constraint tying the marker to it (task-space
+/// inverse dynamics as prescribed coordinates: the constraint's multiplier
+/// is zero, the coordinate massless).
+fn with_marker_coordinates(mut text: String, axes: &[(String, char)]) -> String {
+    for (marker, axis) in axes {
+        text.push_str(&format!(
+            "\n[[coordinates]]\nname = \"{marker}_{axis}\"\n\n[[constraints]]\n\
+             name = \"{marker}_{axis}_servo\"\nexpression = \"{marker}.{axis} - {marker}_{axis}\"\n"
+        ));
+    }
+    text
+}
+
+/// The prescriptions resolved against `scene`'s coordinates, as coordinate
+/// indices with their motions. Errors name the coordinate (listing the
+/// valid ones and the markers), the expression and where in it, or the
+/// file and column.
+fn resolve(
+    scene: &crate::codegen::Model,
+    texts: Given,
+) -> Result<Vec<(usize, Prescription)>, String> {
     let names: Vec<&str> = scene.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let markers: Vec<&str> = scene.markers.iter().map(|m| m.name.as_str()).collect();
     let mut out = Vec::with_capacity(texts.len());
     for (name, (source, at)) in texts {
         let index = names.iter().position(|n| *n == name).ok_or_else(|| {
+            let markers = match markers.is_empty() {
+                true => String::new(),
+                false => format!(
+                    "; or a marker's coordinate `<marker>_x`, `_y`, `_z` of its markers: {}",
+                    markers.join(", ")
+                ),
+            };
             format!(
-                "{at}: `{name}` is not a coordinate of scene `{}` (its coordinates: {})",
+                "{at}: `{name}` is not a coordinate of scene `{}` (its coordinates: {}{markers})",
                 scene.name,
                 names.join(", ")
             )

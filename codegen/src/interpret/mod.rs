@@ -16,7 +16,7 @@ mod tape;
 use std::path::Path;
 
 use crate::derive::Equations;
-use crate::error::Error;
+use crate::error::{Error, Source};
 use crate::model::Model;
 use crate::schedule::{functions, lower};
 
@@ -41,6 +41,13 @@ impl Interpreted {
     /// when it has any), and lower every function it would emit.
     pub fn load(path: &Path) -> Result<Interpreted, Error> {
         let mut model = Model::load(path)?;
+        let eq = model.equations()?;
+        Ok(Interpreted::new(&model, &eq))
+    }
+
+    /// [`Interpreted::load`] of a scene file's text.
+    pub fn from_source(source: &Source) -> Result<Interpreted, Error> {
+        let mut model = Model::from_source(source)?;
         let eq = model.equations()?;
         Ok(Interpreted::new(&model, &eq))
     }
