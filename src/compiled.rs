@@ -66,7 +66,11 @@ impl Compiled {
 
 /// Whether two models give the same terms at a sample state.
 fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
-    if a.coordinates() != b.coordinates() || a.actuators() != b.actuators() || a.nc() != b.nc() {
+    if a.coordinates() != b.coordinates()
+        || a.actuators() != b.actuators()
+        || a.nc() != b.nc()
+        || a.markers() != b.markers()
+    {
         return false;
     }
     let q: Vec<f64> = (0..a.nq()).map(|i| 0.3 + 0.17 * i as f64).collect();
@@ -83,6 +87,13 @@ fn same_terms(a: &dyn DynModel, b: &dyn DynModel) -> bool {
         && same(nc, &|m, o| m.constraints(&q, t, o))
         && same(nq * nu, &|m, o| m.actuator_map(o))
         && a.potential_energy(&q, t) == b.potential_energy(&q, t)
+        && (0..a.markers().len()).all(|k| {
+            let pose = |m: &dyn DynModel, o: &mut [f64]| {
+                let (position, rotation) = o.split_at_mut(3);
+                m.marker_pose(k, &q, t, position, rotation);
+            };
+            same(12, &pose)
+        })
 }
 
 /// The generic scenes of `scenes/`, compiled into this crate.
