@@ -117,6 +117,21 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
                     args.scene.display()
                 ));
             }
+            let (nq, nc) = (scene.coordinates.len(), scene.constraints.len());
+            if texts.len() + nc < nq {
+                return Err(format!(
+                    "{}: prescribing a marker's coordinates ({}) is supported where the \
+                     prescription and the constraints fix every coordinate ({} prescribed, {nc} \
+                     constraint(s), {nq} coordinates); with coordinates left free (elastic \
+                     ones) it is not yet: prescribe coordinates instead",
+                    args.scene.display(),
+                    axes.iter()
+                        .map(|(m, a)| format!("`{m}_{a}`"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    texts.len()
+                ));
+            }
             let text = with_marker_coordinates(read_input(&args.scene, "scene file")?, &axes);
             let source = crate::codegen::Source::new(&args.scene, text);
             scene = crate::codegen::Model::from_source(&source).map_err(|e| e.to_string())?;

@@ -90,6 +90,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
     component_energies.extend(cx.armatures(def, &actuators)?);
     let outputs = cx.outputs(def)?;
     let precision = cx.precision(def)?;
+    let markers = cx.marker_velocities(markers);
     Ok(Model {
         name: def.name.get_ref().clone(),
         graph: cx.graph,

@@ -1,17 +1,35 @@
 //! Markers: named points of frames (a frame's origin by default), with
 //! their world pose and their velocity in world axes, built along the
-//! frames in world axes ([`crate::geometry::Frame`]). The derive stage differentiates them into
-//! Jacobians and acceleration biases.
+//! frames in world axes ([`crate::geometry::Frame`]). The derive stage
+//! differentiates them into Jacobians and acceleration biases.
+//!
+//! In two steps: the poses right after the frames (expressions may read the
+//! positions), the velocities after everything else, so that a scene's
+//! energies and constraints are built on the same graph nodes with or
+//! without markers (a marker at a frame's origin adds no node before them).
 
 use super::context::Context;
 use super::Marker;
 use crate::error::Error;
+use crate::expr::Id;
+use crate::geometry::Frame;
 use crate::load::check_ident;
 use crate::load::scene::MarkerDef;
 
+/// A marker placed on its frame, its velocity not yet built.
+pub(super) struct Placed {
+    pub(super) name: String,
+    pub(super) position: [Id; 3],
+    frame: Frame,
+    /// The point in the frame's axes, and in world axes from its origin.
+    local: [Id; 3],
+    offset: [Id; 3],
+}
+
 impl Context<'_> {
-    pub(super) fn markers(&mut self, defs: &[MarkerDef]) -> Result<Vec<Marker>, Error> {
-        let mut out: Vec<Marker> = Vec::with_capacity(defs.len());
+    /// The markers' poses.
+    pub(super) fn markers(&mut self, defs: &[MarkerDef]) -> Result<Vec<Placed>, Error> {
+        let mut out: Vec<Placed> = Vec::with_capacity(defs.len());
         for m in defs {
             check_ident(self.source, &m.name, "marker")?;
             let ctx = format!("marker `{}`", m.name.get_ref());
@@ -33,17 +51,33 @@ impl Context<'_> {
             let g = &mut self.graph;
             let offset = g.rotate(&frame.rotation, local);
             let position = std::array::from_fn(|k| g.add(frame.origin[k], offset[k]));
-            let (angular, linear) = g.world_velocities(&frame, local, offset);
             self.check_overflow(m.name.span().start, Some(&ctx), "the marker")?;
-            out.push(Marker {
+            out.push(Placed {
                 name: m.name.get_ref().clone(),
                 position,
-                rotation: frame.rotation,
-                velocity: [
-                    linear[0], linear[1], linear[2], angular[0], angular[1], angular[2],
-                ],
+                frame,
+                local,
+                offset,
             });
         }
         Ok(out)
+    }
+
+    /// The placed markers with their velocities.
+    pub(super) fn marker_velocities(&mut self, placed: Vec<Placed>) -> Vec<Marker> {
+        placed
+            .into_iter()
+            .map(|p| {
+                let (angular, linear) = self.graph.world_velocities(&p.frame, p.local, p.offset);
+                Marker {
+                    name: p.name,
+                    position: p.position,
+                    rotation: p.frame.rotation,
+                    velocity: [
+                        linear[0], linear[1], linear[2], angular[0], angular[1], angular[2],
+                    ],
+                }
+            })
+            .collect()
     }
 }

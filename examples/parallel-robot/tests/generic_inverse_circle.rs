@@ -109,6 +109,41 @@ fn flexible_robot_circle_torques_match_the_robot_inverse() {
     assert!(d <= 1e-9, "{d}");
 }
 
+/// The same circle prescribed on the platform's marker `end_effector` is
+/// refused with a clear error: with the elastic coordinates left free,
+/// task-space prescriptions are not supported yet.
+#[test]
+fn a_circle_on_the_end_effector_marker_of_the_flexible_robot_is_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("inverse.csv");
+    let args = Args {
+        scene: here("scenes/parallel_robot_flexible.toml"),
+        interpret: false,
+        duration: 0.1,
+        dt: 0.005,
+        max_steps: flexdyn::steps::MAX_STEPS,
+        prescribe: [
+            "end_effector_x=0.1*cos(2*t)",
+            "end_effector_y=0.1*sin(2*t)",
+            "end_effector_z=0.7",
+        ]
+        .map(String::from)
+        .to_vec(),
+        motion: None,
+        prescriptions: None,
+        initial: None,
+        free_rates: FreeRates::Zero,
+        csv: csv.clone(),
+        quiet: true,
+    };
+    let e = run(&args, &ROBOT_SCENES).unwrap_err();
+    assert!(
+        e.contains("`end_effector_x`") && e.contains("not yet") && e.contains("39 coordinates"),
+        "{e}"
+    );
+    assert!(!csv.exists());
+}
+
 /// The generic command's own default, elastic rates of least kinetic
 /// energy, starts differently: a transient the L-stable scheme damps within
 /// a few steps, so the torques differ at the start and agree to well under
