@@ -1,8 +1,9 @@
 //! Regenerates the equations of every scene in `scenes/` into `$OUT_DIR`,
-//! and test-only copies of the pendulum and of a small-scale pendulum
-//! (`tests/casadi/small_pendulum.toml`) with one emitted coefficient
-//! perturbed by 1e-6 (relative), which `flexdyn eval --perturbed` evaluates
-//! and the CasADi validation must reject (`tests/casadi_validation.rs`).
+//! and test-only copies of the pendulum, of a small-scale pendulum
+//! (`tests/casadi/small_pendulum.toml`) and of the four-bar (its marker's
+//! Jacobian) with one emitted coefficient perturbed by 1e-6 (relative),
+//! which `flexdyn eval --perturbed` evaluates and the CasADi validation must
+//! reject (`tests/casadi_validation.rs`).
 use flexdyn_codegen::Builder;
 
 fn main() {
@@ -26,6 +27,12 @@ fn main() {
             .perturb_coefficient("pendulum", "bias", 0, 1e-6)
             .scene("tests/casadi/small_pendulum.toml")
             .perturb_coefficient("small_pendulum", "bias", 0, 1e-6)
+            // Coefficient 5 of the four-bar's marker_jacobian is the -1 of
+            // `jacobian[(0, 0)] = -sin(th1)`: only the marker's Jacobian is
+            // wrong (its position and rotation, computed by the same
+            // program, stay right).
+            .scene("scenes/four_bar.toml")
+            .perturb_coefficient("four_bar", "marker_jacobian", 5, 1e-6)
             .out_dir(out.join("perturbed"))
             .generate()
     });

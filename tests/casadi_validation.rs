@@ -1,9 +1,9 @@
 //! Every generated term of every scene in `scenes/`, validated against
 //! CasADi's automatic differentiation through `flexdyn export` and
 //! `flexdyn eval` (see `common/casadi.rs` and `docs/export-format.md`), plus
-//! negative runs proving that a perturbed coefficient of the pendulum, and
-//! of a pendulum at a small scale (`tests/casadi/small_pendulum.toml`), is
-//! caught. The robot scenes are validated the same way by
+//! negative runs proving that a perturbed coefficient of the pendulum, of
+//! a pendulum at a small scale (`tests/casadi/small_pendulum.toml`) and of
+//! the four-bar's marker Jacobian is caught. The robot scenes are validated the same way by
 //! `examples/parallel-robot/tests/casadi_validation.rs`.
 
 #[path = "common/casadi.rs"]
@@ -23,6 +23,10 @@ fn casadi_validates_every_term_of_every_scene() {
             // Bias forces at most 9.81e-5: caught relative to the term's
             // own scale.
             ("tests/casadi/small_pendulum.toml", "bias"),
+            // A coefficient of `marker_jacobian` in the marker's Jacobian
+            // (not its position or rotation, which the program also
+            // computes): CasADi derives the Jacobian from the exported pose.
+            ("scenes/four_bar.toml", "markers.coupler_mid.jacobian"),
         ],
     });
 }

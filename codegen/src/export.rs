@@ -5,12 +5,17 @@
 //! Format `flexdyn-scene-export/1` (see `docs/export-format.md`): the
 //! reachable expression nodes in topological order (children first), each
 //! referring to earlier nodes by index, and the scene's items referring to
-//! nodes by index. Derived terms are deliberately not exported.
+//! nodes by index: the nodes of the energies and constraints first (numbered
+//! as if the scene had no markers), then those only the markers' poses
+//! reach. Derived terms (a marker's velocity among them) are deliberately
+//! not exported.
+
+use std::collections::{HashMap, HashSet};
 
 use serde::Serialize;
 
 use crate::expr::{Func, Id, Node, Symbol};
-use crate::model::Model;
+use crate::model::{Marker, Model};
 
 /// Version tag of the format.
 pub const FORMAT: &str = "flexdyn-scene-export/1";
@@ -98,6 +103,13 @@ struct ActuatorOut<'a> {
 }
 
 #[derive(Serialize)]
+struct MarkerOut<'a> {
+    name: &'a str,
+    position: [usize; 3],
+    rotation: [[usize; 3]; 3],
+}
+
+#[derive(Serialize)]
 struct OutputsOut {
     coriolis_matrix: bool,
     forces: bool,
@@ -114,15 +126,35 @@ struct Export<'a> {
     components: Vec<ComponentOut<'a>>,
     constraints: Vec<ConstraintOut<'a>>,
     actuators: Vec<ActuatorOut<'a>>,
+    markers: Vec<MarkerOut<'a>>,
     outputs: OutputsOut,
     drop_below: Option<f64>,
+}
+
+/// The nodes to export, in topological order: those the energies and
+/// constraints reach (in increasing id), then those only the markers' poses
+/// reach (in increasing id, children first too: what the first part reaches
+/// is closed under children). A scene without markers exports exactly the
+/// first part, and adding markers to a scene leaves its numbering.
+fn exported_nodes(model: &Model) -> Vec<Id> {
+    let g = &model.graph;
+    let mut order = g.reachable(&model.input_roots());
+    let inputs: HashSet<Id> = order.iter().copied().collect();
+    let pose: Vec<Id> = model.markers.iter().flat_map(Marker::pose_nodes).collect();
+    order.extend(
+        g.reachable(&pose)
+            .into_iter()
+            .filter(|id| !inputs.contains(id)),
+    );
+    order
 }
 
 /// The export of a model as pretty-printed JSON.
 pub fn export_json(model: &Model) -> String {
     let g = &model.graph;
-    let order = g.reachable(&model.input_roots());
-    let index = |id: Id| order.binary_search(&id).expect("reachable node");
+    let order = exported_nodes(model);
+    let position: HashMap<Id, usize> = order.iter().enumerate().map(|(k, &id)| (id, k)).collect();
+    let index = |id: Id| position[&id];
     let nodes = order
         .iter()
         .map(|&id| match g.node(id) {
@@ -207,6 +239,15 @@ pub fn export_json(model: &Model) -> String {
                 gain: a.gain,
             })
             .collect(),
+        markers: model
+            .markers
+            .iter()
+            .map(|m| MarkerOut {
+                name: &m.name,
+                position: m.position.map(index),
+                rotation: m.rotation.map(|row| row.map(index)),
+            })
+            .collect(),
         outputs: OutputsOut {
             coriolis_matrix: model.outputs.coriolis_matrix,
             forces: model.outputs.forces,
@@ -215,4 +256,71 @@ pub fn export_json(model: &Model) -> String {
         drop_below: model.drop_below,
     };
     serde_json::to_string_pretty(&export).expect("export serialises")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shipped(scene: &str) -> Model {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../scenes")
+            .join(scene);
+        Model::load(&path).expect("shipped scene loads")
+    }
+
+    fn json(model: &Model) -> serde_json::Value {
+        serde_json::from_str(&export_json(model)).expect("export is JSON")
+    }
+
+    #[test]
+    fn markers_leave_the_numbering_of_the_energies_and_constraints() {
+        let with = shipped("four_bar.toml");
+        let mut without = with.clone();
+        without.markers.clear();
+        let (a, b) = (json(&with), json(&without));
+        assert_eq!(b["markers"], serde_json::json!([]));
+        let (na, nb) = (
+            a["nodes"].as_array().unwrap(),
+            b["nodes"].as_array().unwrap(),
+        );
+        assert!(na.len() > nb.len(), "the marker's pose adds nodes");
+        assert_eq!(na[..nb.len()], nb[..]);
+        for key in ["components", "constraints"] {
+            assert_eq!(a[key], b[key], "{key}");
+        }
+    }
+
+    #[test]
+    fn every_marker_exports_its_position_and_rotation_nodes() {
+        for scene in ["four_bar.toml", "ur5.toml"] {
+            let model = shipped(scene);
+            let order = exported_nodes(&model);
+            let out = json(&model);
+            let markers = out["markers"].as_array().unwrap();
+            assert_eq!(markers.len(), model.markers.len(), "{scene}");
+            for (m, e) in model.markers.iter().zip(markers) {
+                assert_eq!(e["name"], m.name.as_str());
+                let exported: Vec<Id> = e["position"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .chain(
+                        e["rotation"]
+                            .as_array()
+                            .unwrap()
+                            .iter()
+                            .flat_map(|r| r.as_array().unwrap()),
+                    )
+                    .map(|k| order[k.as_u64().unwrap() as usize])
+                    .collect();
+                assert_eq!(
+                    exported,
+                    m.pose_nodes().collect::<Vec<_>>(),
+                    "{scene}: {}",
+                    m.name
+                );
+            }
+        }
+    }
 }

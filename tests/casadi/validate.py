@@ -20,6 +20,12 @@ For each scene (the files given, or every ``scenes/*.toml``):
      ``gamma = -d/dt(Phi_q qd + Phi_t)|_(qdd=0)`` (``jtimes`` again);
    * the Christoffel Coriolis matrix
      ``C_ij = sum_k (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) qd_k / 2``;
+   * each marker's kinematics from its exported world position ``p`` and
+     rotation ``R`` alone: the Jacobian, linear rows ``jacobian(p, q)`` and
+     angular columns ``vee(dR/dq_i R^T)``; the velocity ``J qd`` plus the
+     explicit time terms ``dp/dt`` and ``vee(dR/dt R^T)``; the acceleration
+     bias, the velocity's time derivative at ``qdd = 0`` (``jtimes`` along
+     ``(q, t) -> (qd, 1)``);
 
 4. one ``casadi.Function``, mapped over all states, evaluates them at seeded
    random states (plus the scene's "working states" from
@@ -31,7 +37,8 @@ For each scene (the files given, or every ``scenes/*.toml``):
    however small the scene's numbers), with a floor for terms that cancel
    to (near) zero: ``S`` is the largest ``|casadi|`` of any term of the
    scene (the actuator map, gains, left out), whose rounding such a term
-   carries.
+   carries; for a marker's terms (lengths and angles, not forces), the
+   largest of any marker's terms.
 
 Exit status: 0 when every term of every scene passes, 1 when a term fails or
 is missing from flexdyn's output, 2 on any other error.
@@ -152,6 +159,8 @@ def load_export(path: Path) -> dict:
                 "constraints", "actuators", "outputs"):
         if key not in data:
             raise ValidationError(f"{path}: export has no `{key}`")
+    # Exports of flexdyn before markers have none.
+    data.setdefault("markers", [])
     return data
 
 
@@ -327,6 +336,56 @@ def build_prods(ks: list, nodes: list, vals: list) -> None:
         vals[k] = v
 
 
+# A marker's terms, as `flexdyn eval` names them under `markers.<name>`.
+MARKER_TERMS = ["position", "rotation", "jacobian", "velocity", "acceleration_bias"]
+
+
+def marker_term(marker: str, term: str) -> str:
+    """The row name of one term of a marker (its path in the eval output)."""
+    return f"markers.{marker}.{term}"
+
+
+def is_marker_term(term: str) -> bool:
+    return term.startswith("markers.")
+
+
+def vee(w):
+    """The vector ``w`` of the skew-symmetric part of a 3 x 3 matrix ``W``:
+    ``skew(w) = (W - W^T) / 2``."""
+    return 0.5 * ca.vertcat(w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1])
+
+
+def marker_kinematics(position, rotation, q, qd, t) -> list:
+    """A marker's terms (name, expression, shape) from its world position
+    and rotation alone, by CasADi AD.
+
+    The angular velocity in world axes is ``vee(Rdot R^T)`` with
+    ``Rdot = sum_i dR/dq_i qd_i + dR/dt``: the Jacobian's angular column
+    ``i`` is ``vee(dR/dq_i R^T)``, its explicit time term ``vee(dR/dt R^T)``.
+    The acceleration bias is the velocity's time derivative along
+    ``(q, t) -> (qd, 1)`` at ``qdd = 0``.
+    """
+    nq = q.shape[0]
+    flat = ca.reshape(rotation, 9, 1)  # column-major, as reshape back below
+
+    def angular(d_flat):
+        return vee(ca.mtimes(ca.reshape(d_flat, 3, 3), rotation.T))
+
+    d_dq = ca.jacobian(flat, q)
+    angular_jacobian = ca.horzcat(*[angular(d_dq[:, i]) for i in range(nq)]) if nq else ca.SX(3, 0)
+    jacobian = ca.vertcat(ca.jacobian(position, q), angular_jacobian)
+    explicit = ca.vertcat(ca.jacobian(position, t), angular(ca.jacobian(flat, t)))
+    velocity = ca.mtimes(jacobian, qd) + explicit
+    acceleration_bias = ca.jtimes(velocity, ca.vertcat(q, t), ca.vertcat(qd, 1))
+    return [
+        ("position", position, (3,)),
+        ("rotation", rotation, (3, 3)),
+        ("jacobian", jacobian, (6, nq)),
+        ("velocity", velocity, (6,)),
+        ("acceleration_bias", acceleration_bias, (6,)),
+    ]
+
+
 def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
     """The CasADi function of every term, and the names/shapes of its outputs.
 
@@ -402,6 +461,17 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
     if with_bias_jacobians:
         terms.append(("bias_jacobian_q", ca.jacobian(bias, q), (nq, nq)))
         terms.append(("bias_jacobian_qd", ca.jacobian(bias, qd), (nq, nq)))
+    for m in export["markers"]:
+        what = f"marker `{m.get('name')}`"
+        try:
+            position = ca.vertcat(*[node(j, what) for j in m["position"]])
+            rotation = ca.vertcat(*[ca.horzcat(*[node(j, what) for j in row]) for row in m["rotation"]])
+        except (KeyError, TypeError) as e:
+            raise ValidationError(f"{what}: malformed ({e!r})") from e
+        if position.shape != (3, 1) or rotation.shape != (3, 3):
+            raise ValidationError(f"{what}: expected 3 position and 3 x 3 rotation nodes")
+        terms += [(marker_term(m["name"], k), e, shape)
+                  for k, e, shape in marker_kinematics(position, rotation, q, qd, t)]
     outs = [ca.densify(e) for _, e, _ in terms]
     func = ca.Function(f"{export['name']}_terms", [q, qd, qdd, t, p], outs)
     return func, [(name, shape) for name, _, shape in terms]
@@ -507,6 +577,19 @@ def working_states(path: Path, export: dict):
 # ---------------------------------------------------------------------------
 # Comparison
 # ---------------------------------------------------------------------------
+
+
+def flatten_markers(result: dict, k: int) -> dict:
+    """One eval result with each marker's terms as keys of their own
+    (``markers.<name>.<term>``, see :func:`marker_term`)."""
+    flat = {key: v for key, v in result.items() if key != "markers"}
+    markers = result.get("markers", {})
+    if not isinstance(markers, dict) or not all(isinstance(v, dict) for v in markers.values()):
+        raise ValidationError(f"`markers` of result {k} is not an object of objects")
+    for name, terms in markers.items():
+        for term, value in terms.items():
+            flat[marker_term(name, term)] = value
+    return flat
 
 
 def rust_array(results: list, key: str, shape: tuple) -> "np.ndarray":
@@ -678,6 +761,9 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
         )
     if out.get("scene") != name:
         raise ValidationError(f"eval of {scene}: results are for scene {out.get('scene')!r}, expected {name!r}")
+    if not all(isinstance(r, dict) for r in results):
+        raise ValidationError(f"eval of {scene}: a result is not an object")
+    results = [flatten_markers(r, k) for k, r in enumerate(results)]
     t_eval = time.perf_counter() - t0
 
     # Which terms are required, which merely compared when present.
@@ -688,6 +774,8 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
         required.append("coriolis_matrix")
     if outputs.get("bias_jacobians"):
         required += JACOBIAN_TERMS
+    markers = [marker_term(m["name"], k) for m in export["markers"] for k in MARKER_TERMS]
+    required += markers
     optional = [k for k in FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS if k not in required]
     present = set(results[0].keys()) if results else set()
     for k, r in enumerate(results):
@@ -711,7 +799,13 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
 
     t0 = time.perf_counter()
     rows = []
-    floor = CANCEL_FLOOR * max(finite_max(ref[t]) for t in ref if t not in UNSCALED_TERMS)
+    def floor_of(terms):
+        return CANCEL_FLOOR * max((finite_max(ref[t]) for t in terms), default=0.0)
+
+    # Markers' terms (lengths, angles) are scaled among themselves, the
+    # others (forces, energies) among themselves.
+    floor = floor_of(t for t in ref if t not in UNSCALED_TERMS and not is_marker_term(t))
+    marker_floor = floor_of(t for t in ref if is_marker_term(t))
     for term in required + [k for k in optional if k in present]:
         shape = ref[term].shape[1:]
         row = {"term": term, "shape": "x".join(map(str, shape)) or "scalar"}
@@ -720,10 +814,12 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
                         "entry": None, "nonfinite": 0, "passed": False, "missing": True})
         else:
             row.update(compare(rust_array(results, term, shape), ref[term],
-                               term_rtol(export, term), floor))
+                               term_rtol(export, term),
+                               marker_floor if is_marker_term(term) else floor))
             row["missing"] = False
         rows.append(row)
-    known = set(BASE_TERMS + list(FUSED_TERMS) + FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS)
+    known = set(BASE_TERMS + list(FUSED_TERMS) + FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS
+                + markers)
     unchecked = sorted(present - known)
     t_compare = time.perf_counter() - t0
 
@@ -761,12 +857,13 @@ def print_scene(report: dict) -> None:
         f"{report['constraints']} constraints, {report['nodes']} export nodes; "
         f"{report['random_states']} random states{extra}"
     )
-    header = f"  {'term':<34} {'shape':>7} {'max |err|':>10} {'scale':>10} {'tolerance':>10}  {'worst at':<22} result"
+    w = max([34] + [len(r["term"]) for r in report["terms"]])
+    header = f"  {'term':<{w}} {'shape':>7} {'max |err|':>10} {'scale':>10} {'tolerance':>10}  {'worst at':<22} result"
     print(header)
     print("  " + "-" * (len(header) - 2))
     for r in report["terms"]:
         if r["missing"]:
-            print(f"  {r['term']:<34} {r['shape']:>7} {'-':>10} {'-':>10} {'-':>10}  {'-':<22} "
+            print(f"  {r['term']:<{w}} {r['shape']:>7} {'-':>10} {'-':>10} {'-':>10}  {'-':<22} "
                   f"FAIL (missing from flexdyn eval output)")
             continue
         if r["state"] is None or r["max_abs_error"] == 0.0:
@@ -777,7 +874,7 @@ def print_scene(report: dict) -> None:
                 where += f" [{r['entry']}]"
         verdict = "PASS" if r["passed"] else "FAIL"
         note = f" ({r['nonfinite']} non-finite entries agree)" if r["nonfinite"] else ""
-        print(f"  {r['term']:<34} {r['shape']:>7} {r['max_abs_error']:>10.3e} {r['scale']:>10.3e} "
+        print(f"  {r['term']:<{w}} {r['shape']:>7} {r['max_abs_error']:>10.3e} {r['scale']:>10.3e} "
               f"{r['tolerance']:>10.3e}  {where:<22} {verdict}{note}")
     if report["unchecked_keys"]:
         print(f"  note: eval keys not validated: {', '.join(report['unchecked_keys'])}")

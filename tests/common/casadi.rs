@@ -24,9 +24,11 @@ pub struct Suite {
     pub scenes: PathBuf,
     /// The test-only builds the binary's `eval --perturbed` evaluates, with
     /// one emitted coefficient multiplied by 1 + 1e-6: (the scene file,
-    /// relative to `repo`; the function holding it). The validation must fail on exactly that function's
-    /// term: the fused `dynamics_terms` and every other function are emitted
-    /// from their own programs and stay right.
+    /// relative to `repo`; the term holding it, as the script's table names
+    /// it: the function's, or a marker's `markers.<name>.<term>`). The
+    /// validation must fail on exactly that term: the fused `dynamics_terms`
+    /// and every other function are emitted from their own programs and stay
+    /// right.
     pub negative: &'static [(&'static str, &'static str)],
 }
 

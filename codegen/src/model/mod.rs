@@ -149,12 +149,16 @@ pub struct Marker {
 }
 
 impl Marker {
-    /// Its nodes: position, rotation (by rows), velocity.
-    fn nodes(&self) -> impl Iterator<Item = Id> + '_ {
+    /// Its pose's nodes: position, then rotation (by rows).
+    pub fn pose_nodes(&self) -> impl Iterator<Item = Id> + '_ {
         self.position
             .into_iter()
             .chain(self.rotation.into_iter().flatten())
-            .chain(self.velocity)
+    }
+
+    /// Its nodes: position, rotation (by rows), velocity.
+    fn nodes(&self) -> impl Iterator<Item = Id> + '_ {
+        self.pose_nodes().chain(self.velocity)
     }
 
     /// Replace its nodes, in the order of [`Self::nodes`].
