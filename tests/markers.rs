@@ -155,9 +155,9 @@ fn a_marker_has_the_closed_form_kinematics_with_explicit_time_terms() {
                 );
             }
         }
-        for i in 0..6 {
-            for j in 0..2 {
-                close(got.jacobian[i][j], jacobian[i][j], 1.0, &what("jacobian"));
+        for (i, row) in jacobian.iter().enumerate() {
+            for (j, want) in row.iter().enumerate() {
+                close(got.jacobian[i][j], *want, 1.0, &what("jacobian"));
             }
             close(got.velocity[i], velocity[i], 5.0, &what("velocity"));
             close(

@@ -476,6 +476,7 @@ mod tests {
             coordinates: vec!["x".into(), "y".into()],
             parameters,
             allow_velocity: true,
+            points: BTreeMap::new(),
         }
     }
 

@@ -121,6 +121,7 @@ fn scope(allow_velocity: bool) -> Scope {
         coordinates: vec!["x".into(), "theta".into()],
         parameters,
         allow_velocity,
+        points: BTreeMap::new(),
     }
 }
 
