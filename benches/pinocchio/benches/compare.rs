@@ -7,7 +7,11 @@
 //! * the generated `inverse_dynamics` (`M qdd + h` as one program) against
 //!   `rnea`;
 //! * forward dynamics (generated terms + the runtime's Cholesky solve,
-//!   `flexdyn_runtime::accelerations`) against `aba`.
+//!   `flexdyn_runtime::accelerations`) against `aba`;
+//! * the end effector's pose and Jacobian in `LOCAL_WORLD_ALIGNED` (the
+//!   generated `marker_jacobian` of the marker the import puts at the link)
+//!   against `computeFrameJacobian` of a frame at the same place (fixed to
+//!   the last joint at the placement the two agree on at `q = 0`).
 //!
 //! Pinocchio's model is its own URDF parser's (run in Python by the build
 //! script), rebuilt joint by joint in the shim so that all of Pinocchio's
@@ -79,6 +83,16 @@ extern "C" {
     fn pin_bench_crba_nle(b: *mut c_void, q: *const f64, v: *const f64);
     fn pin_bench_rnea(b: *mut c_void, q: *const f64, v: *const f64, a: *const f64);
     fn pin_bench_aba(b: *mut c_void, q: *const f64, v: *const f64, tau: *const f64);
+    fn pin_bench_joint_placement(b: *mut c_void, q: *const f64, joint: i32, out: *mut f64);
+    fn pin_bench_add_frame(b: *mut c_void, joint: i32, placement: *const f64) -> i32;
+    fn pin_bench_frame_jacobian(b: *mut c_void, frame: i32, q: *const f64);
+    fn pin_bench_read_frame(
+        b: *const c_void,
+        frame: i32,
+        position: *mut f64,
+        rotation: *mut f64,
+        jacobian: *mut f64,
+    );
     fn pin_bench_read(
         b: *const c_void,
         v: *const f64,
@@ -409,6 +423,99 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
     g.finish();
 }
 
+/// The generated pose and Jacobian of marker `marker` against Pinocchio's
+/// `computeFrameJacobian` of a frame fixed to its last joint at the same
+/// place: checked on every state, then timed side by side.
+fn compare_marker<R: Model<N, 0, N> + Default, const N: usize>(
+    c: &mut Criterion<ThreadCpuTime>,
+    name: &str,
+    marker: &str,
+) {
+    let robot = R::default();
+    let pin = Pinocchio::load(name, &R::COORDINATES);
+    let k = R::MARKERS
+        .iter()
+        .position(|m| *m == marker)
+        .unwrap_or_else(|| panic!("{name} has no marker {marker}"));
+    let states = states::<N>(&pin, 300);
+    let (mut p, mut r, mut j) = (
+        SVector::<f64, 3>::zeros(),
+        SMatrix::<f64, 3, 3>::zeros(),
+        SMatrix::<f64, 6, N>::zeros(),
+    );
+    // The marker in the last joint's frame, from both poses at q = 0.
+    let zero = SVector::<f64, N>::zeros();
+    assert!(robot.marker_jacobian(k, &zero, 0.0, &mut p, &mut r, &mut j));
+    let mut joint = [0.0; 12];
+    // SAFETY: `q` holds N numbers, `joint` 12; the joint index is the last.
+    unsafe { pin_bench_joint_placement(pin.handle, zero.as_ptr(), N as i32, joint.as_mut_ptr()) };
+    let rj = SMatrix::<f64, 3, 3>::from_row_slice(&joint[..9]);
+    let pj = SVector::<f64, 3>::from_column_slice(&joint[9..]);
+    let (rel_r, rel_p) = (rj.transpose() * r, rj.transpose() * (p - pj));
+    let mut placement = [0.0; 12];
+    for i in 0..3 {
+        for c in 0..3 {
+            placement[3 * i + c] = rel_r[(i, c)];
+        }
+        placement[9 + i] = rel_p[i];
+    }
+    // SAFETY: 12 numbers; the joint exists.
+    let frame = unsafe { pin_bench_add_frame(pin.handle, N as i32, placement.as_ptr()) };
+    let mut worst = 0.0f64;
+    for s in &states {
+        assert!(robot.marker_jacobian(k, &s.q, 0.0, &mut p, &mut r, &mut j));
+        let (mut pp, mut pr, mut pjac) = ([0.0; 3], [0.0; 9], vec![0.0; 6 * N]);
+        // SAFETY: N numbers in, 3, 9 and 6 N out.
+        unsafe {
+            pin_bench_frame_jacobian(pin.handle, frame, s.pin[0].as_ptr());
+            pin_bench_read_frame(
+                pin.handle,
+                frame,
+                pp.as_mut_ptr(),
+                pr.as_mut_ptr(),
+                pjac.as_mut_ptr(),
+            );
+        }
+        let ours: Vec<f64> = p
+            .iter()
+            .chain(r.transpose().iter())
+            .chain((0..6 * N).map(|e| &j[(e % 6, e / 6)]))
+            .copied()
+            .collect();
+        let to_pin = &pin.to_pin;
+        let theirs: Vec<f64> = pp
+            .iter()
+            .chain(&pr)
+            .copied()
+            .chain((0..6 * N).map(|e| pjac[e % 6 + 6 * to_pin[e / 6]]))
+            .collect();
+        worst = worst.max(relative_error(&ours, &theirs));
+    }
+    println!(
+        "{name}: marker {marker}: largest relative difference of position, rotation and \
+         Jacobian to Pinocchio's computeFrameJacobian over {} states: {worst:.1e}",
+        states.len()
+    );
+    assert!(worst < 1e-12, "{name}: flexdyn and Pinocchio disagree");
+    let mut g = c.benchmark_group(format!("{name} {marker}"));
+    let mut i = 0;
+    g.bench_function("flexdyn marker_jacobian", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            robot.marker_jacobian(k, &s.q, 0.0, &mut p, &mut r, &mut j);
+            black_box((&p, &r, &j));
+        })
+    });
+    g.bench_function("pinocchio computeFrameJacobian", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            // SAFETY: N numbers for a model of N velocities.
+            unsafe { pin_bench_frame_jacobian(pin.handle, frame, s.pin[0].as_ptr()) }
+        })
+    });
+    g.finish();
+}
+
 /// The state after the `i`-th, cycling.
 fn next<'a, T>(states: &'a [T], i: &mut usize) -> &'a T {
     *i = (*i + 1) % states.len();
@@ -418,6 +525,8 @@ fn next<'a, T>(states: &'a [T], i: &mut usize) -> &'a T {
 fn robots(c: &mut Criterion<ThreadCpuTime>) {
     compare::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
     compare::<panda::Panda, { panda::NQ }>(c, "panda");
+    compare_marker::<ur5::Ur5, { ur5::NQ }>(c, "ur5", "tool0");
+    compare_marker::<panda::Panda, { panda::NQ }>(c, "panda", "panda_hand");
 }
 
 criterion_group! {

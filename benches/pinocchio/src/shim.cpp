@@ -1,7 +1,8 @@
 // A thin C interface to Pinocchio for the side-by-side benchmark: builds a
 // pinocchio::Model joint by joint from plain numbers (those of Pinocchio's
 // own URDF parser, written out by dump_model.py at build time), and runs
-// crba + nonLinearEffects, rnea and aba on caller-owned arrays. The model is
+// crba + nonLinearEffects, rnea and aba on caller-owned arrays, and a
+// frame's placement and Jacobian (computeFrameJacobian). The model is
 // built here, not by the prebuilt parser: that library is compiled for
 // SSE2 with Eigen's 16-byte alignment, and handing it a Model compiled with
 // -march=native (32- or 64-byte alignment) crashes; everything this file
@@ -14,6 +15,9 @@
 // for the comparison.
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/kinematics.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
@@ -26,6 +30,7 @@ struct Bench {
   pinocchio::Model model;
   pinocchio::Data data;
   Eigen::VectorXd tau_damped;
+  pinocchio::Data::Matrix6x jacobian;
 };
 
 void write_error(char *err, std::size_t len, const std::string &msg) {
@@ -112,6 +117,55 @@ void pin_bench_finish(void *p) {
   auto *b = static_cast<Bench *>(p);
   b->data = pinocchio::Data(b->model);
   b->tau_damped = Eigen::VectorXd::Zero(b->model.nv);
+  b->jacobian = pinocchio::Data::Matrix6x::Zero(6, b->model.nv);
+}
+
+// Placement in the world of joint `joint` at `q` (rotation row by row, then
+// translation: 12 numbers), by forwardKinematics.
+void pin_bench_joint_placement(void *p, const double *q, int joint, double *out) {
+  auto *b = static_cast<Bench *>(p);
+  pinocchio::forwardKinematics(b->model, b->data, VecMap(q, b->model.nv));
+  const auto &m = b->data.oMi[pinocchio::JointIndex(joint)];
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) out[3 * i + j] = m.rotation()(i, j);
+    out[9 + i] = m.translation()[i];
+  }
+}
+
+// Adds a frame fixed to joint `joint` at `placement` (12 numbers, as above)
+// in the joint's frame and rebuilds the workspace; returns its index.
+int pin_bench_add_frame(void *p, int joint, const double *placement) {
+  auto *b = static_cast<Bench *>(p);
+  const Eigen::Matrix3d rotation = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(placement);
+  const pinocchio::SE3 frame(rotation, Eigen::Map<const Eigen::Vector3d>(placement + 9));
+  const auto parent = pinocchio::JointIndex(joint);
+  const auto id = b->model.addFrame(
+      pinocchio::Frame("bench_frame", parent, pinocchio::FrameIndex(0), frame, pinocchio::OP_FRAME));
+  b->data = pinocchio::Data(b->model);
+  return int(id);
+}
+
+// The frame's placement and its Jacobian in LOCAL_WORLD_ALIGNED:
+// computeFrameJacobian (forward kinematics to the frame's joint included).
+void pin_bench_frame_jacobian(void *p, int frame, const double *q) {
+  auto *b = static_cast<Bench *>(p);
+  b->jacobian.setZero();
+  pinocchio::computeFrameJacobian(b->model, b->data, VecMap(q, b->model.nv),
+                                  pinocchio::FrameIndex(frame), pinocchio::LOCAL_WORLD_ALIGNED,
+                                  b->jacobian);
+}
+
+// Copies the last frame Jacobian's results out: position (3), rotation (row
+// by row, 9), Jacobian (6 x nv, column-major).
+void pin_bench_read_frame(const void *p, int frame, double *position, double *rotation,
+                          double *jacobian) {
+  const auto *b = static_cast<const Bench *>(p);
+  const auto &m = b->data.oMf[pinocchio::FrameIndex(frame)];
+  for (int i = 0; i < 3; ++i) {
+    position[i] = m.translation()[i];
+    for (int j = 0; j < 3; ++j) rotation[3 * i + j] = m.rotation()(i, j);
+  }
+  for (int k = 0; k < 6 * b->model.nv; ++k) jacobian[k] = b->jacobian.data()[k];
 }
 
 void pin_bench_free(void *b) { delete static_cast<Bench *>(b); }
