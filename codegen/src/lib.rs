@@ -70,7 +70,7 @@ mod tests;
 mod time_function;
 
 pub use builder::{generate_scene, Builder, Generated, Report};
-pub use derive::Equations;
+pub use derive::{Equations, MarkerTerms};
 pub use emit::FunctionReport;
 pub use error::{Error, Source};
 pub use export::export_json;
@@ -78,8 +78,8 @@ pub use expr::{powi_f64, Func, Graph, Id, Node, Symbol};
 pub use files::{check_output, read_limited, write_atomic, OutputFiles};
 pub use import::{import_urdf, UrdfOptions};
 pub use model::{
-    Actuator, Body, Component, Constraint, Coordinate, FlexibleLink, Model, Outputs, Precision,
-    RuntimeParameter,
+    Actuator, Body, Component, Constraint, Coordinate, FlexibleLink, Marker, Model, Outputs,
+    Precision, RuntimeParameter,
 };
 pub use schedule::OpCount;
 pub use time_function::TimeFunction;
