@@ -622,3 +622,29 @@ fn a_cantilevers_tip_marker_sags_as_euler_bernoulli_says() {
     );
     assert!((tip.position[0] - 1.0).abs() < 1e-12 && tip.position[1] == 0.0);
 }
+
+/// A wrapper model (`forward_model!`) keeps the wrapped model's markers:
+/// the same names and the same bits.
+#[test]
+fn wrapper_models_forward_the_markers() {
+    use flexdyn::runtime::{FiniteDifferenceJacobians, Model};
+    use nalgebra::{SMatrix, SVector};
+    let model = flexdyn::scenes::four_bar::FourBar;
+    let wrapped = FiniteDifferenceJacobians(model);
+    assert_eq!(
+        <FiniteDifferenceJacobians<flexdyn::scenes::four_bar::FourBar> as Model<3, 2, 1>>::MARKERS,
+        ["coupler_mid"]
+    );
+    let q = SVector::<f64, 3>::new(0.3, 1.2, 0.5);
+    let (mut p, mut r, mut j) = (SVector::zeros(), SMatrix::zeros(), SMatrix::zeros());
+    assert!(model.marker_jacobian(0, &q, 0.0, &mut p, &mut r, &mut j));
+    let a = (p, r, j);
+    assert!(wrapped.marker_jacobian(0, &q, 0.0, &mut p, &mut r, &mut j));
+    assert_eq!(a, (p, r, j));
+    // The pose by the default method, from the forwarded Jacobian.
+    let (mut p2, mut r2) = (SVector::zeros(), SMatrix::zeros());
+    assert!(wrapped.marker_pose(0, &q, 0.0, &mut p2, &mut r2));
+    assert_eq!((p2, r2), (a.0, a.1));
+    assert!(!wrapped.marker_pose(1, &q, 0.0, &mut p2, &mut r2));
+    assert!(a.2[(0, 0)] != 0.0);
+}

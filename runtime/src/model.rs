@@ -100,7 +100,9 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
 
     /// World position of marker `marker` and its rotation (marker axes to
     /// world axes). Returns `false` (writing nothing) when the scene has no
-    /// marker of that index.
+    /// marker of that index. Generated modules compute the pose alone; the
+    /// default takes it from [`Model::marker_jacobian`] (so that a wrapper
+    /// forwarding that one has both).
     fn marker_pose(
         &self,
         marker: usize,
@@ -109,8 +111,8 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
         position: &mut SVector<T, 3>,
         rotation: &mut SMatrix<T, 3, 3>,
     ) -> bool {
-        let _ = (marker, q, t, position, rotation);
-        false
+        let mut jacobian = SMatrix::<T, 6, NQ>::zeros();
+        self.marker_jacobian(marker, q, t, position, rotation, &mut jacobian)
     }
 
     /// [`Model::marker_pose`] and the marker's Jacobian, from one program:
@@ -256,8 +258,10 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
 /// Inside an `impl Model<NQ, NC, NU> for Wrapper` block, forwards the items a
 /// wrapper model usually leaves alone to the wrapped model `$M` stored in
 /// field `$inner` (by value or by reference): the names, `mass_matrix`, the
-/// four constraint terms with `constraints_and_jacobian`, `actuator_map` and
-/// the two energies. The wrapper
+/// four constraint terms with `constraints_and_jacobian`, `actuator_map`,
+/// the two energies and the markers (a wrapper does not move them:
+/// `marker_jacobian` and `marker_motion`, `marker_pose` by its default). The
+/// wrapper
 /// writes `bias` (and, where it changes them, `dynamics_terms` and the other
 /// provided methods) itself. `$NQ`, `$NC`, `$NU` are the impl's dimensions.
 #[macro_export]
@@ -332,6 +336,29 @@ macro_rules! forward_model {
         }
         fn potential_energy(&self, q: &$crate::nalgebra::SVector<$T, $NQ>, t: $T) -> $T {
             self.$inner.potential_energy(q, t)
+        }
+        const MARKERS: &'static [&'static str] = <$M as $crate::Model<$NQ, $NC, $NU, $T>>::MARKERS;
+        fn marker_jacobian(
+            &self,
+            marker: usize,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            position: &mut $crate::nalgebra::SVector<$T, 3>,
+            rotation: &mut $crate::nalgebra::SMatrix<$T, 3, 3>,
+            jacobian: &mut $crate::nalgebra::SMatrix<$T, 6, $NQ>,
+        ) -> bool {
+            self.$inner.marker_jacobian(marker, q, t, position, rotation, jacobian)
+        }
+        fn marker_motion(
+            &self,
+            marker: usize,
+            q: &$crate::nalgebra::SVector<$T, $NQ>,
+            qd: &$crate::nalgebra::SVector<$T, $NQ>,
+            t: $T,
+            velocity: &mut $crate::nalgebra::SVector<$T, 6>,
+            acceleration_bias: &mut $crate::nalgebra::SVector<$T, 6>,
+        ) -> bool {
+            self.$inner.marker_motion(marker, q, qd, t, velocity, acceleration_bias)
         }
     };
 }
