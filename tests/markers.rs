@@ -67,6 +67,24 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     path
 }
 
+/// `flexdyn simulate --scene scene --csv csv` with `args`: the table
+/// written, or the error text.
+fn simulate(scene: &Path, csv: &Path, args: &[&str]) -> Result<Table, String> {
+    let out = Command::new(BIN)
+        .arg("simulate")
+        .args(args)
+        .arg("--scene")
+        .arg(scene)
+        .arg("--csv")
+        .arg(csv)
+        .output()
+        .unwrap();
+    match out.status.success() {
+        true => Ok(Table::read(csv).unwrap()),
+        false => Err(String::from_utf8_lossy(&out.stderr).into_owned()),
+    }
+}
+
 /// Rotation by `th` about y.
 fn ry(th: f64) -> Matrix3<f64> {
     let (s, c) = th.sin_cos();
@@ -180,27 +198,12 @@ fn simulate_writes_the_marker_positions_of_every_row() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write(dir.path(), "sliding_arm.toml", ARM);
     let csv = dir.path().join("out.csv");
-    let out = Command::new(BIN)
-        .args([
-            "simulate",
-            "--duration",
-            "0.3",
-            "--dt",
-            "0.01",
-            "--quiet",
-            "--scene",
-        ])
-        .arg(&scene)
-        .arg("--csv")
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let table = Table::read(&csv).unwrap();
+    let table = simulate(
+        &scene,
+        &csv,
+        &["--duration", "0.3", "--dt", "0.01", "--quiet"],
+    )
+    .unwrap();
     let tail: Vec<&str> = table.columns.iter().map(String::as_str).skip(8).collect();
     assert_eq!(
         tail,
@@ -209,44 +212,23 @@ fn simulate_writes_the_marker_positions_of_every_row() {
     let col = |c: &str| table.column(c).unwrap();
     let (t, a, b) = (col("t"), col("a"), col("b"));
     assert_eq!(t.len(), 31);
+    let tips = ["tip_x", "tip_y", "tip_z"].map(col);
     for k in 0..t.len() {
         let (position, ..) = tip(a[k], b[k], 0.0, 0.0, t[k]);
-        for (axis, want) in ["x", "y", "z"].iter().zip(position.iter()) {
+        for (axis, want) in position.iter().enumerate() {
             close(
-                col(&format!("tip_{axis}"))[k],
+                tips[axis][k],
                 *want,
                 1.0,
-                &format!("row {k} tip_{axis}"),
+                &format!("row {k} tip axis {axis}"),
             );
         }
     }
     // Only the markers asked for; none at all.
     for (choice, columns) in [("elbow", 11), ("none", 8)] {
-        let out = Command::new(BIN)
-            .args([
-                "simulate",
-                "--duration",
-                "0.02",
-                "--quiet",
-                "--markers",
-                choice,
-                "--scene",
-            ])
-            .arg(&scene)
-            .arg("--csv")
-            .arg(&csv)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        assert_eq!(
-            Table::read(&csv).unwrap().columns.len(),
-            columns,
-            "{choice}"
-        );
+        let args = ["--duration", "0.02", "--quiet", "--markers", choice];
+        let table = simulate(&scene, &csv, &args).unwrap();
+        assert_eq!(table.columns.len(), columns, "{choice}");
     }
 }
 
@@ -288,25 +270,15 @@ fn bad_markers_are_clear_errors() {
         );
     }
     let scene = write(dir.path(), "sliding_arm.toml", ARM);
-    let out = Command::new(BIN)
-        .args([
-            "simulate",
-            "--duration",
-            "0.02",
-            "--markers",
-            "tip,hand",
-            "--scene",
-        ])
-        .arg(&scene)
-        .arg("--csv")
-        .arg(dir.path().join("out.csv"))
-        .output()
-        .unwrap();
-    let e = String::from_utf8_lossy(&out.stderr);
+    let csv = dir.path().join("out.csv");
+    let e = simulate(
+        &scene,
+        &csv,
+        &["--duration", "0.02", "--markers", "tip,hand"],
+    )
+    .unwrap_err();
     assert!(
-        !out.status.success()
-            && e.contains("no marker `hand` (markers: tip, elbow)")
-            && !dir.path().join("out.csv").exists(),
+        e.contains("no marker `hand` (markers: tip, elbow)") && !csv.exists(),
         "{e}"
     );
 }
