@@ -10,6 +10,7 @@
 pub mod cli;
 pub mod compiled;
 pub mod dynamic;
+pub mod error_estimate;
 pub mod eval;
 pub mod interpreted;
 pub mod plot;

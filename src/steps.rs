@@ -62,6 +62,26 @@ pub fn count(duration: f64, dt: f64, last: Last, max_steps: u64) -> Result<u64, 
     Ok(steps as u64)
 }
 
+/// How many steps of `step` s (named `step_name`, e.g. `--dt`) make one of
+/// `output` s (named `output_name`, e.g. `--output-dt`): a positive whole
+/// number, to a relative 1e-9. Errors name both options and values.
+pub fn per_output(output_name: &str, output: f64, step_name: &str, step: f64) -> Result<u64, String> {
+    if !(output.is_finite() && output > 0.0) {
+        return Err(format!(
+            "{output_name}: the step must be a positive number of seconds, got {output}"
+        ));
+    }
+    let ratio = output / step;
+    if !((ratio - ratio.round()).abs() <= 1e-9 * ratio && ratio.round() >= 1.0) {
+        return Err(format!(
+            "{output_name} {} s must be a whole multiple of {step_name} {} s",
+            Time(output),
+            Time(step)
+        ));
+    }
+    Ok(ratio.round() as u64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,5 +121,20 @@ mod tests {
         );
         let e = count(f64::NAN, 0.1, Last::Within, MAX_STEPS).unwrap_err();
         assert!(e.contains("must be a non-negative number"), "{e}");
+    }
+
+    #[test]
+    fn outputs_are_whole_multiples_of_the_step() {
+        assert_eq!(per_output("--output-dt", 0.01, "--dt", 0.001), Ok(10));
+        assert_eq!(per_output("--output-dt", 0.3, "--dt", 0.1), Ok(3));
+        assert_eq!(per_output("--output-dt", 0.001, "--dt", 0.001), Ok(1));
+        for (output, step) in [(0.0015, 0.001), (0.0005, 0.001), (1e300, 1e-300)] {
+            let e = per_output("--output-dt", output, "--dt", step).unwrap_err();
+            assert!(e.contains("must be a whole multiple of --dt"), "{e}");
+        }
+        for output in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let e = per_output("--output-dt", output, "--dt", 0.1).unwrap_err();
+            assert!(e.starts_with("--output-dt: the step must be a positive"), "{e}");
+        }
     }
 }

@@ -26,10 +26,11 @@ use nalgebra::{DVector, Dyn};
 use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
 use crate::dynamic::{matrix, vector, DynModel};
+use crate::error_estimate::{Companion, ErrorEstimate, LOOSENED};
 use crate::eval::check_state;
 use crate::plot::{line_plot, Decimated, Labels, Series, PLOT_ROWS};
 use crate::progress::Progress;
-use crate::steps::{count, Last, MAX_STEPS};
+use crate::steps::{count, per_output, Last, MAX_STEPS};
 use crate::table::{check_output, read_input, CsvWriter, OutputFiles, Table};
 
 /// The integrators `--integrator` accepts.
@@ -56,11 +57,16 @@ pub struct Args {
     /// Simulated time span, s.
     #[arg(long)]
     pub duration: f64,
-    /// Output step, s; also the step of the fixed-step integrators. At most
-    /// --max-steps steps of it fit in --duration (the last one shortened to
-    /// end there).
-    #[arg(long, default_value_t = 0.01)]
-    pub dt: f64,
+    /// Step of the fixed-step integrators, s, and the output step unless
+    /// --output-dt is given (default 0.01); adaptive-rk4 chooses its own
+    /// steps and takes this as its output step. At most --max-steps steps
+    /// of it fit in --duration (the last one shortened to end there).
+    #[arg(long)]
+    pub dt: Option<f64>,
+    /// Output step, s (default: --dt): a whole multiple of --dt for the
+    /// fixed-step integrators.
+    #[arg(long)]
+    pub output_dt: Option<f64>,
     /// Initial state as JSON (`{"q": [..], "qd": [..], "t": 0}`); default:
     /// the scene's `initial` / `initial_velocity` values.
     #[arg(long)]
@@ -85,9 +91,25 @@ pub struct Args {
     /// gauss-legendre, gen-alpha.
     #[arg(long, default_value = "adaptive-rk4")]
     pub integrator: String,
-    /// Relative tolerance of adaptive-rk4 (absolute: 1/100 of it).
-    #[arg(long, default_value_t = 1e-8)]
-    pub tolerance: f64,
+    /// Relative tolerance of adaptive-rk4 (absolute: 1/100 of it; default
+    /// 1e-8). Refused with the fixed-step integrators, which would ignore it.
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Spectral radius at infinite frequency of gen-alpha, in [0, 1]
+    /// (default 0.8; 1: no numerical damping, 0: the most). Refused with the
+    /// other integrators.
+    #[arg(long)]
+    pub rho_inf: Option<f64>,
+    /// Most fixed-point sweeps per step of gauss-legendre (default 50).
+    /// Refused with the other integrators.
+    #[arg(long)]
+    pub max_sweeps: Option<u32>,
+    /// No error estimate: by default a companion run at twice the step
+    /// (adaptive-rk4: 16 times the tolerance) goes along, about half as much
+    /// work again, and their difference estimates the error of the run,
+    /// printed at the end and a warning above 1e-3 of a quantity's scale.
+    #[arg(long)]
+    pub no_error_estimate: bool,
     /// Largest number of steps: of --dt in --duration (refused before the
     /// run), and of adaptive-rk4's accepted steps (the run stops with an
     /// error naming the time reached).
@@ -114,7 +136,8 @@ pub struct Args {
     /// Nothing on stderr unless it fails: no progress (a bar on a terminal,
     /// otherwise a line every 5 s, or every FLEXDYN_PROGRESS_INTERVAL s),
     /// no notes (the integrator and its tolerance, the initial state's
-    /// projection).
+    /// projection), no warnings, and no error estimate (it would only be
+    /// printed).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -167,11 +190,10 @@ struct Setup<'a> {
     drives: Vec<Drive>,
     state: crate::eval::State,
     duration: f64,
-    dt: f64,
-    steps: u64,
+    grid: Grid,
     max_steps: u64,
-    integrator: &'a str,
-    tolerance: f64,
+    integrator: Integrator,
+    estimate: bool,
     quiet: bool,
     /// Indices of the markers in the rows.
     markers: Vec<usize>,
@@ -179,20 +201,8 @@ struct Setup<'a> {
 
 /// Run the command on the scenes of `compiled`.
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
-    let steps = count(args.duration, args.dt, Last::Shortened, args.max_steps)?;
-    if !INTEGRATORS.contains(&args.integrator.as_str()) {
-        return Err(format!(
-            "unknown integrator `{}` (integrators: {})",
-            args.integrator,
-            INTEGRATORS.join(", ")
-        ));
-    }
-    if !(args.tolerance > 0.0 && args.tolerance < 1.0) {
-        return Err(format!(
-            "--tolerance must lie in (0, 1), got {}",
-            args.tolerance
-        ));
-    }
+    let integrator = Integrator::of(args)?;
+    let grid = Grid::of(args, &integrator)?;
     // The outputs' directories before the run, not after it.
     check_output(&args.csv)?;
     if let Some(plot) = &args.plot {
@@ -219,11 +229,10 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         drives: drives(args, &parsed, model)?,
         state,
         duration: args.duration,
-        dt: args.dt,
-        steps,
+        grid,
         max_steps: args.max_steps,
-        integrator: &args.integrator,
-        tolerance: args.tolerance,
+        integrator,
+        estimate: !(args.no_error_estimate || args.quiet),
         quiet: args.quiet,
         markers,
     };
@@ -577,39 +586,178 @@ impl Setup<'_> {
         let run = Run {
             model,
             duration: self.duration,
-            dt: self.dt,
-            steps: self.steps,
+            grid: self.grid,
             max_steps: self.max_steps,
-            adaptive: self.integrator == "adaptive-rk4",
+            adaptive: matches!(self.integrator, Integrator::Adaptive { .. }),
             quiet: self.quiet,
             markers: &self.markers,
             emit,
         };
+        // The companion of a fixed-step integrator of order `order`.
+        let doubled = |order| {
+            self.estimate.then_some(Companion::Doubled {
+                order,
+                dt: self.grid.step,
+            })
+        };
         match self.integrator {
-            "rk4" => run.go(Rk4::new(settings), &closed, &open, state),
-            "semi-implicit-euler" => {
-                run.go(SemiImplicitEuler::new(settings), &closed, &open, state)
-            }
-            "gauss-legendre" => run.go(GaussLegendre4::new(settings), &closed, &open, state),
-            "gen-alpha" => run.go(
-                GeneralizedAlphaOf::new(settings, GeneralizedAlphaConfig::default()),
+            Integrator::Rk4 => run.go(with(Rk4::new(settings), doubled(4)), &closed, &open, state),
+            Integrator::SemiImplicitEuler => run.go(
+                with(SemiImplicitEuler::new(settings), doubled(1)),
                 &closed,
                 &open,
                 state,
             ),
-            _ => {
-                let atol = self.tolerance * 1e-2;
+            Integrator::GaussLegendre { max_sweeps } => {
+                let mut g = GaussLegendre4::new(settings);
+                g.max_iterations = max_sweeps;
+                run.go(with(g, doubled(4)), &closed, &open, state)
+            }
+            Integrator::GenAlpha { rho_inf } => {
+                let config = GeneralizedAlphaConfig {
+                    rho_inf,
+                    ..GeneralizedAlphaConfig::default()
+                };
+                let g = GeneralizedAlphaOf::new(settings, config);
+                run.go(with(g, doubled(2)), &closed, &open, state)
+            }
+            Integrator::Adaptive { tolerance } => {
+                let atol = tolerance * 1e-2;
                 if !self.quiet {
                     eprintln!(
-                        "integrator: adaptive RK4, relative tolerance {:e}, absolute {atol:e}",
-                        self.tolerance
+                        "integrator: adaptive RK4, relative tolerance {tolerance:e}, absolute \
+                         {atol:e}"
                     );
                 }
-                let mut g = AdaptiveRk4::new(self.tolerance, atol);
-                g.settings = settings;
-                run.go(g, &closed, &open, state)
+                let g = |scale: f64| AdaptiveRk4 {
+                    settings,
+                    ..AdaptiveRk4::new(tolerance * scale, atol * scale)
+                };
+                let companion = self
+                    .estimate
+                    .then(|| (g(LOOSENED), Companion::Loosened { tolerance }));
+                run.go((g(1.0), companion), &closed, &open, state)
             }
         }
+    }
+}
+
+/// An integrator and, when there is a companion, a fresh copy of it for
+/// the companion run.
+fn with<G: Clone>(g: G, companion: Option<Companion>) -> (G, Option<(G, Companion)>) {
+    let copy = companion.map(|c| (g.clone(), c));
+    (g, copy)
+}
+
+/// The chosen integrator and its settings, checked.
+#[derive(Clone, Copy, Debug)]
+enum Integrator {
+    Adaptive { tolerance: f64 },
+    Rk4,
+    SemiImplicitEuler,
+    GaussLegendre { max_sweeps: u32 },
+    GenAlpha { rho_inf: f64 },
+}
+
+impl Integrator {
+    /// `--integrator` and its options; an option the integrator would
+    /// ignore is refused.
+    fn of(args: &Args) -> Result<Integrator, String> {
+        let name = args.integrator.as_str();
+        if !INTEGRATORS.contains(&name) {
+            return Err(format!(
+                "unknown integrator `{name}` (integrators: {})",
+                INTEGRATORS.join(", ")
+            ));
+        }
+        let ignored = |option: &str, owner: &str, what: &str| {
+            Err(format!(
+                "{option} is {owner}'s {what}; `{name}` would ignore it (give --integrator \
+                 {owner}, or leave {option} out)"
+            ))
+        };
+        if args.tolerance.is_some() && name != "adaptive-rk4" {
+            return ignored(
+                "--tolerance",
+                "adaptive-rk4",
+                "error control (the others take fixed steps of --dt)",
+            );
+        }
+        if args.rho_inf.is_some() && name != "gen-alpha" {
+            return ignored("--rho-inf", "gen-alpha", "numerical damping");
+        }
+        if args.max_sweeps.is_some() && name != "gauss-legendre" {
+            return ignored("--max-sweeps", "gauss-legendre", "bound on its stage iteration");
+        }
+        Ok(match name {
+            "rk4" => Integrator::Rk4,
+            "semi-implicit-euler" => Integrator::SemiImplicitEuler,
+            "gauss-legendre" => {
+                let max_sweeps = args
+                    .max_sweeps
+                    .unwrap_or(GaussLegendre4::<f64>::default().max_iterations);
+                if !(1..=MAX_SWEEPS).contains(&max_sweeps) {
+                    return Err(format!(
+                        "--max-sweeps must lie in 1..={MAX_SWEEPS}, got {max_sweeps}"
+                    ));
+                }
+                Integrator::GaussLegendre { max_sweeps }
+            }
+            "gen-alpha" => {
+                let rho_inf = args
+                    .rho_inf
+                    .unwrap_or(GeneralizedAlphaConfig::<f64>::default().rho_inf);
+                if !(0.0..=1.0).contains(&rho_inf) {
+                    return Err(format!("--rho-inf must lie in [0, 1], got {rho_inf}"));
+                }
+                Integrator::GenAlpha { rho_inf }
+            }
+            _ => {
+                let tolerance = args.tolerance.unwrap_or(1e-8);
+                if !(tolerance > 0.0 && tolerance < 1.0) {
+                    return Err(format!("--tolerance must lie in (0, 1), got {tolerance}"));
+                }
+                Integrator::Adaptive { tolerance }
+            }
+        })
+    }
+}
+
+/// The most sweeps `--max-sweeps` may ask of gauss-legendre (each sweep is
+/// two acceleration solves).
+const MAX_SWEEPS: u32 = 1000;
+
+/// The time grid of a run: steps of `step` s (the last shortened to end at
+/// the duration), a row every `every` of them and at the end.
+#[derive(Clone, Copy, Debug)]
+struct Grid {
+    step: f64,
+    steps: u64,
+    every: u64,
+}
+
+impl Grid {
+    /// The grid `--dt`, `--output-dt`, `--duration` and `--max-steps` ask
+    /// of `integrator`: for the fixed-step integrators steps of `--dt` and a
+    /// row every `--output-dt`; adaptive-rk4 chooses its own steps, so its
+    /// grid is the output step (`--output-dt` or `--dt`, not both).
+    fn of(args: &Args, integrator: &Integrator) -> Result<Grid, String> {
+        let adaptive = matches!(integrator, Integrator::Adaptive { .. });
+        let step = match (adaptive, args.dt, args.output_dt) {
+            (true, Some(_), Some(_)) => {
+                return Err("adaptive-rk4 chooses its own steps, so --dt is only its output \
+                            step: give --output-dt or --dt, not both"
+                    .into())
+            }
+            (true, None, Some(output)) => output,
+            (_, dt, _) => dt.unwrap_or(0.01),
+        };
+        let steps = count(args.duration, step, Last::Shortened, args.max_steps)?;
+        let every = match (adaptive, args.output_dt) {
+            (false, Some(output)) => per_output("--output-dt", output, "--dt", step)?,
+            _ => 1,
+        };
+        Ok(Grid { step, steps, every })
     }
 }
 
@@ -713,9 +861,7 @@ fn make_consistent(model: &dyn DynModel, state: &mut DynState, quiet: bool) -> R
 struct Run<'a, 'e> {
     model: &'a dyn DynModel,
     duration: f64,
-    dt: f64,
-    /// Steps of `dt` (the last one shortened to end at `duration`).
-    steps: u64,
+    grid: Grid,
     /// Most accepted steps of the adaptive integrator.
     max_steps: u64,
     adaptive: bool,
@@ -726,9 +872,11 @@ struct Run<'a, 'e> {
 }
 
 impl Run<'_, '_> {
+    /// The run of `integrator` from `state`, with its companion (when
+    /// there is one) for the error estimate.
     fn go<G, M, I>(
         self,
-        mut integrator: G,
+        (mut integrator, companion): (G, Option<(G, Companion)>),
         model: &M,
         input: &I,
         mut state: DynState,
@@ -738,37 +886,27 @@ impl Run<'_, '_> {
         M: Equations<Dyn, Dyn, Dyn>,
         I: InputOf<Dyn>,
     {
+        let Grid { step, steps, every } = self.grid;
         let t0 = state.t;
         let end = t0 + self.duration;
+        let at = |k: u64| (t0 + k as f64 * step).min(end);
+        let quantities = || {
+            let names = self.model.coordinates();
+            let rates = names.iter().map(|c| format!("{c}_dot"));
+            names.iter().map(|c| c.to_string()).chain(rates).collect()
+        };
+        let mut estimate = companion.map(|(g, c)| (g, state.clone(), ErrorEstimate::new(c, quantities())));
         let mut row = Vec::new();
         self.row(&state, &mut row);
         (self.emit)(&row)?;
-        let mut progress = Progress::new(self.steps, "simulate", self.quiet).timed(t0, end);
+        let mut progress = Progress::new(steps, "simulate", self.quiet).timed(t0, end);
         let mut taken = 0u64;
-        for k in 1..=self.steps {
-            let to = (t0 + k as f64 * self.dt).min(end);
+        for k in 1..=steps {
+            let to = at(k);
             let h = to - state.t;
-            let report = integrator.step(model, &mut state, input, h).map_err(|e| {
-                let hint = match e.kind {
-                    ErrorKind::MassMatrixNotPositiveDefinite { pivot, .. } => self
-                        .model
-                        .coordinates()
-                        .get(pivot)
-                        .map(|c| {
-                            format!(
-                                " (coordinate `{c}`: no mass or inertia moves with it apart \
-                                 from the coordinates before it)"
-                            )
-                        })
-                        .unwrap_or_default(),
-                    _ => String::new(),
-                };
-                format!(
-                    "step {k} (t = {} s, dt = {} s): {e}{hint}",
-                    Time(state.t),
-                    Time(h)
-                )
-            })?;
+            let report = integrator
+                .step(model, &mut state, input, h)
+                .map_err(|e| self.failure(k, &state, h, e))?;
             state.t = to;
             if self.adaptive {
                 // The report counts the accepted substeps.
@@ -784,12 +922,70 @@ impl Run<'_, '_> {
                     ));
                 }
             }
-            self.row(&state, &mut row);
-            (self.emit)(&row)?;
+            if let Some((g, companion, e)) = &mut estimate {
+                e.scale(state.q.iter().chain(state.qd.iter()).copied());
+                // The companion steps to every second time of the grid.
+                if k % 2 == 0 || k == steps {
+                    let from = companion.t;
+                    match g.step(model, companion, input, to - from) {
+                        Ok(_) => {
+                            companion.t = to;
+                            let run = state.q.iter().chain(state.qd.iter()).copied();
+                            let other = companion.q.iter().chain(companion.qd.iter()).copied();
+                            e.compare(to, run, other);
+                        }
+                        Err(why) => {
+                            // Told now; the run goes on without it.
+                            e.fail(from, why.kind.to_string());
+                            self.tell(e);
+                            estimate = None;
+                        }
+                    }
+                }
+            }
+            if k % every == 0 || k == steps {
+                self.row(&state, &mut row);
+                (self.emit)(&row)?;
+            }
             progress.inc_to(state.t);
         }
         progress.finish();
+        if let Some((_, _, e)) = &estimate {
+            self.tell(e);
+        }
         Ok(())
+    }
+
+    /// The error of step `k` (of size `h`, from `state`), with a hint where
+    /// a coordinate has no mass.
+    fn failure(&self, k: u64, state: &DynState, h: f64, e: flexdyn_runtime::Error) -> String {
+        let hint = match e.kind {
+            ErrorKind::MassMatrixNotPositiveDefinite { pivot, .. } => self
+                .model
+                .coordinates()
+                .get(pivot)
+                .map(|c| {
+                    format!(
+                        " (coordinate `{c}`: no mass or inertia moves with it apart from the \
+                         coordinates before it)"
+                    )
+                })
+                .unwrap_or_default(),
+            _ => String::new(),
+        };
+        format!(
+            "step {k} (t = {} s, dt = {} s): {e}{hint}",
+            Time(state.t),
+            Time(h)
+        )
+    }
+
+    /// Prints the estimate's notes (unless quiet) and warnings.
+    fn tell(&self, e: &ErrorEstimate) {
+        let (notes, warnings) = e.report();
+        for line in notes.iter().filter(|_| !self.quiet).chain(&warnings) {
+            eprintln!("{line}");
+        }
     }
 
     /// The output row of `s` into `row`.

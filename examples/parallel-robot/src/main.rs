@@ -353,7 +353,7 @@ struct SimulateArgs {
 }
 
 fn simulate(a: &SimulateArgs) -> Result<(), String> {
-    use flexdyn::steps::{count, Last};
+    use flexdyn::steps::{count, per_output, Last};
     use robot_crate::robot::{simulate_rows, PdSettings, Scheme, TorqueTable};
     let (parsed, geometry) = robot_scene(&a.scene, "simulate")?;
     let flexible = parsed.nq() > 12;
@@ -402,22 +402,9 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
     });
     let (t0, t1) = torques.span();
     let duration = a.duration.unwrap_or(t1 - t0);
-    if !(a.output_dt.is_finite() && a.output_dt > 0.0) {
-        return Err(format!(
-            "--output-dt must be a positive number of seconds, got {}",
-            a.output_dt
-        ));
-    }
     let steps = usize::try_from(count(duration, a.dt, Last::Within, a.max_steps)?)
         .map_err(|_| "too many steps for this machine".to_string())?;
-    let ratio = a.output_dt / a.dt;
-    if (ratio - ratio.round()).abs() > 1e-9 * ratio || ratio.round() < 1.0 {
-        return Err(format!(
-            "--output-dt ({}) must be a whole multiple of --dt ({})",
-            a.output_dt, a.dt
-        ));
-    }
-    let every = ratio.round() as usize;
+    let every = per_output("--output-dt", a.output_dt, "--dt", a.dt)? as usize;
     let mut progress = flexdyn::progress::Progress::new(steps as u64, "forward dynamics", a.quiet);
     let rows = robot_crate::with_robot_model!(parsed.name.as_str(), model => simulate_rows(
         &model,

@@ -268,13 +268,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Steps of `dt` between grid points.
 fn every(grid: f64, dt: f64) -> Result<usize, String> {
-    let r = grid / dt;
-    if (r - r.round()).abs() > 1e-9 * r || r.round() < 1.0 {
-        return Err(format!(
-            "grid {grid} s is not a multiple of the step {dt} s"
-        ));
-    }
-    Ok(r.round() as usize)
+    flexdyn::steps::per_output("the grid", grid, "the step", dt).map(|n| n as usize)
 }
 
 /// The study's fixed inputs.
