@@ -69,7 +69,10 @@ impl Companion {
                 Time(two_digits(dt * (AIM / e).powf(1.0 / f64::from(order))))
             ),
             Companion::Loosened { tolerance } => {
-                format!("--tolerance {:e}", two_digits(tolerance * (AIM / e).powf(1.25)))
+                format!(
+                    "--tolerance {:e}",
+                    two_digits(tolerance * (AIM / e).powf(1.25))
+                )
             }
         }
     }
@@ -150,7 +153,11 @@ impl ErrorEstimate {
         (0..self.names.len())
             .map(|k| {
                 let scale = self.scale[k].max(floor(k)).max(f64::MIN_POSITIVE);
-                (self.worst[k].0 / scale, self.names[k].as_str(), self.worst[k].1)
+                (
+                    self.worst[k].0 / scale,
+                    self.names[k].as_str(),
+                    self.worst[k].1,
+                )
             })
             .max_by(|a, b| a.0.total_cmp(&b.0))
     }
@@ -216,7 +223,11 @@ mod tests {
         e.scale([2.0, 0.0, 1.0, 0.0].into_iter());
         // x errs by 15e-6 / 15 = 1e-6, which is 5e-7 of its scale 2; y
         // stays at zero, measured against 1e-6 of x's scale.
-        e.compare(0.5, [2.0, 0.0, 1.0, 0.0].into_iter(), [2.0 + 15e-6, 0.0, 1.0, 0.0].into_iter());
+        e.compare(
+            0.5,
+            [2.0, 0.0, 1.0, 0.0].into_iter(),
+            [2.0 + 15e-6, 0.0, 1.0, 0.0].into_iter(),
+        );
         let (e, name, t) = e.largest().unwrap();
         assert_eq!((name, t), ("x", 0.5));
         assert!((e - 5e-7).abs() < 1e-18, "{e}");
@@ -228,9 +239,15 @@ mod tests {
         e.scale([1.0, 1.0, 1.0, 1.0].into_iter());
         e.compare(1.0, [1.0; 4].into_iter(), [1.0, 1.0, 1.0, 1.03].into_iter());
         let (notes, warnings) = e.report();
-        assert!(notes[0].contains("largest 1.0e-2 of its scale, `y_dot` at t = 1 s"), "{notes:?}");
+        assert!(
+            notes[0].contains("largest 1.0e-2 of its scale, `y_dot` at t = 1 s"),
+            "{notes:?}"
+        );
         // 1e-2 at order 2: a step 10 times smaller gives 1e-4.
-        assert!(warnings[0].contains("--dt 0.001 s would bring it near 1e-4"), "{warnings:?}");
+        assert!(
+            warnings[0].contains("--dt 0.001 s would bring it near 1e-4"),
+            "{warnings:?}"
+        );
         let mut quiet = ErrorEstimate::new(Companion::Loosened { tolerance: 1e-8 }, names());
         quiet.scale([1.0; 4].into_iter());
         quiet.compare(1.0, [1.0; 4].into_iter(), [1.0 + 1e-9; 4].into_iter());
@@ -243,7 +260,10 @@ mod tests {
         e.fail(0.25, "step too large".into());
         let (notes, warnings) = e.report();
         assert!(notes.is_empty());
-        assert!(warnings[0].contains("failed at t = 0.25 s: step too large"), "{warnings:?}");
+        assert!(
+            warnings[0].contains("failed at t = 0.25 s: step too large"),
+            "{warnings:?}"
+        );
         let mut nan = ErrorEstimate::new(Companion::Doubled { order: 4, dt: 0.01 }, names());
         nan.compare(0.1, [1.0; 4].into_iter(), [f64::NAN; 4].into_iter());
         assert!(nan.report().1[0].contains("reaches unbounded"));

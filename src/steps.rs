@@ -65,7 +65,12 @@ pub fn count(duration: f64, dt: f64, last: Last, max_steps: u64) -> Result<u64, 
 /// How many steps of `step` s (named `step_name`, e.g. `--dt`) make one of
 /// `output` s (named `output_name`, e.g. `--output-dt`): a positive whole
 /// number, to a relative 1e-9. Errors name both options and values.
-pub fn per_output(output_name: &str, output: f64, step_name: &str, step: f64) -> Result<u64, String> {
+pub fn per_output(
+    output_name: &str,
+    output: f64,
+    step_name: &str,
+    step: f64,
+) -> Result<u64, String> {
     if !(output.is_finite() && output > 0.0) {
         return Err(format!(
             "{output_name}: the step must be a positive number of seconds, got {output}"
@@ -134,7 +139,10 @@ mod tests {
         }
         for output in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             let e = per_output("--output-dt", output, "--dt", 0.1).unwrap_err();
-            assert!(e.starts_with("--output-dt: the step must be a positive"), "{e}");
+            assert!(
+                e.starts_with("--output-dt: the step must be a positive"),
+                "{e}"
+            );
         }
     }
 }

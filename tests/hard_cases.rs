@@ -12,6 +12,7 @@ use flexdyn::runtime::{
 use flexdyn::scenes::extreme_ratios::ExtremeRatios;
 use flexdyn::scenes::flyball_governor::FlyballGovernor;
 use flexdyn::scenes::four_bar::FourBar;
+use flexdyn::scenes::four_bar_coincident::FourBarCoincident;
 use flexdyn::scenes::slider_crank::SliderCrank;
 
 const G: f64 = 9.81;
@@ -270,6 +271,9 @@ fn four_bar_passes_through_flat_positions_or_stops_naming_time_and_condition() {
         for (name, r) in [
             ("closure rows", four_bar_run(&FourBar, dt)),
             ("rotated rows", four_bar_run(&RotatedFourBar, dt)),
+            // Closed by a 3-D `coincident` constraint: its identically zero
+            // `z` row dropped at generation, the same motion.
+            ("coincident", four_bar_run(&FourBarCoincident, dt)),
         ] {
             println!(
                 "four-bar ({name}), RK4 + projection, dt {dt}: {} at t = {:.3} s; {} flat \

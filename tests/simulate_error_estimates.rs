@@ -67,10 +67,18 @@ fn estimate(stderr: &str) -> (f64, String) {
 /// at the times of `run` (every row of `run` is a row of `reference`),
 /// relative to the largest magnitude of the column in `reference`.
 fn true_error(run: &Table, reference: &Table, name: &str) -> f64 {
-    let (t, r) = (reference.column("t").unwrap(), reference.column(name).unwrap());
+    let (t, r) = (
+        reference.column("t").unwrap(),
+        reference.column(name).unwrap(),
+    );
     let scale = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let mut worst = 0.0f64;
-    for (s, v) in run.column("t").unwrap().iter().zip(run.column(name).unwrap()) {
+    for (s, v) in run
+        .column("t")
+        .unwrap()
+        .iter()
+        .zip(run.column(name).unwrap())
+    {
         let k = t.partition_point(|x| *x < s - 1e-9);
         assert!((t[k] - s).abs() < 1e-9, "no reference row at {s}");
         worst = worst.max((v - r[k]).abs());
@@ -84,7 +92,15 @@ fn estimates_track_the_true_error_and_warn_when_it_is_large() {
     // Reference: RK4 at 0.1 ms (error ~1e-12 of the swing), rows every 2 ms.
     let (reference, _) = run(
         dir.path(),
-        &["--integrator", "rk4", "--dt", "1e-4", "--output-dt", "0.002", "--quiet"],
+        &[
+            "--integrator",
+            "rk4",
+            "--dt",
+            "1e-4",
+            "--output-dt",
+            "0.002",
+            "--quiet",
+        ],
     );
     // (integrator, step, warned): the estimate must be within a factor 3
     // of the true error of the quantity it names (the adaptive one, whose
@@ -92,7 +108,10 @@ fn estimates_track_the_true_error_and_warn_when_it_is_large() {
     let cases: [(&[&str], bool); 7] = [
         (&["--integrator", "rk4", "--dt", "0.01"], false),
         (&["--integrator", "rk4", "--dt", "0.2"], true),
-        (&["--integrator", "semi-implicit-euler", "--dt", "0.01"], true),
+        (
+            &["--integrator", "semi-implicit-euler", "--dt", "0.01"],
+            true,
+        ),
         (&["--integrator", "gen-alpha", "--dt", "0.01"], true),
         (&["--integrator", "gen-alpha", "--dt", "0.002"], false),
         (&["--integrator", "gauss-legendre", "--dt", "0.05"], false),
@@ -109,10 +128,20 @@ fn estimates_track_the_true_error_and_warn_when_it_is_large() {
             estimated > actual / below && estimated < actual * above,
             "{args:?}: estimated {estimated:e}, actual {actual:e}: {stderr}"
         );
-        assert_eq!(stderr.contains("warning: the estimated error"), warned, "{args:?}: {stderr}");
+        assert_eq!(
+            stderr.contains("warning: the estimated error"),
+            warned,
+            "{args:?}: {stderr}"
+        );
         if warned {
             // The advised step brings the error near 1e-4: below 1e-3.
-            let step = stderr.split("; --dt ").nth(1).unwrap().split(' ').next().unwrap();
+            let step = stderr
+                .split("; --dt ")
+                .nth(1)
+                .unwrap()
+                .split(' ')
+                .next()
+                .unwrap();
             let integrator = &args[..2];
             let (_, stderr) = run(dir.path(), &[integrator, &["--dt", step]].concat());
             let (estimated, _) = estimate(&stderr);
@@ -135,7 +164,10 @@ fn a_step_near_the_stability_limit_is_a_warning() {
         "{stderr}"
     );
     // --quiet: no estimate, nothing printed.
-    let (_, stderr) = run(dir.path(), &["--integrator", "rk4", "--dt", "0.5", "--quiet"]);
+    let (_, stderr) = run(
+        dir.path(),
+        &["--integrator", "rk4", "--dt", "0.5", "--quiet"],
+    );
     assert!(stderr.is_empty(), "{stderr}");
     let (_, stderr) = run(
         dir.path(),
@@ -169,7 +201,13 @@ fn output_dt_thins_the_rows_of_the_same_run() {
 fn rho_inf_and_max_sweeps_reach_the_integrators() {
     let dir = tempfile::tempdir().unwrap();
     let energy = |t: &Table| {
-        let e: Vec<f64> = t.column("T").unwrap().iter().zip(t.column("V").unwrap()).map(|(a, b)| a + b).collect();
+        let e: Vec<f64> = t
+            .column("T")
+            .unwrap()
+            .iter()
+            .zip(t.column("V").unwrap())
+            .map(|(a, b)| a + b)
+            .collect();
         e.iter().fold(0.0f64, |m, x| m.max((x - e[0]).abs()))
     };
     let base = ["--integrator", "gen-alpha", "--dt", "0.05", "--quiet"];
@@ -178,21 +216,42 @@ fn rho_inf_and_max_sweeps_reach_the_integrators() {
     // rho_inf = 1 is the trapezoidal rule: energy kept to its (w dt)^2 / 12
     // of the swing's energy (w = 3.1 rad/s, 4.9 J); rho_inf = 0 dissipates.
     let bound = 0.05f64.powi(2) * 9.81 / 12.0 * 4.9;
-    println!("energy change: rho_inf 1 {:e}, 0 {:e} (bound {bound:e})", energy(&trapezoidal), energy(&damped));
+    println!(
+        "energy change: rho_inf 1 {:e}, 0 {:e} (bound {bound:e})",
+        energy(&trapezoidal),
+        energy(&damped)
+    );
     assert!(energy(&trapezoidal) < bound);
     assert!(energy(&damped) > 10.0 * energy(&trapezoidal));
     // One sweep cannot converge Gauss-Legendre's stages: the step fails,
     // naming the stage iteration; the default converges.
     let gl = ["--integrator", "gauss-legendre", "--dt", "0.05", "--quiet"];
     run(dir.path(), &gl);
-    let (scene, start, csv) = (pendulum(), p(dir.path(), "swung.json"), p(dir.path(), "gl.csv"));
+    let (scene, start, csv) = (
+        pendulum(),
+        p(dir.path(), "swung.json"),
+        p(dir.path(), "gl.csv"),
+    );
     let args = [
-        &["simulate", "--scene", &scene, "--duration", "1", "--initial", &start][..],
+        &[
+            "simulate",
+            "--scene",
+            &scene,
+            "--duration",
+            "1",
+            "--initial",
+            &start,
+        ][..],
         &["--csv", &csv, "--max-sweeps", "1"],
         &gl[..],
     ]
     .concat();
-    refused(dir.path(), &["swung.json", "out.csv"], &args, "stage iteration");
+    refused(
+        dir.path(),
+        &["swung.json", "out.csv"],
+        &args,
+        "stage iteration",
+    );
 }
 
 #[test]
@@ -200,17 +259,56 @@ fn options_an_integrator_would_ignore_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let csv = p(dir.path(), "x.csv");
     let pendulum = pendulum();
-    let base = ["simulate", "--scene", &pendulum, "--duration", "1", "--csv", &csv];
+    let base = [
+        "simulate",
+        "--scene",
+        &pendulum,
+        "--duration",
+        "1",
+        "--csv",
+        &csv,
+    ];
     for (args, needle) in [
-        (&["--integrator", "rk4", "--tolerance", "1e-6"][..], "--tolerance is adaptive-rk4's error control"),
-        (&["--integrator", "gen-alpha", "--max-sweeps", "5"], "--max-sweeps is gauss-legendre's"),
-        (&["--integrator", "gauss-legendre", "--rho-inf", "0.5"], "--rho-inf is gen-alpha's"),
+        (
+            &["--integrator", "rk4", "--tolerance", "1e-6"][..],
+            "--tolerance is adaptive-rk4's error control",
+        ),
+        (
+            &["--integrator", "gen-alpha", "--max-sweeps", "5"],
+            "--max-sweeps is gauss-legendre's",
+        ),
+        (
+            &["--integrator", "gauss-legendre", "--rho-inf", "0.5"],
+            "--rho-inf is gen-alpha's",
+        ),
         (&["--rho-inf", "0.5"], "`adaptive-rk4` would ignore it"),
-        (&["--integrator", "gen-alpha", "--rho-inf", "1.5"], "--rho-inf must lie in [0, 1]"),
-        (&["--integrator", "gauss-legendre", "--max-sweeps", "0"], "--max-sweeps must lie in 1..=1000"),
-        (&["--dt", "0.01", "--output-dt", "0.1"], "give --output-dt or --dt, not both"),
-        (&["--integrator", "rk4", "--dt", "0.01", "--output-dt", "0.015"], "--output-dt 0.015 s must be a whole multiple of --dt 0.01 s"),
-        (&["--integrator", "rk4", "--output-dt", "0"], "--output-dt: the step must be a positive"),
+        (
+            &["--integrator", "gen-alpha", "--rho-inf", "1.5"],
+            "--rho-inf must lie in [0, 1]",
+        ),
+        (
+            &["--integrator", "gauss-legendre", "--max-sweeps", "0"],
+            "--max-sweeps must lie in 1..=1000",
+        ),
+        (
+            &["--dt", "0.01", "--output-dt", "0.1"],
+            "give --output-dt or --dt, not both",
+        ),
+        (
+            &[
+                "--integrator",
+                "rk4",
+                "--dt",
+                "0.01",
+                "--output-dt",
+                "0.015",
+            ],
+            "--output-dt 0.015 s must be a whole multiple of --dt 0.01 s",
+        ),
+        (
+            &["--integrator", "rk4", "--output-dt", "0"],
+            "--output-dt: the step must be a positive",
+        ),
     ] {
         refused(dir.path(), &[], &[&base[..], args].concat(), needle);
     }

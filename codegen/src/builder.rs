@@ -29,6 +29,7 @@ use crate::load::{load, resolve, LoadedScene};
 use crate::model::{build, overflow_message, Model, Precision};
 use crate::prune::prune;
 use crate::reduce;
+use crate::redundancy::drop_redundant;
 use crate::resolution::{stiffness_spread, F32_MAX_STIFFNESS_SPREAD};
 use crate::schedule::{functions, OpCount};
 
@@ -40,10 +41,15 @@ const DEFAULT_RUNTIME_PATH: &str = "flexdyn_runtime";
 /// scene's reductions applied.
 fn model_of(scene: LoadedScene) -> Result<Model, Error> {
     let model = build(&scene)?;
-    match &scene.derived {
-        Some((source, def)) => reduce::apply(model, def, source),
-        None => Ok(model),
-    }
+    let mut model = match &scene.derived {
+        Some((source, def)) => reduce::apply(model, def, source)?,
+        None => model,
+    };
+    drop_redundant(&mut model).map_err(|message| {
+        let file = model.sources.first().cloned().unwrap_or_default();
+        Error::unplaced(&file, Some("constraints"), message)
+    })?;
+    Ok(model)
 }
 
 impl Model {
@@ -108,6 +114,8 @@ pub struct Generated {
     pub c_header: Option<String>,
     /// Time spent parsing, deriving and emitting.
     pub elapsed: Duration,
+    /// What the stages changed that a user should know ([`Model::notes`]).
+    pub notes: Vec<String>,
 }
 
 impl Generated {
@@ -131,7 +139,11 @@ impl fmt::Display for Generated {
             self.total_ops().total(),
             self.total_ops(),
             self.elapsed.as_secs_f64() * 1e3
-        )
+        )?;
+        for note in &self.notes {
+            write!(f, "\n  note: {note}")?;
+        }
+        Ok(())
     }
 }
 
@@ -239,6 +251,7 @@ fn generate_perturbed(path: &Path, options: &Options) -> Result<Generated, Error
         precision: model.precision,
         functions: emitted.functions,
         elapsed: start.elapsed(),
+        notes: model.notes,
     })
 }
 

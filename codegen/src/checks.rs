@@ -6,7 +6,7 @@
 
 use crate::expr::{Graph, Id, Node, Symbol};
 use crate::model::{Component, Model};
-use crate::prune::Samples;
+use crate::samples::Samples;
 use crate::schedule::{Code, Scheduled, Stmt};
 
 /// A check that failed: the component (or part of the model) and what is

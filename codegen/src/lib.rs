@@ -63,7 +63,9 @@ mod load;
 mod model;
 mod prune;
 mod reduce;
+mod redundancy;
 mod resolution;
+mod samples;
 mod schedule;
 #[cfg(test)]
 mod tests;

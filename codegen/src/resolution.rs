@@ -23,7 +23,7 @@
 use crate::derive::Equations;
 use crate::expr::Symbol;
 use crate::model::Model;
-use crate::prune::Samples;
+use crate::samples::Samples;
 use nalgebra::{DMatrix, SymmetricEigen};
 
 /// The largest stiffness spread an `f32` module is generated for: `1 /

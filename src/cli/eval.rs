@@ -40,6 +40,7 @@ pub struct Args {
 /// Run the command on the scenes of `compiled`.
 pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    super::tell_notes(&parsed, false);
     let lookup = if args.perturbed {
         compiled.perturbed_model
     } else {

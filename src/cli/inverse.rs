@@ -98,6 +98,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     check_output(&args.csv)?;
     let steps = count(args.duration, args.dt, Last::Within, args.max_steps)?;
     let mut scene = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    super::tell_notes(&scene, args.quiet);
     let declared = scene.coordinates.len();
     let texts = given(
         &args.prescribe,

@@ -8,3 +8,11 @@ pub mod generate;
 pub mod import;
 pub mod inverse;
 pub mod simulate;
+
+/// Prints on stderr (unless `quiet`) what the generator changed in the
+/// scene a command runs (constraints dropped as redundant).
+fn tell_notes(model: &crate::codegen::Model, quiet: bool) {
+    for note in model.notes.iter().filter(|_| !quiet) {
+        eprintln!("note: {note}");
+    }
+}

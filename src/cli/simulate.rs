@@ -209,6 +209,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         check_output(plot)?;
     }
     let parsed = crate::codegen::Model::load(&args.scene).map_err(|e| e.to_string())?;
+    super::tell_notes(&parsed, args.quiet);
     let mut model = compiled.load(&args.scene, &parsed.name, args.interpret)?;
     let state = initial_state(args, &parsed, model.as_mut())?;
     let model = &*model;
@@ -687,7 +688,11 @@ impl Integrator {
             return ignored("--rho-inf", "gen-alpha", "numerical damping");
         }
         if args.max_sweeps.is_some() && name != "gauss-legendre" {
-            return ignored("--max-sweeps", "gauss-legendre", "bound on its stage iteration");
+            return ignored(
+                "--max-sweeps",
+                "gauss-legendre",
+                "bound on its stage iteration",
+            );
         }
         Ok(match name {
             "rk4" => Integrator::Rk4,
@@ -745,9 +750,11 @@ impl Grid {
         let adaptive = matches!(integrator, Integrator::Adaptive { .. });
         let step = match (adaptive, args.dt, args.output_dt) {
             (true, Some(_), Some(_)) => {
-                return Err("adaptive-rk4 chooses its own steps, so --dt is only its output \
+                return Err(
+                    "adaptive-rk4 chooses its own steps, so --dt is only its output \
                             step: give --output-dt or --dt, not both"
-                    .into())
+                        .into(),
+                )
             }
             (true, None, Some(output)) => output,
             (_, dt, _) => dt.unwrap_or(0.01),
@@ -895,7 +902,8 @@ impl Run<'_, '_> {
             let rates = names.iter().map(|c| format!("{c}_dot"));
             names.iter().map(|c| c.to_string()).chain(rates).collect()
         };
-        let mut estimate = companion.map(|(g, c)| (g, state.clone(), ErrorEstimate::new(c, quantities())));
+        let mut estimate =
+            companion.map(|(g, c)| (g, state.clone(), ErrorEstimate::new(c, quantities())));
         let mut row = Vec::new();
         self.row(&state, &mut row);
         (self.emit)(&row)?;

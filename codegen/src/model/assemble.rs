@@ -106,5 +106,6 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         flexible_links: cx.flexible,
         drop_below: None,
         sources: vec![scene.source.path().to_path_buf()],
+        notes: Vec::new(),
     })
 }

@@ -282,6 +282,9 @@ pub struct Model {
     pub drop_below: Option<f64>,
     /// Every file the model was read from (a derived scene and its base).
     pub sources: Vec<PathBuf>,
+    /// What the stages changed that a user should know (constraints
+    /// dropped as redundant), one line each.
+    pub notes: Vec<String>,
 }
 
 impl Model {
