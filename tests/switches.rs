@@ -156,10 +156,10 @@ fn coulomb_block_decelerates_at_mu_g_and_stops_after_v0_squared_over_2_mu_g() {
         s.t, s.q[0], s.qd[0]
     );
     assert!(s.qd[0].abs() <= a * dt && (d_stop - s.q[0]).abs() <= a * dt * dt);
-    let before = s.clone();
+    let before = s;
     let e = rk4
         .step(&model, &mut s, &push, dt)
         .expect_err("the switch at rest is refused");
     eprintln!("the step at rest: {e}");
-    assert_eq!((s.q, s.qd, s.t), (before.q, before.qd, before.t));
+    assert_eq!(s, before);
 }

@@ -194,7 +194,10 @@ position = ["x", 0, 0]
             };
             let got = f.eval(t);
             for (g, w) in got.iter().zip(want) {
-                assert!((g - w).abs() < 1e-13 * (1.0 + w.abs()), "t = {t}: {got:?} vs {want:?}");
+                assert!(
+                    (g - w).abs() < 1e-13 * (1.0 + w.abs()),
+                    "t = {t}: {got:?} vs {want:?}"
+                );
             }
         }
     }
