@@ -52,8 +52,11 @@ def build(export: dict):
     qd = sp.symbols(f"qd0:{nq}")
     t = sp.Symbol("t")
     p = sp.symbols(f"p0:{len(export['runtime_parameters'])}")
+    # `step` is 1/2 at 0, as the export's; SymPy keeps the DiracDelta terms
+    # of its derivative that flexdyn drops (zero away from the switch).
     unary = {"sin": sp.sin, "cos": sp.cos, "tan": sp.tan, "exp": sp.exp, "ln": sp.log,
-             "sqrt": sp.sqrt}
+             "sqrt": sp.sqrt, "abs": sp.Abs, "sign": sp.sign,
+             "step": lambda x: sp.Heaviside(x, sp.Rational(1, 2))}
     vals = []
     for nd in export["nodes"]:
         op = nd["op"]

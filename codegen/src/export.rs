@@ -61,6 +61,15 @@ enum NodeOut {
     Sqrt {
         arg: usize,
     },
+    Abs {
+        arg: usize,
+    },
+    Sign {
+        arg: usize,
+    },
+    Step {
+        arg: usize,
+    },
     Atan2 {
         y: usize,
         x: usize,
@@ -182,6 +191,9 @@ pub fn export_json(model: &Model) -> String {
                     Func::Exp => NodeOut::Exp { arg },
                     Func::Ln => NodeOut::Ln { arg },
                     Func::Sqrt => NodeOut::Sqrt { arg },
+                    Func::Abs => NodeOut::Abs { arg },
+                    Func::Sign => NodeOut::Sign { arg },
+                    Func::Step => NodeOut::Step { arg },
                 }
             }
             Node::Atan2(y, x) => NodeOut::Atan2 {

@@ -170,6 +170,38 @@ position = ["x", 0, 0]
         );
     }
 
+    /// The spin-up profile written with `step` (C3 at the switch, so the
+    /// dropped derivative of `step` loses nothing) against its closed form.
+    #[test]
+    fn spin_up_profile_with_step_has_the_closed_form_derivatives() {
+        let (ts, ws) = (15.0, 6.0);
+        let f = TimeFunction::parse(
+            &model(),
+            "step(15 - t)*(6/15)*(t*t/2 + powi(15/(2*pi), 2)*(cos(2*pi*t/15) - 1)) + step(t - 15)*6*(t - 7.5)",
+        )
+        .unwrap();
+        let k = ts / (2.0 * std::f64::consts::PI);
+        for t in [0.0, 3.0, 14.9, 15.0, 15.1, 20.0] {
+            let want = if t < ts {
+                let (s, c) = (t / k).sin_cos();
+                [
+                    ws / ts * (t * t / 2.0 + k * k * (c - 1.0)),
+                    ws / ts * (t - k * s),
+                    ws / ts * (1.0 - c),
+                ]
+            } else {
+                [ws * (t - ts / 2.0), ws, 0.0]
+            };
+            let got = f.eval(t);
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (g - w).abs() < 1e-13 * (1.0 + w.abs()),
+                    "t = {t}: {got:?} vs {want:?}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn coordinates_velocities_and_unknown_names_are_located_errors() {
         let m = model();

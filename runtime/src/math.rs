@@ -35,7 +35,39 @@ unary! {
     ln => log;
     /// Square root.
     sqrt => sqrt;
+    /// Absolute value.
+    abs => fabs;
 }
+
+/// `sign` and `step` of one float type, by comparisons only (no library
+/// call), the same with or without `std`.
+macro_rules! switches {
+    ($t:ty) => {
+        /// Sign: `1` for positive `x`, `-1` for negative, and `x` itself at
+        /// `+-0` (zero) and for NaN (which propagates). Not `signum`, which
+        /// is `1` at `+0`.
+        #[inline(always)]
+        pub fn sign(x: $t) -> $t {
+            if x > 0.0 {
+                1.0
+            } else if x < 0.0 {
+                -1.0
+            } else {
+                x
+            }
+        }
+
+        /// Heaviside step `(1 + sign(x)) / 2`: `1` for positive `x`, `0` for
+        /// negative, `1/2` at `+-0` (so `step(x) + step(-x) = 1` for every
+        /// `x`), NaN for NaN. Exact: no rounding in any of the cases.
+        #[inline(always)]
+        pub fn step(x: $t) -> $t {
+            0.5 * (1.0 + sign(x))
+        }
+    };
+}
+
+switches!(f64);
 
 /// The inline sine and cosine of [`sin_cos`] and [`sin_cos_array`], on
 /// the targets with SIMD registers of two `f64` (SSE2 on every x86-64
@@ -295,7 +327,11 @@ pub mod f32 {
         ln => logf;
         /// Square root.
         sqrt => sqrtf;
+        /// Absolute value.
+        abs => fabsf;
     }
+
+    switches!(f32);
 
     /// Largest `|x|` reduced in `f32` (see the module docs).
     const REDUCED: f32 = 6000.0;
@@ -464,5 +500,44 @@ mod tests {
         for (sc, i) in inline.iter().zip([0, 1, 3, 5]) {
             assert_eq!(bits(*sc), bits(all[i]));
         }
+    }
+
+    #[test]
+    fn sign_and_step_take_their_documented_values_at_and_around_zero() {
+        for x in [
+            3.5,
+            1e-300,
+            -2.0,
+            -1e-300,
+            0.0,
+            -0.0,
+            f64::MAX,
+            f64::INFINITY,
+        ] {
+            let want = if x > 0.0 {
+                1.0
+            } else if x < 0.0 {
+                -1.0
+            } else {
+                0.0
+            };
+            assert_eq!(sign(x), want, "sign({x})");
+            assert_eq!(step(x), (1.0 + want) / 2.0, "step({x})");
+            assert_eq!(step(x) + step(-x), 1.0, "step({x}) + step(-{x})");
+            assert_eq!(abs(x), if x < 0.0 { -x } else { x }, "abs({x})");
+            let y = x as f32;
+            let want = if y > 0.0 {
+                1.0
+            } else if y < 0.0 {
+                -1.0
+            } else {
+                0.0
+            };
+            assert_eq!(f32::sign(y), want, "sign({y}f32)");
+            assert_eq!(f32::step(y), (1.0 + want) / 2.0, "step({y}f32)");
+            assert_eq!(f32::abs(y), if y < 0.0 { -y } else { y }, "abs({y}f32)");
+        }
+        assert!(sign(f64::NAN).is_nan() && step(f64::NAN).is_nan());
+        assert!(f32::sign(f32::NAN).is_nan() && f32::step(f32::NAN).is_nan());
     }
 }

@@ -164,7 +164,21 @@ def load_export(path: Path) -> dict:
     return data
 
 
-UNARY = {"sin": "sin", "cos": "cos", "tan": "tan", "exp": "exp", "ln": "log", "sqrt": "sqrt"}
+# The export's functions of one argument as CasADi functions. CasADi's `sign`
+# is 0 at 0, as the export's; `step` is Heaviside's (1 + sign)/2, 1/2 at 0.
+# CasADi differentiates `fabs` to `sign` and `sign` to 0, as flexdyn does away
+# from the switch.
+UNARY = {
+    "sin": ca.sin,
+    "cos": ca.cos,
+    "tan": ca.tan,
+    "exp": ca.exp,
+    "ln": ca.log,
+    "sqrt": ca.sqrt,
+    "abs": ca.fabs,
+    "sign": ca.sign,
+    "step": lambda x: 0.5 * (1 + ca.sign(x)),
+}
 LEAVES = ("const", "q", "qd", "t", "param")
 # Groups of same-op nodes at the same depth smaller than this are built node by
 # node; larger ones with one vectorised CasADi call (far less Python overhead).
@@ -257,7 +271,7 @@ def build_nodes(nodes: list, q, qd, t, p) -> list:
             for k, v in zip(ks, ca.vertsplit(ca.atan2(y, x))):
                 vals[k] = v
         else:
-            f = getattr(ca, UNARY[op])
+            f = UNARY[op]
             args = ca.vertcat(*[vals[nodes[k]["arg"]] for k in ks])
             for k, v in zip(ks, ca.vertsplit(f(args))):
                 vals[k] = v
@@ -288,7 +302,7 @@ def build_one(nd: dict, vals: list):
         return ca.SX(1.0) if v is None else v
     if op == "atan2":
         return ca.atan2(vals[nd["y"]], vals[nd["x"]])
-    return getattr(ca, UNARY[op])(vals[nd["arg"]])
+    return UNARY[op](vals[nd["arg"]])
 
 
 def build_sums(ks: list, nodes: list, vals: list) -> None:

@@ -132,7 +132,7 @@ impl Graph {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use crate::expr::{Graph, Id, Symbol};
 
     fn eval(g: &Graph, e: Id, q: &[f64]) -> f64 {
@@ -158,11 +158,32 @@ mod tests {
         let l = g.call(crate::expr::Func::Ln, r);
         let at = g.atan2(y, x);
         let tn = g.call(crate::expr::Func::Tan, t);
-        let num = g.sum(&[s, e, l, at, tn]);
+        let sw = switches(g);
+        let num = g.sum(&[s, e, l, at, tn, sw]);
         let den = g.linear(&[(xy, 0.3)], 2.0);
         let f = g.div(num, den);
         let x3 = g.powi(x, 3);
         g.add(f, x3)
+    }
+
+    /// `abs(x - y) + sign(y) x^2 + step(x + y) y + min(x, y^2) + max(t, x)`,
+    /// whose switches are away from the states the tests sample.
+    pub(crate) fn switches(g: &mut Graph) -> Id {
+        use crate::expr::Func;
+        let (x, y) = (g.q(0), g.q(1));
+        let t = g.symbol(Symbol::Time);
+        let x_minus_y = g.sub(x, y);
+        let a = g.call(Func::Abs, x_minus_y);
+        let sy = g.call(Func::Sign, y);
+        let x2 = g.powi(x, 2);
+        let b = g.mul(sy, x2);
+        let x_plus_y = g.add(x, y);
+        let st = g.call(Func::Step, x_plus_y);
+        let c = g.mul(st, y);
+        let y2 = g.powi(y, 2);
+        let d = g.min(x, y2);
+        let e = g.max(t, x);
+        g.sum(&[a, b, c, d, e])
     }
 
     #[test]

@@ -79,6 +79,13 @@ pub enum Symbol {
 }
 
 /// Elementary functions of one argument.
+///
+/// `Abs`, `Sign` and `Step` are the switches: `sign` is `1`, `-1` or `0`
+/// (at `+-0`), `step` is Heaviside's `(1 + sign x) / 2`, so `1/2` at `0`
+/// and `step(x) + step(-x) = 1` everywhere; both propagate NaN
+/// ([`flexdyn_runtime::math::sign`], which every back end computes).
+/// Their derivatives are those away from the switch: `abs' = sign`,
+/// `sign' = step' = 0`; the impulse at the switch is not represented.
 #[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Debug)]
 pub enum Func {
     Sin,
@@ -87,9 +94,30 @@ pub enum Func {
     Exp,
     Ln,
     Sqrt,
+    Abs,
+    Sign,
+    Step,
 }
 
 impl Func {
+    /// Every function, in the order of the enum.
+    pub const ALL: [Func; 9] = [
+        Func::Sin,
+        Func::Cos,
+        Func::Tan,
+        Func::Exp,
+        Func::Ln,
+        Func::Sqrt,
+        Func::Abs,
+        Func::Sign,
+        Func::Step,
+    ];
+
+    /// The function called `name` in scene files ([`Func::name`]).
+    pub fn from_name(name: &str) -> Option<Func> {
+        Func::ALL.into_iter().find(|f| f.name() == name)
+    }
+
     /// Evaluate the function at a constant being folded: sines, cosines and
     /// tangents of multiples of `pi/12` exactly ([`exact`]).
     pub fn fold(self, x: f64) -> f64 {
@@ -113,6 +141,9 @@ impl Func {
             Func::Exp => x.exp(),
             Func::Ln => x.ln(),
             Func::Sqrt => x.sqrt(),
+            Func::Abs => x.abs(),
+            Func::Sign => flexdyn_runtime::math::sign(x),
+            Func::Step => flexdyn_runtime::math::step(x),
         }
     }
 
@@ -125,6 +156,9 @@ impl Func {
             Func::Exp => "exp",
             Func::Ln => "ln",
             Func::Sqrt => "sqrt",
+            Func::Abs => "abs",
+            Func::Sign => "sign",
+            Func::Step => "step",
         }
     }
 }
@@ -594,6 +628,44 @@ impl Graph {
         self.call(Func::Sqrt, a)
     }
 
+    /// `min(a, b)`, built from steps as `a step(b - a) + b step(a - b)`:
+    /// exactly `a` where `a < b`, `b` where `b < a` (a product by `1` plus
+    /// a product by `0`: no rounding, however different their sizes, where
+    /// `(a + b - |a - b|) / 2` would lose the smaller one) and their mean
+    /// where they are equal; NaN when either is NaN or infinite. Its
+    /// derivative is `da step(b - a) + db step(a - b)`, at the switch the
+    /// mean of the two sides'. Constants fold to the exact minimum.
+    pub fn min(&mut self, a: Id, b: Id) -> Id {
+        match (self.as_const(a), self.as_const(b)) {
+            (Some(x), Some(y)) => self.constant(x.min(y)),
+            _ => self.weighted_by_steps(a, b, false),
+        }
+    }
+
+    /// `max(a, b) = a step(a - b) + b step(b - a)`, as [`Graph::min`].
+    pub fn max(&mut self, a: Id, b: Id) -> Id {
+        match (self.as_const(a), self.as_const(b)) {
+            (Some(x), Some(y)) => self.constant(x.max(y)),
+            _ => self.weighted_by_steps(a, b, true),
+        }
+    }
+
+    /// `a step(a - b) + b step(b - a)` for the larger of `a` and `b`, with
+    /// the steps' arguments swapped for the smaller.
+    fn weighted_by_steps(&mut self, a: Id, b: Id, larger: bool) -> Id {
+        let (a_minus_b, b_minus_a) = (self.sub(a, b), self.sub(b, a));
+        let (of_a, of_b) = if larger {
+            (a_minus_b, b_minus_a)
+        } else {
+            (b_minus_a, a_minus_b)
+        };
+        let weight_a = self.call(Func::Step, of_a);
+        let weight_b = self.call(Func::Step, of_b);
+        let x = self.mul(a, weight_a);
+        let y = self.mul(b, weight_b);
+        self.add(x, y)
+    }
+
     /// `atan2(y, x)`.
     pub fn atan2(&mut self, y: Id, x: Id) -> Id {
         if let (Some(a), Some(b)) = (self.as_const(y), self.as_const(x)) {
@@ -884,6 +956,54 @@ mod tests {
         let r = g.sqrt(x);
         assert_eq!(g.powi(r, 2), x);
         assert_eq!(g.mul(r, r), x);
+    }
+
+    #[test]
+    fn switches_of_constants_fold_exactly() {
+        let mut g = Graph::new();
+        let folded = |g: &mut Graph, f: Func, x: f64| {
+            let c = g.constant(x);
+            let id = g.call(f, c);
+            g.as_const(id)
+        };
+        assert_eq!(folded(&mut g, Func::Abs, -2.5), Some(2.5));
+        assert_eq!(folded(&mut g, Func::Sign, -3.0), Some(-1.0));
+        assert_eq!(folded(&mut g, Func::Sign, 1e-300), Some(1.0));
+        assert_eq!(folded(&mut g, Func::Sign, 0.0), Some(0.0));
+        assert_eq!(folded(&mut g, Func::Step, 0.0), Some(0.5));
+        assert_eq!(folded(&mut g, Func::Step, -1e-300), Some(0.0));
+        assert_eq!(folded(&mut g, Func::Step, 7.0), Some(1.0));
+        // (0.1 + 0.3 - |0.1 - 0.3|) / 2 is 0.10000000000000002.
+        let (a, b) = (g.constant(0.1), g.constant(0.3));
+        let lo = g.min(a, b);
+        let hi = g.max(a, b);
+        assert_eq!((g.as_const(lo), g.as_const(hi)), (Some(0.1), Some(0.3)));
+        // A constant difference decides the switch symbolically.
+        let x = g.q(0);
+        let x1 = g.linear(&[(x, 1.0)], 1.0);
+        assert_eq!(g.min(x, x1), x);
+        assert_eq!(g.max(x1, x), x1);
+        assert_eq!(g.min(x, x), x);
+    }
+
+    #[test]
+    fn min_and_max_are_exact_however_different_the_sizes() {
+        let mut g = Graph::new();
+        let (x, y) = (g.q(0), g.q(1));
+        let small = g.scale(x, 1e-20);
+        let large = g.scale(y, 1e20);
+        let lo = g.min(small, large);
+        let hi = g.max(small, large);
+        let (lo_xy, hi_xy) = (g.min(x, y), g.max(x, y));
+        assert_eq!(g.eval(&[lo, hi], &|_| 1.0), [1e-20, 1e20]);
+        let v = |g: &Graph, id: Id, q: &[f64]| at(g, id, q);
+        assert_eq!(v(&g, lo, &[-1.0, -1.0]), -1e20);
+        assert_eq!(v(&g, hi, &[-1.0, -1.0]), -1e-20);
+        // Ties give the common value; NaN propagates (f64::min would drop it).
+        assert_eq!(v(&g, lo_xy, &[0.3, 0.3]), 0.3);
+        assert_eq!(v(&g, hi_xy, &[-0.7, -0.7]), -0.7);
+        assert!(v(&g, lo_xy, &[f64::NAN, 1.0]).is_nan());
+        assert!(v(&g, hi_xy, &[1.0, f64::NAN]).is_nan());
     }
 
     #[test]

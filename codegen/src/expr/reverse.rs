@@ -9,7 +9,8 @@
 //! * `u = k + sum c_i t_i` adds `c_i f_u` to `f_(t_i)`;
 //! * `u = prod b_i^(e_i)` adds `f_u e_i b_i^(e_i - 1) prod_(j != i) b_j^(e_j)`
 //!   to `f_(b_i)`;
-//! * `u = g(a)` adds `f_u g'(a)` to `f_a`; `u = atan2(y, x)` adds
+//! * `u = g(a)` adds `f_u g'(a)` to `f_a` (`g'` away from the switch of
+//!   `abs`, `sign` and `step`); `u = atan2(y, x)` adds
 //!   `f_u x / r^2` to `f_y` and `-f_u y / r^2` to `f_x` (`r^2 = x^2 + y^2`).
 //!
 //! The contributions to a node are collected and summed once, when the sweep
@@ -134,6 +135,9 @@ impl Graph {
                 let inv = self.powi(node, -1);
                 self.scale(inv, 0.5)
             }
+            // Away from the switch at `a = 0` ([`Func`]).
+            Func::Abs => self.call(Func::Sign, a),
+            Func::Sign | Func::Step => self.constant(0.0),
         }
     }
 
@@ -177,7 +181,11 @@ mod tests {
         let tn = g.call(Func::Tan, t);
         let uv = g.mul(u, v);
         let su = g.mul(s, uv);
-        let num = g.sum(&[s, e, l, at, tn, su]);
+        let sw = crate::expr::diff::tests::switches(g);
+        let su_sign = g.call(Func::Sign, u);
+        let ua = g.call(Func::Abs, u);
+        let uv_abs = g.mul(ua, v);
+        let num = g.sum(&[s, e, l, at, tn, su, sw, su_sign, uv_abs]);
         let den = g.linear(&[(xy, 0.3)], 2.0);
         let f = g.div(num, den);
         let x3v = g.product(&[(x, 3), (v, 2), (s, 1)]);

@@ -205,5 +205,8 @@ fn call(f: Func, x: f64) -> f64 {
         Func::Exp => math::exp(x),
         Func::Ln => math::ln(x),
         Func::Sqrt => math::sqrt(x),
+        Func::Abs => math::abs(x),
+        Func::Sign => math::sign(x),
+        Func::Step => math::step(x),
     }
 }

@@ -3,8 +3,8 @@
 //! Accepted: number literals; `+ - * /` and unary minus; parentheses;
 //! coordinates by name or as `q[i]`; velocities as `qd[i]` or `dot(name)`;
 //! time `t`; `pi`; parameters by name; the functions `sin cos tan exp ln
-//! sqrt atan2(y, x) powi(x, n)` (also as methods: `x.sin()`, `x.powi(2)`,
-//! `y.atan2(x)`). Anything else is rejected with a message and a position.
+//! sqrt abs sign step atan2(y, x) min(a, b) max(a, b) powi(x, n)` (also as
+//! methods: `x.sin()`, `x.powi(2)`, `y.atan2(x)`, `a.min(b)`). Anything else is rejected with a message and a position.
 //! Input is bounded in length, nesting and operator count before `syn` sees
 //! it, so hostile input cannot exhaust the stack.
 
@@ -68,8 +68,8 @@ fn err<T>(offset: usize, message: impl Into<String>) -> Result<T, ParseError> {
 
 /// Reserved words that cannot name coordinates or parameters.
 pub const RESERVED: &[&str] = &[
-    "q", "qd", "t", "pi", "PI", "dot", "sin", "cos", "tan", "exp", "ln", "sqrt", "atan2", "powi",
-    "pow",
+    "q", "qd", "t", "pi", "PI", "dot", "sin", "cos", "tan", "exp", "ln", "sqrt", "abs", "sign",
+    "step", "atan2", "min", "max", "powi", "pow",
 ];
 
 /// Parse `text` into the graph.
@@ -403,8 +403,9 @@ impl Converter<'_> {
 
     fn call(&mut self, name: &str, args: &[&Expr], at: usize) -> Result<Id, ParseError> {
         let arity = match name {
-            "atan2" | "powi" | "pow" => 2,
-            "sin" | "cos" | "tan" | "exp" | "ln" | "sqrt" | "dot" => 1,
+            "atan2" | "min" | "max" | "powi" | "pow" => 2,
+            "dot" => 1,
+            _ if Func::from_name(name).is_some() => 1,
             _ => return err(at, format!("unknown function `{name}`")),
         };
         if args.len() != arity {
@@ -441,18 +442,18 @@ impl Converter<'_> {
             let id = self.graph.powi(base, n as i32);
             return self.checked(id, at);
         }
-        if name == "atan2" {
-            let y = self.convert(args[0])?;
-            let x = self.convert(args[1])?;
-            return Ok(self.graph.atan2(y, x));
+        if arity == 2 {
+            let a = self.convert(args[0])?;
+            let b = self.convert(args[1])?;
+            return Ok(match name {
+                "min" => self.graph.min(a, b),
+                "max" => self.graph.max(a, b),
+                // `powi` and `pow` returned above.
+                _ => self.graph.atan2(a, b),
+            });
         }
-        let f = match name {
-            "sin" => Func::Sin,
-            "cos" => Func::Cos,
-            "tan" => Func::Tan,
-            "exp" => Func::Exp,
-            "ln" => Func::Ln,
-            _ => Func::Sqrt,
+        let Some(f) = Func::from_name(name) else {
+            return err(at, format!("unknown function `{name}`"));
         };
         let a = self.convert(args[0])?;
         if let Some(x) = self.graph.as_const(a) {
@@ -510,6 +511,100 @@ mod tests {
         assert!((got - want).abs() < 1e-13, "{got} vs {want}");
     }
 
+    #[test]
+    fn evaluates_the_switches() {
+        for (x, y) in [(0.3f64, -1.2f64), (-2.5, 0.4), (1.5, 1.5), (0.0, -0.0)] {
+            let got = value(
+                "abs(x) + 2*sign(y) + 3*step(x - y) + 5*min(x, y) + 7*max(x, y) + 11*y.abs() + 13*y.min(x) + 17*x.max(-1)",
+                [x, y],
+                [0.0, 0.0],
+            );
+            // Rust's signum is 1 at +0, the grammar's sign 0.
+            let sign = |v: f64| if v == 0.0 { 0.0 } else { v.signum() };
+            let want = x.abs()
+                + 2.0 * sign(y)
+                + 3.0 * (1.0 + sign(x - y)) / 2.0
+                + 5.0 * x.min(y)
+                + 7.0 * x.max(y)
+                + 11.0 * y.abs()
+                + 13.0 * y.min(x)
+                + 17.0 * x.max(-1.0);
+            assert!((got - want).abs() < 1e-13, "at ({x}, {y}): {got} vs {want}");
+        }
+        // At the switch: sign 0, step 1/2 (so step(x) + step(-x) = 1).
+        assert_eq!(value("sign(x)", [0.0, 1.0], [0.0; 2]), 0.0);
+        assert_eq!(value("step(x)", [0.0, 1.0], [0.0; 2]), 0.5);
+        assert_eq!(
+            value("step(x - y) + step(y - x)", [0.25, 0.25], [0.0; 2]),
+            1.0
+        );
+    }
+
+    /// Central differences of the parsed expression against its symbolic
+    /// partial derivative in `x`, away from the switches.
+    #[test]
+    fn derivatives_of_the_switches_match_central_differences() {
+        let mut g = Graph::new();
+        let f = parse_expr(
+            &mut g,
+            "abs(x*y - 0.1)*sin(x) + sign(y)*x*x + step(x - 0.5)*x*x*x + min(x*x, y) + max(exp(x), y*y) + x.abs().sqrt()",
+            &scope(),
+        )
+        .unwrap();
+        let dfx = g.diff(f, Symbol::Q(0));
+        let dfy = g.diff(f, Symbol::Q(1));
+        let at = |g: &Graph, id: Id, x: f64, y: f64| {
+            g.eval(&[id], &|s| match s {
+                Symbol::Q(0) => x,
+                Symbol::Q(_) => y,
+                _ => 0.0,
+            })[0]
+        };
+        let h = 1e-6;
+        // Points on either side of every switch.
+        for (x, y) in [
+            (0.7, -0.4),
+            (-0.9, 1.3),
+            (0.2, 0.9),
+            (1.4, 3.0),
+            (-1.1, -2.0),
+        ] {
+            let fd_x = (at(&g, f, x + h, y) - at(&g, f, x - h, y)) / (2.0 * h);
+            let fd_y = (at(&g, f, x, y + h) - at(&g, f, x, y - h)) / (2.0 * h);
+            let (ex, ey) = (at(&g, dfx, x, y), at(&g, dfy, x, y));
+            assert!(
+                (fd_x - ex).abs() < 1e-7 * (1.0 + ex.abs()),
+                "d/dx at ({x}, {y}): {fd_x} vs {ex}"
+            );
+            assert!(
+                (fd_y - ey).abs() < 1e-7 * (1.0 + ey.abs()),
+                "d/dy at ({x}, {y}): {fd_y} vs {ey}"
+            );
+        }
+        // At a tie, min's derivative is the mean of the two sides'.
+        let m = parse_expr(&mut g, "min(x, 2*y)", &scope()).unwrap();
+        let dm = g.diff(m, Symbol::Q(0));
+        assert_eq!(at(&g, dm, 1.0, 0.5), 0.5);
+    }
+
+    #[test]
+    fn switches_of_constants_fold() {
+        let mut g = Graph::new();
+        let mut folded = |text: &str| {
+            let id = parse_expr(&mut g, text, &scope()).unwrap();
+            g.as_const(id)
+        };
+        assert_eq!(folded("abs(-m)"), Some(2.0));
+        assert_eq!(folded("sign(m - 2)"), Some(0.0));
+        assert_eq!(folded("step(m - 2) + sign(-1e-300)"), Some(-0.5));
+        assert_eq!(
+            folded("min(0.1, 0.3) + max(-1e20, 1e-20)"),
+            Some(0.1 + 1e-20)
+        );
+        assert_eq!(folded("m.max(3)"), Some(3.0));
+        assert_eq!(folded("min(x, y)"), None);
+    }
+
     fn error(text: &str) -> ParseError {
         let mut g = Graph::new();
         let mut s = scope();
@@ -537,6 +632,10 @@ mod tests {
         assert!(e.message.contains("not finite"));
         let e = error("foo(x)");
         assert!(e.message.contains("unknown function"));
+        let e = error("min(x)");
+        assert!(e.message.contains("`min` takes 2 argument(s)"), "{e:?}");
+        let e = error("x.step(1)");
+        assert!(e.message.contains("`step` takes 1 argument(s)"), "{e:?}");
         let e = error("{ x }");
         assert!(e.message.contains("unsupported"));
         let e = error("x +");

@@ -16,7 +16,8 @@ pub struct OpCount {
     pub muls: usize,
     /// Divisions.
     pub divs: usize,
-    /// Calls of `sin`, `cos`, `sin_cos`, `tan`, `exp`, `ln`, `sqrt`, `atan2`.
+    /// Calls of `sin`, `cos`, `sin_cos`, `tan`, `exp`, `ln`, `sqrt`, `abs`,
+    /// `sign`, `step`, `atan2`.
     pub calls: usize,
 }
 

@@ -191,6 +191,11 @@ const VOCABULARY: &[&str] = &[
     "exp",
     "ln",
     "sqrt",
+    "abs",
+    "sign",
+    "step",
+    "min",
+    "max",
     "powi",
     "pow",
     "atan2",
@@ -229,6 +234,8 @@ const VOCABULARY: &[&str] = &[
     "x.sin()",
     "x.powi(2)",
     "theta.atan2(x)",
+    "x.min(theta)",
+    "step(t - 1)",
     "dot(x)",
     "qd[0]",
     "q[1]",
@@ -657,7 +664,7 @@ fn expression(g: &mut Gen, names: &[String], depth: u32) -> String {
             .collect::<Vec<_>>()
             .join(" ");
     }
-    match g.below(10) {
+    match g.below(11) {
         0 => format!("{a} + {b}"),
         1 => format!("{a} - {b}"),
         2 => format!("({a})*({b})"),
@@ -665,9 +672,9 @@ fn expression(g: &mut Gen, names: &[String], depth: u32) -> String {
         4 => format!("-({a})"),
         5 => format!(
             "{}({a})",
-            g.pick(&["sin", "cos", "tan", "exp", "ln", "sqrt"])
+            g.pick(&["sin", "cos", "tan", "exp", "ln", "sqrt", "abs", "sign", "step"])
         ),
-        6 => format!("atan2({a}, {b})"),
+        6 => format!("{}({a}, {b})", g.pick(&["atan2", "min", "max"])),
         7 => {
             let n = if g.junk() {
                 g.pick(&["65", "x", "0.5", "-65"])
@@ -676,7 +683,8 @@ fn expression(g: &mut Gen, names: &[String], depth: u32) -> String {
             };
             format!("powi({a}, {n})")
         }
-        8 => format!("({a}).{}()", g.pick(&["sin", "cos", "sqrt"])),
+        8 => format!("({a}).{}()", g.pick(&["sin", "cos", "sqrt", "abs"])),
+        9 => format!("({a}).{}({b})", g.pick(&["min", "max"])),
         _ => format!("{a} * {b}"),
     }
 }
