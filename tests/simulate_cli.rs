@@ -530,3 +530,36 @@ fn leaving_a_declared_range_is_warned_once_with_the_time() {
     let (_, quiet) = simulate(dir.path(), &args).unwrap();
     assert!(quiet.is_empty(), "{quiet}");
 }
+
+#[test]
+fn a_start_at_a_singular_position_names_the_dependent_constraint_rows() {
+    // The four-bar started flat: its closure_x row vanishes there.
+    let dir = tempfile::tempdir().unwrap();
+    let s = write(
+        dir.path(),
+        "flat.json",
+        r#"{"q": [0, 0, 0], "qd": [-5, -5, 0], "t": 0}"#,
+    );
+    let four_bar = scene("four_bar");
+    let e = simulate(
+        dir.path(),
+        &[
+            "--scene",
+            four_bar.to_str().unwrap(),
+            "--duration",
+            "1",
+            "--integrator",
+            "rk4",
+            "--dt",
+            "0.001",
+            "--initial",
+            s.to_str().unwrap(),
+        ],
+    )
+    .unwrap_err();
+    assert!(
+        e.contains("condition estimate inf")
+            && e.contains("the Jacobian rows of `closure_x` vanish or are combinations"),
+        "{e}"
+    );
+}

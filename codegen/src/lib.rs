@@ -83,6 +83,7 @@ pub use model::{
     Actuator, Body, Component, Constraint, Coordinate, FlexibleLink, Marker, Model, Outputs,
     Precision, RuntimeParameter,
 };
+pub use redundancy::dependent_rows;
 pub use schedule::OpCount;
 pub use time_function::TimeFunction;
 

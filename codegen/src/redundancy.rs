@@ -217,29 +217,36 @@ impl Manifold {
 
     /// The rows of `Phi_q` at `q` that depend on the rows before them.
     fn dependent_rows(&self, g: &Graph, q: &DVector<f64>, t: f64) -> Vec<bool> {
-        let j = self.jacobian(g, q, t);
-        let mut basis: Vec<DVector<f64>> = Vec::new();
-        let mut dependent = Vec::with_capacity(j.nrows());
-        for row in j.row_iter() {
-            let mut v: DVector<f64> = row.transpose();
-            let norm = v.norm();
-            // Twice, for orthogonality to round-off.
-            for _ in 0..2 {
-                for b in &basis {
-                    let c = b.dot(&v);
-                    v -= c * b;
-                }
-            }
-            let rest = v.norm();
-            if norm == 0.0 || !(rest > DEPENDENT * norm) {
-                dependent.push(true);
-            } else {
-                dependent.push(false);
-                basis.push(v / rest);
+        dependent_rows(&self.jacobian(g, q, t))
+    }
+}
+
+/// The rows of `jacobian` that depend on the rows before them: whose part
+/// orthogonal to the independent rows before them is below [`DEPENDENT`]
+/// of their norm (zero rows included). Taken in order, so of a dependent
+/// set the last row is named.
+pub fn dependent_rows(jacobian: &DMatrix<f64>) -> Vec<bool> {
+    let mut basis: Vec<DVector<f64>> = Vec::new();
+    let mut dependent = Vec::with_capacity(jacobian.nrows());
+    for row in jacobian.row_iter() {
+        let mut v: DVector<f64> = row.transpose();
+        let norm = v.norm();
+        // Twice, for orthogonality to round-off.
+        for _ in 0..2 {
+            for b in &basis {
+                let c = b.dot(&v);
+                v -= c * b;
             }
         }
-        dependent
+        let rest = v.norm();
+        if norm == 0.0 || !(rest > DEPENDENT * norm) {
+            dependent.push(true);
+        } else {
+            dependent.push(false);
+            basis.push(v / rest);
+        }
     }
+    dependent
 }
 
 #[cfg(test)]

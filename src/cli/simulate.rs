@@ -197,6 +197,8 @@ struct Setup<'a> {
     quiet: bool,
     /// Indices of the markers in the rows.
     markers: Vec<usize>,
+    /// The constraints' names, in the model's order.
+    constraints: Vec<String>,
 }
 
 /// Run the command on the scenes of `compiled`.
@@ -236,6 +238,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         estimate: !(args.no_error_estimate || args.quiet),
         quiet: args.quiet,
         markers,
+        constraints: parsed.constraints.iter().map(|c| c.name.clone()).collect(),
     };
     let mut outputs = OutputFiles::default();
     let mut csv = CsvWriter::create(&mut outputs, &args.csv, &columns)?;
@@ -539,7 +542,7 @@ impl Setup<'_> {
             DVector::from_column_slice(&self.state.qd),
             self.state.t,
         );
-        make_consistent(model, &mut state, self.quiet)?;
+        make_consistent(model, &mut state, self.quiet, &self.constraints)?;
         // Actuator j on coordinate joints[j]; actuators without PD get zero gains.
         let mut joints = DVector::<usize>::zeros(nu.0);
         let (mut kp, mut kd) = (DVector::zeros(nu.0), DVector::zeros(nu.0));
@@ -592,6 +595,7 @@ impl Setup<'_> {
             adaptive: matches!(self.integrator, Integrator::Adaptive { .. }),
             quiet: self.quiet,
             markers: &self.markers,
+            constraints: &self.constraints,
             emit,
         };
         // The companion of a fixed-step integrator of order `order`.
@@ -824,13 +828,19 @@ type Emit<'e> = &'e mut dyn FnMut(&[f64]) -> Result<(), String>;
 
 /// Project the initial state onto the constraints, reporting what changed
 /// (unless `quiet`); an error when it cannot be done.
-fn make_consistent(model: &dyn DynModel, state: &mut DynState, quiet: bool) -> Result<(), String> {
+fn make_consistent(
+    model: &dyn DynModel,
+    state: &mut DynState,
+    quiet: bool,
+    constraints: &[String],
+) -> Result<(), String> {
     if model.nc() == 0 {
         return Ok(());
     }
     let before = state.clone();
     let report = project(model, state, &ProjectionConfig::default()).map_err(|e| {
-        format!("the initial state cannot be made consistent with the constraints: {e}")
+        let why = singular_rows(model, constraints, &e, state);
+        format!("the initial state cannot be made consistent with the constraints: {e}{why}")
     })?;
     if quiet {
         return Ok(());
@@ -864,6 +874,39 @@ fn make_consistent(model: &dyn DynModel, state: &mut DynState, quiet: bool) -> R
     Ok(())
 }
 
+/// Where `e` is a singular constraint Jacobian: which constraints' rows
+/// depend on the rows before them at `state` (empty when none do there:
+/// the singular configuration was met inside the step).
+fn singular_rows(
+    model: &dyn DynModel,
+    constraints: &[String],
+    e: &flexdyn_runtime::Error,
+    state: &DynState,
+) -> String {
+    if !matches!(e.kind, ErrorKind::SingularConstraintJacobian { .. }) {
+        return String::new();
+    }
+    let q = state.q.as_slice();
+    let jacobian = matrix(model.nc(), model.nq(), |o| {
+        model.constraint_jacobian(q, state.t, o)
+    });
+    let rows: Vec<String> = crate::codegen::dependent_rows(&jacobian)
+        .iter()
+        .zip(constraints)
+        .filter(|(d, _)| **d)
+        .map(|(_, name)| format!("`{name}`"))
+        .collect();
+    match rows.is_empty() {
+        true => String::new(),
+        false => format!(
+            " (at t = {} s the Jacobian rows of {} vanish or are combinations of the rows before them: a \
+             singular configuration of the mechanism)",
+            Time(state.t),
+            rows.join(", ")
+        ),
+    }
+}
+
 /// The time loop and its output.
 struct Run<'a, 'e> {
     model: &'a dyn DynModel,
@@ -875,6 +918,8 @@ struct Run<'a, 'e> {
     quiet: bool,
     /// Indices of the markers whose positions end the rows.
     markers: &'a [usize],
+    /// The constraints' names.
+    constraints: &'a [String],
     emit: Emit<'e>,
 }
 
@@ -979,7 +1024,7 @@ impl Run<'_, '_> {
                     )
                 })
                 .unwrap_or_default(),
-            _ => String::new(),
+            _ => singular_rows(self.model, self.constraints, &e, state),
         };
         format!(
             "step {k} (t = {} s, dt = {} s): {e}{hint}",
