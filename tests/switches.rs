@@ -12,7 +12,7 @@
 
 use std::f64::consts::PI;
 
-use flexdyn::runtime::{GaussLegendre4, IntegratorOf, Model, Rk4, State};
+use flexdyn::runtime::{ErrorKind, GaussLegendre4, IntegratorOf, Model, Rk4, State};
 use flexdyn::scenes::coulomb_block::CoulombBlock;
 use flexdyn::scenes::spin_up_hub::SpinUpHub;
 use nalgebra::SVector;
@@ -162,4 +162,12 @@ fn coulomb_block_decelerates_at_mu_g_and_stops_after_v0_squared_over_2_mu_g() {
         .expect_err("the switch at rest is refused");
     eprintln!("the step at rest: {e}");
     assert_eq!(s, before);
+    // Named for what it is: no mode of the model linearised at rest is near
+    // the stages' rate, so the message blames the switch, not a mode.
+    assert!(
+        matches!(e.kind, ErrorKind::AbruptForces { .. })
+            && e.to_string()
+                .contains("the forces change abruptly within the step"),
+        "{e}"
+    );
 }

@@ -45,10 +45,8 @@ fn model_of(scene: LoadedScene) -> Result<Model, Error> {
         Some((source, def)) => reduce::apply(model, def, source)?,
         None => model,
     };
-    drop_redundant(&mut model).map_err(|message| {
-        let file = model.sources.first().cloned().unwrap_or_default();
-        Error::unplaced(&file, Some("constraints"), message)
-    })?;
+    drop_redundant(&mut model)
+        .map_err(|u| scene.source.error_at(u.at, Some(&u.context), u.message))?;
     Ok(model)
 }
 

@@ -39,9 +39,23 @@ const STARTS: usize = 8;
 /// Gauss-Newton iterations per start.
 const ITERATIONS: usize = 60;
 
+/// Most sweeps of one SVD.
+const SVD_SWEEPS: usize = 200;
+
+/// A constraint set no configuration satisfies: where (the definition of
+/// the first constraint named), which constraint, and why.
+pub(crate) struct Unsatisfiable {
+    /// Byte offset of the constraint's definition in the scene file.
+    pub(crate) at: usize,
+    /// `constraint `name``.
+    pub(crate) context: String,
+    /// What is wrong.
+    pub(crate) message: String,
+}
+
 /// Drops `model`'s redundant constraints, noting each in `model.notes`; an
 /// error naming the constraints of a set no configuration satisfies.
-pub(crate) fn drop_redundant(model: &mut Model) -> Result<(), String> {
+pub(crate) fn drop_redundant(model: &mut Model) -> Result<(), Unsatisfiable> {
     let mut kept = Vec::with_capacity(model.constraints.len());
     for c in std::mem::take(&mut model.constraints) {
         match *model.graph.node(c.residual) {
@@ -51,12 +65,14 @@ pub(crate) fn drop_redundant(model: &mut Model) -> Result<(), String> {
                 c.name
             )),
             Node::Const(k) => {
-                return Err(format!(
-                    "constraint `{}`: its residual is the constant {:e}, which no \
-                     configuration can make zero",
-                    c.name,
-                    k.get()
-                ))
+                return Err(Unsatisfiable {
+                    at: c.at,
+                    context: format!("constraint `{}`", c.name),
+                    message: format!(
+                        "its residual is the constant {:e}, which no configuration can make zero",
+                        k.get()
+                    ),
+                })
             }
             _ => kept.push(c),
         }
@@ -65,19 +81,22 @@ pub(crate) fn drop_redundant(model: &mut Model) -> Result<(), String> {
     if model.constraints.len() < 2 {
         return Ok(());
     }
-    let manifold = Manifold::new(model);
+    // On a copy of the graph: the Jacobian's nodes must not change the
+    // numbering, and so the order of sums, of what is derived later.
+    let mut graph = model.graph.clone();
+    let manifold = Manifold::new(model, &mut graph);
     let mut dependent: Option<Vec<bool>> = None;
     let mut projected = 0;
     let mut stuck: Vec<(DVector<f64>, Vec<bool>)> = Vec::new();
     for (q, t) in Samples::new(&model.coordinates).positions().take(STARTS) {
-        let (q, converged) = manifold.project(&model.graph, q, t);
-        let rows = manifold.dependent_rows(&model.graph, &q, t);
+        let (q, converged) = manifold.project(&graph, q, t);
+        let rows = manifold.dependent_rows(&graph, &q, t);
         if converged {
             projected += 1;
             let d = dependent.get_or_insert_with(|| rows.clone());
             d.iter_mut().zip(&rows).for_each(|(a, b)| *a &= b);
         } else {
-            stuck.push((manifold.residuals(&model.graph, &q, t), rows));
+            stuck.push((manifold.residuals(&graph, &q, t), rows));
         }
     }
     let names = |rows: &mut dyn Iterator<Item = usize>| {
@@ -86,23 +105,33 @@ pub(crate) fn drop_redundant(model: &mut Model) -> Result<(), String> {
             .join(", ")
     };
     if projected == 0 {
-        // Nowhere consistent: an inconsistent set when rows depend on others
-        // at the least-squares points (contradicting equations), else left
-        // to the runtime (the ranges may miss the mechanism's closure).
-        if let Some((r, rows)) = stuck.iter().find(|(_, rows)| rows.iter().any(|&d| d)) {
+        // Nowhere consistent: an inconsistent set when the same rows depend
+        // on others at every least-squares point the iteration stopped at
+        // (contradicting equations), else left to the runtime (the ranges
+        // may miss the mechanism's closure, or the starts its basin).
+        let same = stuck.iter().all(|(_, rows)| *rows == stuck[0].1);
+        if let Some((r, rows)) = stuck
+            .first()
+            .filter(|(_, rows)| same && rows.contains(&true))
+        {
             let deps: Vec<usize> = (0..rows.len()).filter(|&j| rows[j]).collect();
             let largest = (0..r.len())
                 .max_by(|&a, &b| r[a].abs().total_cmp(&r[b].abs()))
                 .unwrap_or(0);
-            return Err(format!(
-                "the constraints cannot all hold: from {STARTS} configurations of the declared \
-                 ranges, Gauss-Newton stops where the Jacobian rows of {} are combinations of \
-                 the rows before them and the residuals stay (largest: `{}` = {:e}); the set \
-                 contradicts itself",
-                names(&mut deps.into_iter()),
-                model.constraints[largest].name,
-                r[largest]
-            ));
+            let first = &model.constraints[deps[0]];
+            return Err(Unsatisfiable {
+                at: first.at,
+                context: format!("constraint `{}`", first.name),
+                message: format!(
+                    "the constraints cannot all hold: from {STARTS} configurations of the \
+                     declared ranges, Gauss-Newton stops where the Jacobian rows of {} are \
+                     combinations of the rows before them and the residuals stay (largest: `{}` \
+                     = {:e}); the set contradicts itself",
+                    names(&mut deps.into_iter()),
+                    model.constraints[largest].name,
+                    r[largest]
+                ),
+            });
         }
         return Ok(());
     }
@@ -143,14 +172,15 @@ struct Manifold {
 }
 
 impl Manifold {
-    fn new(model: &mut Model) -> Manifold {
+    /// The terms of `model`'s constraints, built in `g` (a copy of its
+    /// graph).
+    fn new(model: &Model, g: &mut Graph) -> Manifold {
         let n = model.nq();
         let residuals: Vec<Id> = model
             .constraints
             .iter()
             .map(|c: &Constraint| c.residual)
             .collect();
-        let g = &mut model.graph;
         let mut jacobian = Vec::with_capacity(residuals.len() * n);
         for &r in &residuals {
             for i in 0..n {
@@ -196,7 +226,17 @@ impl Manifold {
             if !(r.amax() > 1e-10 * scale) {
                 return (q, r.amax() <= 1e-10 * scale);
             }
-            let Ok(step) = j.svd(true, true).solve(&r, 1e-12 * scale) else {
+            // A non-finite Jacobian or residual ends the iteration (the
+            // SVD's sweeps would not converge on it), and so does an SVD
+            // that does not converge in a bounded number of sweeps.
+            let finite = j.iter().chain(r.iter()).all(|x| x.is_finite());
+            let Some(svd) = finite
+                .then(|| j.try_svd(true, true, f64::EPSILON, SVD_SWEEPS))
+                .flatten()
+            else {
+                break;
+            };
+            let Ok(step) = svd.solve(&r, 1e-12 * scale) else {
                 break;
             };
             let mut h = 1.0;
@@ -285,7 +325,8 @@ mod tests {
         assert!(m.notes[0].contains("`same_x` dropped: its residual is identically zero"));
         let e = model("[[constraints]]\nname = \"two\"\nexpression = \"x - x + 2\"\n").unwrap_err();
         assert!(
-            e.contains("constraint `two`: its residual is the constant 2e0"),
+            e.starts_with("p.toml:")
+                && e.contains("in constraint `two`: its residual is the constant 2e0"),
             "{e}"
         );
     }

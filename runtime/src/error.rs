@@ -218,6 +218,22 @@ pub enum ErrorKind {
         /// `None` for the `max_step` check.
         rate: Option<f64>,
     },
+    /// An explicit scheme's stability estimate refused the step, but the
+    /// model linearised at the state has no mode near the rate its stages
+    /// saw (below 1/[`crate::ABRUPT_RATIO`] of it): the forces change
+    /// abruptly within the step, not at a fast mode. A switch (`sign`,
+    /// `step`, `abs`, `min`, `max` of a coordinate or rate, such as Coulomb
+    /// friction near rest) or a sharply stiffening force.
+    AbruptForces {
+        /// The offending step size.
+        dt: f64,
+        /// The stages' estimate of `dt * rho(J)`.
+        value: f64,
+        /// The stability limit.
+        limit: f64,
+        /// The fastest mode of the model linearised at the state, rad/s.
+        linear_rate: f64,
+    },
     /// The adaptive integrator would need a step below its minimum step size.
     StepSizeUnderflow {
         /// The step size it would need.
@@ -527,6 +543,21 @@ impl fmt::Display for ErrorKind {
                 f,
                 "step size {:e} too large: {:e} exceeds limit {:e}",
                 dt, value, limit
+            ),
+            ErrorKind::AbruptForces {
+                dt,
+                value,
+                limit,
+                linear_rate,
+            } => write!(
+                f,
+                "step size {:e} refused by the explicit scheme: its stages see dt * rho(J) = \
+                 {:.3e}, beyond its stability limit {:e}, but the model linearised at the state \
+                 has no mode faster than {:.3e} rad/s: the forces change abruptly within the \
+                 step (a switch such as sign, step, abs, min or max of a coordinate or rate, \
+                 for example Coulomb friction near rest, or a sharply stiffening force), which \
+                 smaller steps do not remove; smooth the switch (docs/scene-format.md, Switches)",
+                dt, value, limit, linear_rate
             ),
             ErrorKind::StepSizeUnderflow { dt, min_step } => write!(
                 f,

@@ -52,7 +52,7 @@ pub use input::{FromFn, Input, InputOf, Linear, LinearOf};
 pub use integrate::{
     run, AdaptiveReport, AdaptiveRk4, AdvanceReport, GaussLegendre4, GeneralizedAlpha,
     GeneralizedAlphaConfig, GeneralizedAlphaOf, Integrator, IntegratorOf, Rk4, RunSummary,
-    SemiImplicitEuler, StepReport, StepSettings,
+    SemiImplicitEuler, StepReport, StepSettings, ABRUPT_RATIO,
 };
 pub use inverse_dynamics::{
     forces, ForceReport, InverseConfig, InverseDynamics, InverseDynamicsOf, InverseReport,

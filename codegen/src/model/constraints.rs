@@ -113,8 +113,9 @@ impl Context<'_> {
                 }
             }
             let residual = self.scalar(expression, Some(&ctx), false)?;
-            self.check_overflow(expression.span().start, Some(&ctx), "the constraint")?;
-            out.push(Constraint { name, residual });
+            let at = expression.span().start;
+            self.check_overflow(at, Some(&ctx), "the constraint")?;
+            out.push(Constraint { name, residual, at });
             return Ok(());
         };
         if let Some(e) = &c.expression {
@@ -166,11 +167,13 @@ impl Context<'_> {
                 out.push(Constraint {
                     name: format!("{name}_{axis}"),
                     residual,
+                    at: kind.span().start,
                 });
             }
         } else {
             let residual = self.graph.dot(pa, pb);
-            out.push(Constraint { name, residual });
+            let at = kind.span().start;
+            out.push(Constraint { name, residual, at });
         }
         self.check_overflow(kind.span().start, Some(&ctx), "the constraint")
     }

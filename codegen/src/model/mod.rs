@@ -132,6 +132,8 @@ pub struct Constraint {
     pub name: String,
     /// Residual `Phi(q, t)`.
     pub residual: Id,
+    /// Byte offset of its definition in the scene file, for messages.
+    pub at: usize,
 }
 
 /// A marker: a named point of a frame, with its world pose and velocity.

@@ -193,11 +193,11 @@ fn simulate_refuses_unreadable_or_wrong_torque_tables_and_bad_steps() {
         ),
         (
             &["--output-dt", "0"],
-            "--output-dt must be a positive number",
+            "--output-dt: the step must be a positive number",
         ),
         (
             &["--output-dt", "NaN"],
-            "--output-dt must be a positive number",
+            "--output-dt: the step must be a positive number",
         ),
         (&["--output-dt", "0.0015"], "whole multiple of --dt"),
     ];

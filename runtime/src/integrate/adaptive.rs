@@ -1,7 +1,7 @@
 //! RK4 with step-doubling error control.
 
 use super::rk4::rk4_raw;
-use super::{begin_step, finish_step, IntegratorOf, StepReport, StepSettings};
+use super::{begin_step, finish_step, name_fastest_mode, IntegratorOf, StepReport, StepSettings};
 use crate::error::{Error, ErrorKind};
 use crate::input::InputOf;
 use crate::math::{exp, ln, sqrt};
@@ -190,14 +190,20 @@ impl AdaptiveRk4 {
         // step helps.
         let mut last_failure: Option<Error> = None;
         loop {
+            // A refusal that no smaller step cured names the fastest mode,
+            // or abrupt forces.
+            let named = |e| name_fastest_mode(e, model, &self.settings.dynamics, state, input);
             if h < self.min_step {
-                return Err(last_failure.unwrap_or(Error::new(
-                    ErrorKind::StepSizeUnderflow {
-                        dt: h,
-                        min_step: self.min_step,
-                    },
-                    state.t,
-                )));
+                return Err(last_failure.map_or(
+                    Error::new(
+                        ErrorKind::StepSizeUnderflow {
+                            dt: h,
+                            min_step: self.min_step,
+                        },
+                        state.t,
+                    ),
+                    named,
+                ));
             }
             let trial = self.trial(model, state, input, h);
             let (next, err, est) = match trial {
@@ -206,7 +212,7 @@ impl AdaptiveRk4 {
                     ErrorKind::StepTooLarge { .. } | ErrorKind::NonFiniteResult { .. } => {
                         rejections += 1;
                         if rejections > self.max_rejections {
-                            return Err(e);
+                            return Err(named(e));
                         }
                         last_failure = Some(e);
                         h *= self.min_factor;

@@ -342,6 +342,13 @@ where
     rho.is_finite().then_some(rho)
 }
 
+/// How many times faster than the fastest mode of the model linearised at
+/// the state the stages of a refused explicit step must see the motion
+/// before the refusal blames abrupt forces ([`ErrorKind::AbruptForces`])
+/// rather than a mode: on a linear mode the stage estimate is within a
+/// factor 1.5 of it.
+pub const ABRUPT_RATIO: f64 = 10.0;
+
 /// A stability refusal ([`ErrorKind::StepTooLarge`] with a rate) or a
 /// diverged Gauss–Legendre stage iteration, naming the fastest mode of the
 /// model linearised at `s` ([`spectral_radius`]): the stages see only the
@@ -349,7 +356,10 @@ where
 /// longer accurate). A refusal keeps the larger of the two rates, and its
 /// `value` becomes `dt` times that rate, so that the reported `dt * rho(J)`
 /// and the suggested step `limit / rate` come from one number (and that
-/// step satisfies both estimates). Other errors pass unchanged.
+/// step satisfies both estimates) — unless the linearised model is more
+/// than [`ABRUPT_RATIO`] times slower than the stages' rate, when the
+/// refusal becomes [`ErrorKind::AbruptForces`]. Other errors pass
+/// unchanged.
 pub(crate) fn name_fastest_mode<M, I, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     mut e: Error,
     model: &M,
@@ -366,12 +376,22 @@ where
         ErrorKind::StepTooLarge {
             dt,
             value,
+            limit,
             rate: Some(rate),
-            ..
         } => {
             if let Some(rho) = spectral_radius(model, dynamics, s, input) {
-                *rate = rate.max(rho.into());
-                *value = *dt * *rate;
+                let linear_rate: f64 = rho.into();
+                if linear_rate * ABRUPT_RATIO < *rate {
+                    e.kind = ErrorKind::AbruptForces {
+                        dt: *dt,
+                        value: *value,
+                        limit: *limit,
+                        linear_rate,
+                    };
+                } else {
+                    *rate = rate.max(linear_rate);
+                    *value = *dt * *rate;
+                }
             }
         }
         ErrorKind::StageIterationFailed {
