@@ -11,7 +11,9 @@
 //! Inputs per actuator: a function of time (`--input`), a column of a CSV
 //! (`--inputs`, linear in between), or joint PD feedback (`--pd`, through
 //! `control::JointPd` and `control::Feedback`) towards a target given as a
-//! function of time (`--target`) or a CSV column; zero otherwise.
+//! function of time (`--target`) or a CSV column (its rate the slope of the
+//! linear interpolation, or a column `<coordinate>_dot` interpolated
+//! linearly); zero otherwise.
 
 use std::path::PathBuf;
 
@@ -76,8 +78,9 @@ pub struct Args {
     #[arg(long = "input", value_name = "NAME=EXPR")]
     pub inputs_expr: Vec<String>,
     /// Inputs from a CSV: column `t` (increasing), actuator columns by name,
-    /// and PD targets as columns named after coordinates; linear in between,
-    /// held constant outside.
+    /// and PD targets as columns named after coordinates, with their rates
+    /// as columns `<coordinate>_dot` if given (otherwise the slopes); linear
+    /// in between, held constant outside (rates zero there).
     #[arg(long = "inputs", value_name = "U.csv")]
     pub inputs_csv: Option<PathBuf>,
     /// Joint PD feedback on an actuator, `NAME=KP,KD`, towards the target of
@@ -100,6 +103,13 @@ pub struct Args {
     /// other integrators.
     #[arg(long)]
     pub rho_inf: Option<f64>,
+    /// Start gen-alpha with its auxiliary acceleration equal to the
+    /// acceleration (as the parallel-robot example and `flexdyn inverse`
+    /// do) instead of the low-pass filtered one, which keeps unresolved
+    /// stiff modes from overshooting in the first step. Refused with the
+    /// other integrators.
+    #[arg(long)]
+    pub unfiltered_start: bool,
     /// Most fixed-point sweeps per step of gauss-legendre (default 50).
     /// Refused with the other integrators.
     #[arg(long)]
@@ -142,10 +152,15 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// A signal of time: a function, or a column of the inputs CSV.
+/// A signal of time: a function, or a column of the inputs CSV (with the
+/// column of its rates, if given).
 enum Signal {
     Function(TimeFunction),
-    Column { t: Vec<f64>, v: Vec<f64> },
+    Column {
+        t: Vec<f64>,
+        v: Vec<f64>,
+        rate: Option<Vec<f64>>,
+    },
 }
 
 impl Signal {
@@ -156,18 +171,31 @@ impl Signal {
                 let [v, d, _] = f.eval(t);
                 (v, d)
             }
-            Signal::Column { t: ts, v } => {
-                let k = ts.partition_point(|&x| x <= t);
-                if k == 0 {
-                    (v[0], 0.0)
-                } else if k == ts.len() {
-                    (v[k - 1], 0.0)
-                } else {
-                    let slope = (v[k] - v[k - 1]) / (ts[k] - ts[k - 1]);
-                    (v[k - 1] + slope * (t - ts[k - 1]), slope)
+            Signal::Column { t: ts, v, rate } => {
+                let (value, slope) = interpolate(ts, v, t);
+                match rate {
+                    Some(r) if (ts[0]..=ts[ts.len() - 1]).contains(&t) => {
+                        (value, interpolate(ts, r, t).0)
+                    }
+                    Some(_) => (value, 0.0),
+                    None => (value, slope),
                 }
             }
         }
+    }
+}
+
+/// The samples `v` at times `ts` interpolated linearly at `t` and held
+/// constant outside: the value and the slope (zero outside).
+fn interpolate(ts: &[f64], v: &[f64], t: f64) -> (f64, f64) {
+    let k = ts.partition_point(|&x| x <= t);
+    if k == 0 {
+        (v[0], 0.0)
+    } else if k == ts.len() {
+        (v[k - 1], 0.0)
+    } else {
+        let slope = (v[k] - v[k - 1]) / (ts[k] - ts[k - 1]);
+        (v[k - 1] + slope * (t - ts[k - 1]), slope)
     }
 }
 
@@ -385,22 +413,47 @@ fn drives(
                 list(&actuators)
             ));
         }
+        // A coordinate's rate column, `<coordinate>_dot`.
+        let rate_of = |name: &str| {
+            let c = name.strip_suffix("_dot")?;
+            coordinates.iter().position(|x| *x == c)
+        };
+        let mut rates = Vec::new();
         for name in table.columns.iter().filter(|c| *c != "t") {
             let v = table.column(name)?;
-            let signal = Signal::Column { t: t.clone(), v };
             let by = format!("column `{name}` of {file}");
+            let signal = Signal::Column {
+                t: t.clone(),
+                v,
+                rate: None,
+            };
             if let Some(j) = actuators.iter().position(|a| a == name) {
                 set(j, by, Drive::Open(signal), &mut drives)?;
             } else if let Some(i) = coordinates.iter().position(|c| c == name) {
                 targets[i] = Some((by, signal));
+            } else if let Some(i) = rate_of(name) {
+                rates.push((i, table.column(name)?));
             } else {
                 return Err(format!(
                     "{file}: column `{name}` is neither an actuator nor a coordinate of `{}` \
-                     (actuators: {}; coordinates: {})",
+                     nor a coordinate's rate `<coordinate>_dot` (actuators: {}; coordinates: \
+                     {})",
                     model.name(),
                     list(&actuators),
                     list(&coordinates)
                 ));
+            }
+        }
+        for (i, r) in rates {
+            match &mut targets[i] {
+                Some((_, Signal::Column { rate, .. })) => *rate = Some(r),
+                _ => {
+                    return Err(format!(
+                        "{file}: column `{}_dot` gives the rate of a target, but there is no \
+                         column `{}` with the target",
+                        coordinates[i], coordinates[i]
+                    ))
+                }
             }
         }
     }
@@ -618,9 +671,13 @@ impl Setup<'_> {
                 g.max_iterations = max_sweeps;
                 run.go(with(g, doubled(4)), &closed, &open, state)
             }
-            Integrator::GenAlpha { rho_inf } => {
+            Integrator::GenAlpha {
+                rho_inf,
+                filter_start,
+            } => {
                 let config = GeneralizedAlphaConfig {
                     rho_inf,
+                    filter_start,
                     ..GeneralizedAlphaConfig::default()
                 };
                 let g = GeneralizedAlphaOf::new(settings, config);
@@ -661,7 +718,7 @@ enum Integrator {
     Rk4,
     SemiImplicitEuler,
     GaussLegendre { max_sweeps: u32 },
-    GenAlpha { rho_inf: f64 },
+    GenAlpha { rho_inf: f64, filter_start: bool },
 }
 
 impl Integrator {
@@ -691,6 +748,9 @@ impl Integrator {
         if args.rho_inf.is_some() && name != "gen-alpha" {
             return ignored("--rho-inf", "gen-alpha", "numerical damping");
         }
+        if args.unfiltered_start && name != "gen-alpha" {
+            return ignored("--unfiltered-start", "gen-alpha", "start");
+        }
         if args.max_sweeps.is_some() && name != "gauss-legendre" {
             return ignored(
                 "--max-sweeps",
@@ -719,7 +779,10 @@ impl Integrator {
                 if !(0.0..=1.0).contains(&rho_inf) {
                     return Err(format!("--rho-inf must lie in [0, 1], got {rho_inf}"));
                 }
-                Integrator::GenAlpha { rho_inf }
+                Integrator::GenAlpha {
+                    rho_inf,
+                    filter_start: !args.unfiltered_start,
+                }
             }
             _ => {
                 let tolerance = args.tolerance.unwrap_or(1e-8);
