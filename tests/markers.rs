@@ -690,7 +690,11 @@ fn a_marker_path_with_elastic_coordinates_gives_the_coordinate_prescriptions_run
             .arg(&path)
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         Table::read(&path).unwrap()
     };
     let joints = run("joints.csv", [format!("x={x}"), format!("z={z}")]);

@@ -8,8 +8,8 @@
 //! The initial state (the scene's `initial` / `initial_velocity`, or
 //! `--initial`) is projected onto `Phi(q, t) = 0` and `Phi_q qd + Phi_t = 0`
 //! (`flexdyn_runtime::project`: mass-weighted minimum-norm corrections).
-//! Inputs per actuator: a function of time (`--input`), a column of a CSV
-//! (`--inputs`, linear in between), or joint PD feedback (`--pd`, through
+//! Inputs per actuator: a function of time (`--input`) or a column of a CSV
+//! (`--inputs`, linear in between), plus joint PD feedback (`--pd`, through
 //! `control::JointPd` and `control::Feedback`) towards a target given as a
 //! function of time (`--target`) or a CSV column (its rate the slope of the
 //! linear interpolation, or a column `<coordinate>_dot` interpolated
@@ -84,7 +84,8 @@ pub struct Args {
     #[arg(long = "inputs", value_name = "U.csv")]
     pub inputs_csv: Option<PathBuf>,
     /// Joint PD feedback on an actuator, `NAME=KP,KD`, towards the target of
-    /// the coordinate the actuator drives (`--target` or a CSV column).
+    /// the coordinate the actuator drives (`--target` or a CSV column),
+    /// added to the actuator's open-loop input if it has one (feed-forward).
     #[arg(long, value_name = "NAME=KP,KD")]
     pub pd: Vec<String>,
     /// Target of a PD-driven coordinate: `COORD=EXPR`.
@@ -199,17 +200,20 @@ fn interpolate(ts: &[f64], v: &[f64], t: f64) -> (f64, f64) {
     }
 }
 
-/// What drives one actuator.
-enum Drive {
-    Zero,
-    Open(Signal),
-    /// PD gains on the coordinate the actuator drives, towards its target.
-    Pd {
-        coordinate: usize,
-        kp: f64,
-        kd: f64,
-        target: Signal,
-    },
+/// What drives one actuator: an open-loop input (zero if none) plus PD
+/// feedback, if given.
+#[derive(Default)]
+struct Drive {
+    open: Option<Signal>,
+    pd: Option<Pd>,
+}
+
+/// PD gains on the coordinate an actuator drives, towards its target.
+struct Pd {
+    coordinate: usize,
+    kp: f64,
+    kd: f64,
+    target: Signal,
 }
 
 /// Everything the run needs, checked.
@@ -377,9 +381,10 @@ fn drives(
             .map(Signal::Function)
             .map_err(|e| format!("{option}: {e}"))
     };
-    let mut drives: Vec<Drive> = actuators.iter().map(|_| Drive::Zero).collect();
+    let mut drives: Vec<Drive> = actuators.iter().map(|_| Drive::default()).collect();
+    // Where each actuator's open-loop input was given.
     let mut given: Vec<Option<String>> = vec![None; actuators.len()];
-    let mut set = |j: usize, by: String, drive: Drive, drives: &mut Vec<Drive>| {
+    let mut set = |j: usize, by: String, signal: Signal, drives: &mut Vec<Drive>| {
         if let Some(before) = &given[j] {
             return Err(format!(
                 "actuator `{}` is given twice ({before} and {by})",
@@ -387,19 +392,14 @@ fn drives(
             ));
         }
         given[j] = Some(by);
-        drives[j] = drive;
+        drives[j].open = Some(signal);
         Ok(())
     };
     for text in &args.inputs_expr {
         let (name, expr) = assignment("--input", text)?;
         let j = actuator(&format!("--input `{text}`"), name)?;
         let signal = function(&format!("--input {name}"), expr)?;
-        set(
-            j,
-            format!("--input {name}"),
-            Drive::Open(signal),
-            &mut drives,
-        )?;
+        set(j, format!("--input {name}"), signal, &mut drives)?;
     }
     let mut targets: Vec<Option<(String, Signal)>> = coordinates.iter().map(|_| None).collect();
     if let Some(path) = &args.inputs_csv {
@@ -428,7 +428,7 @@ fn drives(
                 rate: None,
             };
             if let Some(j) = actuators.iter().position(|a| a == name) {
-                set(j, by, Drive::Open(signal), &mut drives)?;
+                set(j, by, signal, &mut drives)?;
             } else if let Some(i) = coordinates.iter().position(|c| c == name) {
                 targets[i] = Some((by, signal));
             } else if let Some(i) = rate_of(name) {
@@ -479,6 +479,9 @@ fn drives(
     for text in &args.pd {
         let (name, gains) = assignment("--pd", text)?;
         let j = actuator(&format!("--pd `{text}`"), name)?;
+        if drives[j].pd.is_some() {
+            return Err(format!("--pd: actuator `{name}` is given twice"));
+        }
         let parsed_gains: Vec<f64> = gains
             .split(',')
             .map(|g| g.trim().parse::<f64>())
@@ -505,13 +508,12 @@ fn drives(
                 coordinates[coordinate], coordinates[coordinate], coordinates[coordinate]
             ));
         };
-        let drive = Drive::Pd {
+        drives[j].pd = Some(Pd {
             coordinate,
             kp,
             kd,
             target,
-        };
-        set(j, format!("--pd {name}"), drive, &mut drives)?;
+        });
     }
     if let Some((i, (by, _))) = targets
         .iter()
@@ -600,14 +602,8 @@ impl Setup<'_> {
         let mut joints = DVector::<usize>::zeros(nu.0);
         let (mut kp, mut kd) = (DVector::zeros(nu.0), DVector::zeros(nu.0));
         for (j, d) in self.drives.iter().enumerate() {
-            if let Drive::Pd {
-                coordinate,
-                kp: p,
-                kd: d,
-                ..
-            } = d
-            {
-                (joints[j], kp[j], kd[j]) = (*coordinate, *p, *d);
+            if let Some(pd) = &d.pd {
+                (joints[j], kp[j], kd[j]) = (pd.coordinate, pd.kp, pd.kd);
             }
         }
         let drives = &self.drives;
@@ -618,8 +614,8 @@ impl Setup<'_> {
                 acceleration: DVector::zeros(nu.0),
             };
             for (j, d) in drives.iter().enumerate() {
-                if let Drive::Pd { target: s, .. } = d {
-                    (target.position[j], target.velocity[j]) = s.at(t);
+                if let Some(pd) = &d.pd {
+                    (target.position[j], target.velocity[j]) = pd.target.at(t);
                 }
             }
             target
@@ -630,7 +626,7 @@ impl Setup<'_> {
         let open = FromFn(|t: f64| {
             let mut u = DVector::zeros(nu.0);
             for (j, d) in drives.iter().enumerate() {
-                if let Drive::Open(s) = d {
+                if let Some(s) = &d.open {
                     u[j] = s.at(t).0;
                 }
             }

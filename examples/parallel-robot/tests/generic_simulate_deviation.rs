@@ -85,8 +85,7 @@ fn generic_simulate_reproduces_the_flexible_robots_deviation_under_rigid_torques
     });
     std::fs::write(&initial, state.to_string()).unwrap();
     let mut inputs = Table::new(&[
-        "t", "tau_1", "tau_2", "tau_3", "th11", "th21", "th31", "th11_dot", "th21_dot",
-        "th31_dot",
+        "t", "tau_1", "tau_2", "tau_3", "th11", "th21", "th31", "th11_dot", "th21_dot", "th31_dot",
     ]);
     for &t in &times {
         let mut row = vec![t];
