@@ -240,6 +240,7 @@ pub fn solve(
         model,
         problem,
         outputs: &outputs,
+        names: &prescribed_names,
         target: &target,
         rank_error: &rank_error,
     };
@@ -354,6 +355,8 @@ struct Job<'a> {
     problem: &'a Problem<'a>,
     /// The prescribed outputs.
     outputs: &'a [Output],
+    /// Their names, for errors.
+    names: &'a str,
     target: Targets<'a>,
     rank_error: &'a dyn Fn(flexdyn_runtime::Error) -> String,
 }
@@ -462,7 +465,7 @@ impl Job<'_> {
             outputs: self.outputs,
         };
         let q = static_equilibrium(&outputs, &x0.position, guess, t0)
-            .map_err(|e| format!("at t = {t0} s: {e}"))?;
+            .map_err(|e| format!("at t = {t0} s, prescribing {}: {e}", self.names))?;
         let qd = initial_velocities(&outputs, &x0.velocity, &q, t0, problem.free_rates)?;
         let mut state = StateOf { q, qd, t: t0 };
         let config = ServoConfig {

@@ -679,7 +679,7 @@ fn a_marker_path_with_elastic_coordinates_gives_the_coordinate_prescriptions_run
     let dir = tempfile::tempdir().unwrap();
     let scene = write(dir.path(), "carriage.toml", CARRIAGE);
     let (x, z) = ("0.2*sin(2*t)", "0.1*cos(3*t)");
-    let run = |csv: &str, prescribe: [String; 2]| -> Table {
+    let run = |csv: &str, prescribe: [String; 2]| -> Result<Table, String> {
         let path = dir.path().join(csv);
         let out = Command::new(BIN)
             .args(["inverse", "--duration", "0.5", "--dt", "0.005", "--quiet"])
@@ -690,21 +690,20 @@ fn a_marker_path_with_elastic_coordinates_gives_the_coordinate_prescriptions_run
             .arg(&path)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        Table::read(&path).unwrap()
+        match out.status.success() {
+            true => Ok(Table::read(&path).unwrap()),
+            false => Err(String::from_utf8_lossy(&out.stderr).into_owned()),
+        }
     };
-    let joints = run("joints.csv", [format!("x={x}"), format!("z={z}")]);
+    let joints = run("joints.csv", [format!("x={x}"), format!("z={z}")]).unwrap();
     let task = run(
         "task.csv",
         [
             format!("tool_x=0.1*sin(3*t) + {x} + 0.1"),
             format!("tool_z={z} + 0.05"),
         ],
-    );
+    )
+    .unwrap();
     assert_eq!(task.columns, joints.columns);
     // t, the forces, x, z and the six modal coordinates.
     assert_eq!(task.columns.len(), 11, "{:?}", task.columns);
@@ -722,4 +721,11 @@ fn a_marker_path_with_elastic_coordinates_gives_the_coordinate_prescriptions_run
     }
     // The modes move: the elastic coordinates are integrated, not at rest.
     assert!(moved > 0.0);
+    // `tool_x` and `x` move together: they do not determine the inputs.
+    let e = run("same.csv", [format!("tool_x={x}"), format!("x={x}")]).unwrap_err();
+    assert!(
+        e.contains("at t = 0 s") && e.contains("`tool_x`") && e.contains("singular"),
+        "{e}"
+    );
+    assert!(!dir.path().join("same.csv").exists());
 }
