@@ -594,10 +594,9 @@ fn static_equilibrium(
             .solve(&(-&r))
             .filter(|d| d.iter().all(|v| v.is_finite()))
             .ok_or_else(|| {
-                format!(
-                    "the static equilibrium under the prescription is singular (the \
-                     prescription does not determine the inputs, or the pose is singular)"
-                )
+                "the static equilibrium under the prescription is singular (the prescription \
+                 does not determine the inputs, or the pose is singular)"
+                    .to_string()
             })?;
         x += dx;
     }
