@@ -15,6 +15,8 @@
 //! diverging iteration) is itself a warning: the run's step is within a
 //! factor of two of where the integrator stops working.
 
+use std::cmp::Ordering;
+
 use flexdyn_runtime::Time;
 
 /// Relative error above which the estimate is a warning.
@@ -194,7 +196,11 @@ impl ErrorEstimate {
              `{name}` at t = {} s",
             Time(t)
         ));
-        if !(e <= WARN_ABOVE) {
+        // Above, or not a number.
+        if !matches!(
+            e.partial_cmp(&WARN_ABOVE),
+            Some(Ordering::Less | Ordering::Equal)
+        ) {
             let advice = match e.is_finite() {
                 true => format!("; {} would bring it near {AIM:e}", self.companion.advice(e)),
                 false => String::new(),

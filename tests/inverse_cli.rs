@@ -11,7 +11,9 @@ use flexdyn::runtime::nalgebra::{DMatrix, DVector};
 
 #[path = "common/large_scenes.rs"]
 mod large_scenes;
-use flexdyn::prescribed_motion::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
+use flexdyn::prescribed_motion::{
+    solve, FreeRates, Method, Output, Prescribed, Problem, Sample, Sink,
+};
 use flexdyn::runtime::nalgebra::SVector;
 use flexdyn::runtime::Model;
 use flexdyn::scenes::{cart_pole::CartPole, pendulum::Pendulum, slider_crank::SliderCrank};
@@ -66,7 +68,7 @@ fn pendulum_torque_is_the_closed_form() {
         constraints: vec![],
         actuators: names(&["tau"]),
         prescribed: vec![Prescribed {
-            coordinate: 0,
+            output: Output::Coordinate(0),
             motion: &motion,
         }],
         guess: vec![0.0],
@@ -104,7 +106,7 @@ fn crank_solve(motion: &dyn Fn(f64) -> [f64; 3]) -> Solution {
         constraints: names(&["closure_x", "closure_y"]),
         actuators: names(&["tau"]),
         prescribed: vec![Prescribed {
-            coordinate: 0,
+            output: Output::Coordinate(0),
             motion,
         }],
         guess: vec![0.3, 0.1, 0.4],
@@ -184,7 +186,7 @@ fn cart_pole_servo_integrates_the_free_pole_and_gives_the_cart_force() {
         constraints: vec![],
         actuators: names(&["force"]),
         prescribed: vec![Prescribed {
-            coordinate: 0,
+            output: Output::Coordinate(0),
             motion: &motion,
         }],
         guess: vec![0.0, 3.0],
@@ -238,11 +240,11 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
     let mut two = base();
     two.prescribed = vec![
         Prescribed {
-            coordinate: 0,
+            output: Output::Coordinate(0),
             motion: &motion,
         },
         Prescribed {
-            coordinate: 2,
+            output: Output::Coordinate(2),
             motion: &motion,
         },
     ];
@@ -253,7 +255,7 @@ fn prescriptions_that_do_not_determine_the_inputs_are_refused() {
     let mut slider = base();
     let dead_centre = |_: f64| [0.4, 0.0, 0.0];
     slider.prescribed = vec![Prescribed {
-        coordinate: 2,
+        output: Output::Coordinate(2),
         motion: &dead_centre,
     }];
     slider.guess = vec![0.0, 0.0, 0.4];
@@ -273,7 +275,7 @@ fn an_error_of_the_sink_stops_the_solve() {
         constraints: vec![],
         actuators: names(&[actuator]),
         prescribed: vec![Prescribed {
-            coordinate: 0,
+            output: Output::Coordinate(0),
             motion: &motion,
         }],
         guess: vec![0.0, 3.0],
@@ -558,7 +560,7 @@ fn hundred_link_chain_with_every_joint_prescribed_gives_m_qdd_plus_h() {
             .iter()
             .enumerate()
             .map(|(k, f)| Prescribed {
-                coordinate: k,
+                output: Output::Coordinate(k),
                 motion: f,
             })
             .collect(),

@@ -237,6 +237,76 @@ fn pd_feedback_settles_at_the_static_deflection() {
     );
 }
 
+/// An actuator with an open-loop input and PD feedback gets their sum:
+/// `k x = 0.8 + kp (0.1 - x)` at rest, `x = 4 / 40 = 0.1` (without the
+/// input, 0.08).
+#[test]
+fn pd_feedback_adds_to_the_open_loop_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = write(dir.path(), "osc.toml", OSCILLATOR);
+    let (t, _) = simulate(
+        dir.path(),
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--duration",
+            "10",
+            "--input",
+            "f=0.8",
+            "--pd",
+            "f=32,16",
+            "--target",
+            "x=0.1",
+        ],
+    )
+    .unwrap();
+    let x = *column(&t, "x").last().unwrap();
+    println!("PD with feed-forward: rest at {x} vs 0.1");
+    assert!((x - 0.1).abs() < 1e-6, "{x}");
+}
+
+/// A PD target's rate column `<coordinate>_dot` in `--inputs` is the
+/// velocity reference, not the slope of the target column: a constant
+/// target 0.1 with the rate 0.05 given rests where `k x = kp (0.1 - x) +
+/// kd 0.05`, `x = 4 / 40 = 0.1` (with the slope, zero: 0.08).
+#[test]
+fn a_targets_rate_column_is_the_pd_velocity_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = write(dir.path(), "osc.toml", OSCILLATOR);
+    let u = write(dir.path(), "u.csv", "t,x,x_dot\n0,0.1,0.05\n10,0.1,0.05\n");
+    let (t, _) = simulate(
+        dir.path(),
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--duration",
+            "10",
+            "--inputs",
+            u.to_str().unwrap(),
+            "--pd",
+            "f=32,16",
+        ],
+    )
+    .unwrap();
+    let x = *column(&t, "x").last().unwrap();
+    println!("PD with a rate column: rest at {x} vs 0.1");
+    assert!((x - 0.1).abs() < 1e-6, "{x}");
+    let u = write(dir.path(), "rate_alone.csv", "t,f,x_dot\n0,0,0\n10,0,0\n");
+    let e = simulate(
+        dir.path(),
+        &[
+            "--scene",
+            sc.to_str().unwrap(),
+            "--duration",
+            "1",
+            "--inputs",
+            u.to_str().unwrap(),
+        ],
+    )
+    .unwrap_err();
+    assert!(e.contains("`x_dot`") && e.contains("no column `x`"), "{e}");
+}
+
 #[test]
 fn four_bar_started_off_its_constraints_is_projected_and_stays_on_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -328,7 +398,7 @@ fn bad_input_is_refused_clearly_and_leaves_no_files() {
     fails(&["--input", "f=x*t"], "not the coordinate `x`");
     fails(&["--input", "f=omega*t"], "undefined symbol `omega`");
     fails(
-        &["--input", "f=1", "--pd", "f=1,1", "--target", "x=0"],
+        &["--pd", "f=1,1", "--pd", "f=2,1", "--target", "x=0"],
         "actuator `f` is given twice",
     );
     fails(&["--dt", "0"], "--dt: the step must be a positive");

@@ -20,6 +20,8 @@
 //!
 //! Runtime parameters are taken at their nominal values.
 
+use std::cmp::Ordering;
+
 use nalgebra::{DMatrix, DVector};
 
 use crate::expr::{Graph, Id, Node, Symbol};
@@ -223,7 +225,8 @@ impl Manifold {
         for _ in 0..ITERATIONS {
             let j = self.jacobian(g, &q, t);
             let scale = 1.0 + j.amax();
-            if !(r.amax() > 1e-10 * scale) {
+            // Small, or not a number.
+            if r.amax().partial_cmp(&(1e-10 * scale)) != Some(Ordering::Greater) {
                 return (q, r.amax() <= 1e-10 * scale);
             }
             // A non-finite Jacobian or residual ends the iteration (the
@@ -279,7 +282,7 @@ pub fn dependent_rows(jacobian: &DMatrix<f64>) -> Vec<bool> {
             }
         }
         let rest = v.norm();
-        if norm == 0.0 || !(rest > DEPENDENT * norm) {
+        if norm == 0.0 || rest.partial_cmp(&(DEPENDENT * norm)) != Some(Ordering::Greater) {
             dependent.push(true);
         } else {
             dependent.push(false);

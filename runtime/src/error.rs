@@ -45,7 +45,7 @@ pub enum Quantity {
     ActuatorMap,
     /// Constraint forces (Lagrange multipliers) `lambda`.
     ConstraintForces,
-    /// Prescribed outputs of a servo: `y(q)`, `Y_q(q)` or `(dY_q/dt) qd`.
+    /// Prescribed outputs of a servo: `y`, its rates, `Y_q` or the convective term.
     Outputs,
 }
 
@@ -71,7 +71,7 @@ impl Quantity {
             Quantity::ConstraintRhs => "constraint acceleration rhs gamma",
             Quantity::ActuatorMap => "actuator map B",
             Quantity::ConstraintForces => "constraint forces lambda",
-            Quantity::Outputs => "servo outputs y, Y_q or (dY_q/dt) qd",
+            Quantity::Outputs => "servo outputs y, their rates, Y_q or the convective term",
         }
     }
 }

@@ -9,7 +9,8 @@ mod models;
 
 use core::ops::ControlFlow;
 use flexdyn_runtime::control::{
-    servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, Target, Trajectory,
+    servo_run, Coordinates, OutputTerms, Outputs, Servo, ServoConfig, ServoSample, Target,
+    Trajectory,
 };
 use flexdyn_runtime::nalgebra::Const;
 use flexdyn_runtime::{
@@ -312,14 +313,14 @@ impl Outputs<Const<3>, Const<1>> for CrankPinHeight {
         &self,
         q: &V<3>,
         qd: &V<3>,
-        y: &mut V<1>,
-        y_q: &mut Mat<1, 3>,
-        convective: &mut V<1>,
+        _t: f64,
+        out: &mut OutputTerms<f64, Const<3>, Const<1>>,
     ) {
         let (s, c) = q[0].sin_cos();
-        y[0] = self.0 * s;
-        *y_q = Mat::<1, 3>::new(self.0 * c, 0.0, 0.0);
-        convective[0] = -self.0 * s * qd[0] * qd[0];
+        out.y[0] = self.0 * s;
+        out.y_q = Mat::<1, 3>::new(self.0 * c, 0.0, 0.0);
+        out.rate[0] = self.0 * c * qd[0];
+        out.convective[0] = -self.0 * s * qd[0] * qd[0];
     }
 }
 

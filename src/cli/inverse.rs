@@ -17,10 +17,13 @@
 //! both. The scene runs compiled in, or interpreted, at its own size.
 //!
 //! A prescribed name may also be a marker's world coordinate,
-//! `<marker>_x`, `_y` or `_z` (task-space inverse dynamics): the scene is
-//! then interpreted with a coordinate of that name and a constraint
-//! `<marker>_<axis>_servo` tying the marker to it, so that the other
-//! coordinates are solved from the constraints as for any prescription.
+//! `<marker>_x`, `_y` or `_z` (task-space inverse dynamics). Where the
+//! prescription and the constraints leave coordinates free (elastic ones),
+//! the marker's coordinate is a servo output like a prescribed coordinate.
+//! Where they fix every coordinate, the scene is interpreted with a
+//! coordinate of that name and a constraint `<marker>_<axis>_servo` tying
+//! the marker to it, so that the coordinates are solved from the
+//! constraints as for any prescription.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -28,7 +31,9 @@ use std::path::{Path, PathBuf};
 use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
 use crate::interpreted::InterpretedModel;
-use crate::prescribed_motion::{solve, FreeRates, Method, Prescribed, Problem, Sample, Sink};
+use crate::prescribed_motion::{
+    solve, FreeRates, Method, Output, Prescribed, Problem, Sample, Sink, AXES,
+};
 use crate::progress::Progress;
 use crate::spline::Spline;
 use crate::steps::{count, Last, MAX_STEPS};
@@ -105,10 +110,11 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         args.motion.as_deref(),
         args.prescriptions.as_deref(),
     )?;
-    // Prescribed marker coordinates: the scene with a coordinate and a
-    // constraint for each, interpreted.
+    // Prescribed marker coordinates where nothing is left free: the scene
+    // with a coordinate and a constraint for each, interpreted.
     let axes = marker_axes(&scene, &texts);
-    let augmented = match axes.is_empty() {
+    let determined = texts.len() + scene.constraints.len() >= scene.coordinates.len();
+    let augmented = match axes.is_empty() || !determined {
         true => None,
         false => {
             if scene.sources.len() > 1 {
@@ -118,22 +124,8 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
                     args.scene.display()
                 ));
             }
-            let (nq, nc) = (scene.coordinates.len(), scene.constraints.len());
-            if texts.len() + nc < nq {
-                return Err(format!(
-                    "{}: prescribing a marker's coordinates ({}) is supported where the \
-                     prescription and the constraints fix every coordinate ({} prescribed, {nc} \
-                     constraint(s), {nq} coordinates); with coordinates left free (elastic \
-                     ones) it is not yet: prescribe coordinates instead",
-                    args.scene.display(),
-                    axes.iter()
-                        .map(|(m, a)| format!("`{m}_{a}`"))
-                        .collect::<Vec<_>>()
-                        .join(", "),
-                    texts.len()
-                ));
-            }
-            let text = with_marker_coordinates(read_input(&args.scene, "scene file")?, &axes);
+            let text =
+                with_marker_coordinates(read_input(&args.scene, "scene file")?, &scene, &axes);
             let source = crate::codegen::Source::new(&args.scene, text);
             scene = crate::codegen::Model::from_source(&source).map_err(|e| e.to_string())?;
             Some(source)
@@ -142,15 +134,14 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     let prescribed = resolve(&scene, texts)?;
     if let Some(path) = &args.prescriptions {
         let end = steps as f64 * args.dt;
-        for (i, p) in &prescribed {
+        for (_, name, p) in &prescribed {
             if let Prescription::Sampled(spline) = p {
                 let (a, b) = spline.span();
                 if a > 0.0 || b < end {
                     return Err(format!(
-                        "{}: the samples of `{}` cover t = {a} .. {b} s, the run needs \
+                        "{}: the samples of `{name}` cover t = {a} .. {b} s, the run needs \
                          0 .. {end} s",
                         path.display(),
-                        scene.coordinates[*i].name
                     ));
                 }
             }
@@ -287,26 +278,25 @@ fn given(
     Ok(texts)
 }
 
-/// The prescribed names that are marker coordinates (`<marker>_x`, `_y`,
-/// `_z`) rather than coordinates of `scene`, as `(marker, axis)`.
-fn marker_axes(scene: &crate::codegen::Model, given: &Given) -> Vec<(String, char)> {
+/// Whether `name` is a marker's coordinate of `scene` (`<marker>_x`, `_y`,
+/// `_z`) rather than a coordinate: the marker's index and the axis.
+fn marker_axis(scene: &crate::codegen::Model, name: &str) -> Option<Output> {
+    if scene.coordinates.iter().any(|c| c.name == name) {
+        return None;
+    }
+    let (marker, axis) = name.rsplit_once('_')?;
+    let axis = AXES
+        .iter()
+        .position(|a| axis.len() == 1 && axis.starts_with(*a))?;
+    let marker = scene.markers.iter().position(|m| m.name == marker)?;
+    Some(Output::Marker { marker, axis })
+}
+
+/// The prescribed names that are marker coordinates, as outputs.
+fn marker_axes(scene: &crate::codegen::Model, given: &Given) -> Vec<Output> {
     given
         .keys()
-        .filter(|name| !scene.coordinates.iter().any(|c| &c.name == *name))
-        .filter_map(|name| {
-            let (marker, axis) = name.rsplit_once('_')?;
-            let axis = match axis {
-                "x" => 'x',
-                "y" => 'y',
-                "z" => 'z',
-                _ => return None,
-            };
-            scene
-                .markers
-                .iter()
-                .any(|m| m.name == marker)
-                .then(|| (marker.to_owned(), axis))
-        })
+        .filter_map(|name| marker_axis(scene, name))
         .collect()
 }
 
@@ -314,42 +304,54 @@ fn marker_axes(scene: &crate::codegen::Model, given: &Given) -> Vec<(String, cha
 /// marker coordinate and a constraint tying the marker to it (task-space
 /// inverse dynamics as prescribed coordinates: the constraint's multiplier
 /// is zero, the coordinate massless).
-fn with_marker_coordinates(mut text: String, axes: &[(String, char)]) -> String {
-    for (marker, axis) in axes {
-        text.push_str(&format!(
-            "\n[[coordinates]]\nname = \"{marker}_{axis}\"\n\n[[constraints]]\n\
-             name = \"{marker}_{axis}_servo\"\nexpression = \"{marker}.{axis} - {marker}_{axis}\"\n"
-        ));
+fn with_marker_coordinates(
+    mut text: String,
+    scene: &crate::codegen::Model,
+    axes: &[Output],
+) -> String {
+    for o in axes {
+        if let Output::Marker { marker, axis } = *o {
+            let (marker, axis) = (&scene.markers[marker].name, AXES[axis]);
+            text.push_str(&format!(
+                "\n[[coordinates]]\nname = \"{marker}_{axis}\"\n\n[[constraints]]\n\
+                 name = \"{marker}_{axis}_servo\"\nexpression = \"{marker}.{axis} - {marker}_{axis}\"\n"
+            ));
+        }
     }
     text
 }
 
-/// The prescriptions resolved against `scene`'s coordinates, as coordinate
-/// indices with their motions. Errors name the coordinate (listing the
-/// valid ones and the markers), the expression and where in it, or the
-/// file and column.
+/// The prescriptions resolved against `scene`'s coordinates and markers,
+/// as outputs with their names and motions, in output order. Errors name
+/// the coordinate (listing the valid ones and the markers), the expression
+/// and where in it, or the file and column.
 fn resolve(
     scene: &crate::codegen::Model,
     texts: Given,
-) -> Result<Vec<(usize, Prescription)>, String> {
+) -> Result<Vec<(Output, String, Prescription)>, String> {
     let names: Vec<&str> = scene.coordinates.iter().map(|c| c.name.as_str()).collect();
     let markers: Vec<&str> = scene.markers.iter().map(|m| m.name.as_str()).collect();
     let mut out = Vec::with_capacity(texts.len());
     for (name, (source, at)) in texts {
-        let index = names.iter().position(|n| *n == name).ok_or_else(|| {
-            let markers = match markers.is_empty() {
-                true => String::new(),
-                false => format!(
-                    "; or a marker's coordinate `<marker>_x`, `_y`, `_z` of its markers: {}",
-                    markers.join(", ")
-                ),
-            };
-            format!(
-                "{at}: `{name}` is not a coordinate of scene `{}` (its coordinates: {}{markers})",
-                scene.name,
-                names.join(", ")
-            )
-        })?;
+        let output = names
+            .iter()
+            .position(|n| *n == name)
+            .map(Output::Coordinate)
+            .or_else(|| marker_axis(scene, &name))
+            .ok_or_else(|| {
+                let markers = match markers.is_empty() {
+                    true => String::new(),
+                    false => format!(
+                        "; or a marker's coordinate `<marker>_x`, `_y`, `_z` of its markers: {}",
+                        markers.join(", ")
+                    ),
+                };
+                format!(
+                    "{at}: `{name}` is not a coordinate of scene `{}` (its coordinates: {}{markers})",
+                    scene.name,
+                    names.join(", ")
+                )
+            })?;
         let f = match source {
             Source::Text(expr) => Prescription::Function(
                 TimeFunction::parse(scene, &expr).map_err(|e| format!("{at}: {e}"))?,
@@ -358,9 +360,9 @@ fn resolve(
                 Prescription::Sampled(Spline::new(t, y).map_err(|e| format!("{at}: {e}"))?)
             }
         };
-        out.push((index, f));
+        out.push((output, name, f));
     }
-    out.sort_by_key(|(i, _)| *i);
+    out.sort_by_key(|(o, _, _)| *o);
     Ok(out)
 }
 
@@ -384,7 +386,7 @@ struct Job<'a> {
     coordinates: Vec<String>,
     constraints: Vec<String>,
     actuators: Vec<String>,
-    prescribed: Vec<(usize, Prescription)>,
+    prescribed: Vec<(Output, String, Prescription)>,
     guess: Vec<f64>,
     dt: f64,
     steps: usize,
@@ -425,15 +427,15 @@ impl Job<'_> {
         let motions: Vec<_> = self
             .prescribed
             .iter()
-            .map(|(_, f)| move |t: f64| f.eval(t))
+            .map(|(_, _, f)| move |t: f64| f.eval(t))
             .collect();
         let problem = Problem {
             prescribed: self
                 .prescribed
                 .iter()
                 .zip(&motions)
-                .map(|((i, _), motion)| Prescribed {
-                    coordinate: *i,
+                .map(|((output, _, _), motion)| Prescribed {
+                    output: *output,
                     motion,
                 })
                 .collect(),

@@ -8,10 +8,12 @@
 //! The initial state (the scene's `initial` / `initial_velocity`, or
 //! `--initial`) is projected onto `Phi(q, t) = 0` and `Phi_q qd + Phi_t = 0`
 //! (`flexdyn_runtime::project`: mass-weighted minimum-norm corrections).
-//! Inputs per actuator: a function of time (`--input`), a column of a CSV
-//! (`--inputs`, linear in between), or joint PD feedback (`--pd`, through
+//! Inputs per actuator: a function of time (`--input`) or a column of a CSV
+//! (`--inputs`, linear in between), plus joint PD feedback (`--pd`, through
 //! `control::JointPd` and `control::Feedback`) towards a target given as a
-//! function of time (`--target`) or a CSV column; zero otherwise.
+//! function of time (`--target`) or a CSV column (its rate the slope of the
+//! linear interpolation, or a column `<coordinate>_dot` interpolated
+//! linearly); zero otherwise.
 
 use std::path::PathBuf;
 
@@ -76,12 +78,14 @@ pub struct Args {
     #[arg(long = "input", value_name = "NAME=EXPR")]
     pub inputs_expr: Vec<String>,
     /// Inputs from a CSV: column `t` (increasing), actuator columns by name,
-    /// and PD targets as columns named after coordinates; linear in between,
-    /// held constant outside.
+    /// and PD targets as columns named after coordinates, with their rates
+    /// as columns `<coordinate>_dot` if given (otherwise the slopes); linear
+    /// in between, held constant outside (rates zero there).
     #[arg(long = "inputs", value_name = "U.csv")]
     pub inputs_csv: Option<PathBuf>,
     /// Joint PD feedback on an actuator, `NAME=KP,KD`, towards the target of
-    /// the coordinate the actuator drives (`--target` or a CSV column).
+    /// the coordinate the actuator drives (`--target` or a CSV column),
+    /// added to the actuator's open-loop input if it has one (feed-forward).
     #[arg(long, value_name = "NAME=KP,KD")]
     pub pd: Vec<String>,
     /// Target of a PD-driven coordinate: `COORD=EXPR`.
@@ -100,6 +104,13 @@ pub struct Args {
     /// other integrators.
     #[arg(long)]
     pub rho_inf: Option<f64>,
+    /// Start gen-alpha with its auxiliary acceleration equal to the
+    /// acceleration (as the parallel-robot example and `flexdyn inverse`
+    /// do) instead of the low-pass filtered one, which keeps unresolved
+    /// stiff modes from overshooting in the first step. Refused with the
+    /// other integrators.
+    #[arg(long)]
+    pub unfiltered_start: bool,
     /// Most fixed-point sweeps per step of gauss-legendre (default 50).
     /// Refused with the other integrators.
     #[arg(long)]
@@ -142,10 +153,15 @@ pub struct Args {
     pub quiet: bool,
 }
 
-/// A signal of time: a function, or a column of the inputs CSV.
+/// A signal of time: a function, or a column of the inputs CSV (with the
+/// column of its rates, if given).
 enum Signal {
     Function(TimeFunction),
-    Column { t: Vec<f64>, v: Vec<f64> },
+    Column {
+        t: Vec<f64>,
+        v: Vec<f64>,
+        rate: Option<Vec<f64>>,
+    },
 }
 
 impl Signal {
@@ -156,32 +172,48 @@ impl Signal {
                 let [v, d, _] = f.eval(t);
                 (v, d)
             }
-            Signal::Column { t: ts, v } => {
-                let k = ts.partition_point(|&x| x <= t);
-                if k == 0 {
-                    (v[0], 0.0)
-                } else if k == ts.len() {
-                    (v[k - 1], 0.0)
-                } else {
-                    let slope = (v[k] - v[k - 1]) / (ts[k] - ts[k - 1]);
-                    (v[k - 1] + slope * (t - ts[k - 1]), slope)
+            Signal::Column { t: ts, v, rate } => {
+                let (value, slope) = interpolate(ts, v, t);
+                match rate {
+                    Some(r) if (ts[0]..=ts[ts.len() - 1]).contains(&t) => {
+                        (value, interpolate(ts, r, t).0)
+                    }
+                    Some(_) => (value, 0.0),
+                    None => (value, slope),
                 }
             }
         }
     }
 }
 
-/// What drives one actuator.
-enum Drive {
-    Zero,
-    Open(Signal),
-    /// PD gains on the coordinate the actuator drives, towards its target.
-    Pd {
-        coordinate: usize,
-        kp: f64,
-        kd: f64,
-        target: Signal,
-    },
+/// The samples `v` at times `ts` interpolated linearly at `t` and held
+/// constant outside: the value and the slope (zero outside).
+fn interpolate(ts: &[f64], v: &[f64], t: f64) -> (f64, f64) {
+    let k = ts.partition_point(|&x| x <= t);
+    if k == 0 {
+        (v[0], 0.0)
+    } else if k == ts.len() {
+        (v[k - 1], 0.0)
+    } else {
+        let slope = (v[k] - v[k - 1]) / (ts[k] - ts[k - 1]);
+        (v[k - 1] + slope * (t - ts[k - 1]), slope)
+    }
+}
+
+/// What drives one actuator: an open-loop input (zero if none) plus PD
+/// feedback, if given.
+#[derive(Default)]
+struct Drive {
+    open: Option<Signal>,
+    pd: Option<Pd>,
+}
+
+/// PD gains on the coordinate an actuator drives, towards its target.
+struct Pd {
+    coordinate: usize,
+    kp: f64,
+    kd: f64,
+    target: Signal,
 }
 
 /// Everything the run needs, checked.
@@ -349,9 +381,10 @@ fn drives(
             .map(Signal::Function)
             .map_err(|e| format!("{option}: {e}"))
     };
-    let mut drives: Vec<Drive> = actuators.iter().map(|_| Drive::Zero).collect();
+    let mut drives: Vec<Drive> = actuators.iter().map(|_| Drive::default()).collect();
+    // Where each actuator's open-loop input was given.
     let mut given: Vec<Option<String>> = vec![None; actuators.len()];
-    let mut set = |j: usize, by: String, drive: Drive, drives: &mut Vec<Drive>| {
+    let mut set = |j: usize, by: String, signal: Signal, drives: &mut Vec<Drive>| {
         if let Some(before) = &given[j] {
             return Err(format!(
                 "actuator `{}` is given twice ({before} and {by})",
@@ -359,19 +392,14 @@ fn drives(
             ));
         }
         given[j] = Some(by);
-        drives[j] = drive;
+        drives[j].open = Some(signal);
         Ok(())
     };
     for text in &args.inputs_expr {
         let (name, expr) = assignment("--input", text)?;
         let j = actuator(&format!("--input `{text}`"), name)?;
         let signal = function(&format!("--input {name}"), expr)?;
-        set(
-            j,
-            format!("--input {name}"),
-            Drive::Open(signal),
-            &mut drives,
-        )?;
+        set(j, format!("--input {name}"), signal, &mut drives)?;
     }
     let mut targets: Vec<Option<(String, Signal)>> = coordinates.iter().map(|_| None).collect();
     if let Some(path) = &args.inputs_csv {
@@ -385,22 +413,47 @@ fn drives(
                 list(&actuators)
             ));
         }
+        // A coordinate's rate column, `<coordinate>_dot`.
+        let rate_of = |name: &str| {
+            let c = name.strip_suffix("_dot")?;
+            coordinates.iter().position(|x| *x == c)
+        };
+        let mut rates = Vec::new();
         for name in table.columns.iter().filter(|c| *c != "t") {
             let v = table.column(name)?;
-            let signal = Signal::Column { t: t.clone(), v };
             let by = format!("column `{name}` of {file}");
+            let signal = Signal::Column {
+                t: t.clone(),
+                v,
+                rate: None,
+            };
             if let Some(j) = actuators.iter().position(|a| a == name) {
-                set(j, by, Drive::Open(signal), &mut drives)?;
+                set(j, by, signal, &mut drives)?;
             } else if let Some(i) = coordinates.iter().position(|c| c == name) {
                 targets[i] = Some((by, signal));
+            } else if let Some(i) = rate_of(name) {
+                rates.push((i, table.column(name)?));
             } else {
                 return Err(format!(
                     "{file}: column `{name}` is neither an actuator nor a coordinate of `{}` \
-                     (actuators: {}; coordinates: {})",
+                     nor a coordinate's rate `<coordinate>_dot` (actuators: {}; coordinates: \
+                     {})",
                     model.name(),
                     list(&actuators),
                     list(&coordinates)
                 ));
+            }
+        }
+        for (i, r) in rates {
+            match &mut targets[i] {
+                Some((_, Signal::Column { rate, .. })) => *rate = Some(r),
+                _ => {
+                    return Err(format!(
+                        "{file}: column `{}_dot` gives the rate of a target, but there is no \
+                         column `{}` with the target",
+                        coordinates[i], coordinates[i]
+                    ))
+                }
             }
         }
     }
@@ -426,6 +479,9 @@ fn drives(
     for text in &args.pd {
         let (name, gains) = assignment("--pd", text)?;
         let j = actuator(&format!("--pd `{text}`"), name)?;
+        if drives[j].pd.is_some() {
+            return Err(format!("--pd: actuator `{name}` is given twice"));
+        }
         let parsed_gains: Vec<f64> = gains
             .split(',')
             .map(|g| g.trim().parse::<f64>())
@@ -452,13 +508,12 @@ fn drives(
                 coordinates[coordinate], coordinates[coordinate], coordinates[coordinate]
             ));
         };
-        let drive = Drive::Pd {
+        drives[j].pd = Some(Pd {
             coordinate,
             kp,
             kd,
             target,
-        };
-        set(j, format!("--pd {name}"), drive, &mut drives)?;
+        });
     }
     if let Some((i, (by, _))) = targets
         .iter()
@@ -547,14 +602,8 @@ impl Setup<'_> {
         let mut joints = DVector::<usize>::zeros(nu.0);
         let (mut kp, mut kd) = (DVector::zeros(nu.0), DVector::zeros(nu.0));
         for (j, d) in self.drives.iter().enumerate() {
-            if let Drive::Pd {
-                coordinate,
-                kp: p,
-                kd: d,
-                ..
-            } = d
-            {
-                (joints[j], kp[j], kd[j]) = (*coordinate, *p, *d);
+            if let Some(pd) = &d.pd {
+                (joints[j], kp[j], kd[j]) = (pd.coordinate, pd.kp, pd.kd);
             }
         }
         let drives = &self.drives;
@@ -565,8 +614,8 @@ impl Setup<'_> {
                 acceleration: DVector::zeros(nu.0),
             };
             for (j, d) in drives.iter().enumerate() {
-                if let Drive::Pd { target: s, .. } = d {
-                    (target.position[j], target.velocity[j]) = s.at(t);
+                if let Some(pd) = &d.pd {
+                    (target.position[j], target.velocity[j]) = pd.target.at(t);
                 }
             }
             target
@@ -577,7 +626,7 @@ impl Setup<'_> {
         let open = FromFn(|t: f64| {
             let mut u = DVector::zeros(nu.0);
             for (j, d) in drives.iter().enumerate() {
-                if let Drive::Open(s) = d {
+                if let Some(s) = &d.open {
                     u[j] = s.at(t).0;
                 }
             }
@@ -618,9 +667,13 @@ impl Setup<'_> {
                 g.max_iterations = max_sweeps;
                 run.go(with(g, doubled(4)), &closed, &open, state)
             }
-            Integrator::GenAlpha { rho_inf } => {
+            Integrator::GenAlpha {
+                rho_inf,
+                filter_start,
+            } => {
                 let config = GeneralizedAlphaConfig {
                     rho_inf,
+                    filter_start,
                     ..GeneralizedAlphaConfig::default()
                 };
                 let g = GeneralizedAlphaOf::new(settings, config);
@@ -661,7 +714,7 @@ enum Integrator {
     Rk4,
     SemiImplicitEuler,
     GaussLegendre { max_sweeps: u32 },
-    GenAlpha { rho_inf: f64 },
+    GenAlpha { rho_inf: f64, filter_start: bool },
 }
 
 impl Integrator {
@@ -691,6 +744,9 @@ impl Integrator {
         if args.rho_inf.is_some() && name != "gen-alpha" {
             return ignored("--rho-inf", "gen-alpha", "numerical damping");
         }
+        if args.unfiltered_start && name != "gen-alpha" {
+            return ignored("--unfiltered-start", "gen-alpha", "start");
+        }
         if args.max_sweeps.is_some() && name != "gauss-legendre" {
             return ignored(
                 "--max-sweeps",
@@ -719,7 +775,10 @@ impl Integrator {
                 if !(0.0..=1.0).contains(&rho_inf) {
                     return Err(format!("--rho-inf must lie in [0, 1], got {rho_inf}"));
                 }
-                Integrator::GenAlpha { rho_inf }
+                Integrator::GenAlpha {
+                    rho_inf,
+                    filter_start: !args.unfiltered_start,
+                }
             }
             _ => {
                 let tolerance = args.tolerance.unwrap_or(1e-8);

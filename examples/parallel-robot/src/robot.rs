@@ -1053,7 +1053,9 @@ where
     let mut phi_t = SVector::<f64, NC>::zeros();
     model.constraint_jacobian(&q, t, &mut phi_q);
     model.constraint_time_derivative(&q, t, &mut phi_t);
-    let qd = flexdyn::prescribed_motion::needed_velocities(&phi_q, &phi_t, &layout.platform, &v, t)
+    // The platform's rows: its coordinates' rates are `v`.
+    let y_q = SMatrix::<f64, 3, NQ>::from_fn(|r, c| f64::from(u8::from(layout.platform[r] == c)));
+    let qd = flexdyn::prescribed_motion::needed_velocities(&phi_q, &phi_t, &y_q, &v.into(), t)
         .map_err(|e| format!("initial state: {e}"))?;
     let state = flexdyn_runtime::State::new(q, qd, t);
     let drift = flexdyn_runtime::constraint_drift(model, &state);

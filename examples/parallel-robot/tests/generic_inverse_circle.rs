@@ -5,7 +5,9 @@
 //! (exact inverse dynamics both) and on the flexible robot, where both
 //! integrate the elastic coordinates by the runtime's `servo_run`
 //! (generalized-alpha, trial step unprojected) from the static equilibrium,
-//! the generic command with `--free-rates zero` (the robot's start).
+//! the generic command with `--free-rates zero` (the robot's start); there
+//! also with the circle prescribed on the platform's marker `end_effector`
+//! (task space).
 
 use std::path::{Path, PathBuf};
 
@@ -28,12 +30,25 @@ fn here(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
 }
 
-/// The generic command's torques `tau_1..3` and times.
+/// The generic command's torques `tau_1..3` and times, the circle from the
+/// motion file.
 fn generic(
     scene: &str,
     duration: f64,
     dt: f64,
     free_rates: FreeRates,
+) -> (Vec<f64>, Vec<[f64; 3]>) {
+    generic_prescribed(scene, duration, dt, free_rates, &[])
+}
+
+/// [`generic`] with `prescribe` given (`NAME=EXPR`) in place of the motion
+/// file, when not empty.
+fn generic_prescribed(
+    scene: &str,
+    duration: f64,
+    dt: f64,
+    free_rates: FreeRates,
+    prescribe: &[&str],
 ) -> (Vec<f64>, Vec<[f64; 3]>) {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("inverse.csv");
@@ -43,8 +58,8 @@ fn generic(
         duration,
         dt,
         max_steps: flexdyn::steps::MAX_STEPS,
-        prescribe: vec![],
-        motion: Some(here("motions/circle.toml")),
+        prescribe: prescribe.iter().map(|p| p.to_string()).collect(),
+        motion: prescribe.is_empty().then(|| here("motions/circle.toml")),
         prescriptions: None,
         initial: Some(here(&format!("motions/circle_start_{scene}.json"))),
         free_rates,
@@ -109,39 +124,28 @@ fn flexible_robot_circle_torques_match_the_robot_inverse() {
     assert!(d <= 1e-9, "{d}");
 }
 
-/// The same circle prescribed on the platform's marker `end_effector` is
-/// refused with a clear error: with the elastic coordinates left free,
-/// task-space prescriptions are not supported yet.
+/// The same circle prescribed on the platform's marker `end_effector` (at
+/// the platform's centre: its world coordinates are `px`, `py`, `pz`, so the
+/// prescription is the same motion) in task space, the elastic coordinates
+/// integrated as servo outputs are: the robot's torques to 1e-9 N m.
 #[test]
-fn a_circle_on_the_end_effector_marker_of_the_flexible_robot_is_refused_clearly() {
-    let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("inverse.csv");
-    let args = Args {
-        scene: here("scenes/parallel_robot_flexible.toml"),
-        interpret: false,
-        duration: 0.1,
-        dt: 0.005,
-        max_steps: flexdyn::steps::MAX_STEPS,
-        prescribe: [
+fn flexible_robot_circle_on_the_end_effector_marker_matches_the_robot_inverse() {
+    let (t, tau) = generic_prescribed(
+        "flexible",
+        0.2,
+        0.005,
+        FreeRates::Zero,
+        &[
             "end_effector_x=0.1*cos(2*t)",
             "end_effector_y=0.1*sin(2*t)",
             "end_effector_z=0.7",
-        ]
-        .map(String::from)
-        .to_vec(),
-        motion: None,
-        prescriptions: None,
-        initial: None,
-        free_rates: FreeRates::Zero,
-        csv: csv.clone(),
-        quiet: true,
-    };
-    let e = run(&args, &ROBOT_SCENES).unwrap_err();
-    assert!(
-        e.contains("`end_effector_x`") && e.contains("not yet") && e.contains("39 coordinates"),
-        "{e}"
+        ],
     );
-    assert!(!csv.exists());
+    assert_eq!(t.len(), 41);
+    let reference = robot_inverse(&ParallelRobotFlexible::default(), &t);
+    let d = largest_difference(&tau, &reference);
+    println!("flexible robot, marker circle: largest torque difference {d:.3e} N m");
+    assert!(d <= 1e-9, "{d}");
 }
 
 /// The generic command's own default, elastic rates of least kinetic

@@ -30,8 +30,8 @@ mod servo;
 pub use feedback::{Feedback, FeedbackLaw};
 pub use pd::{JointPd, JointPdOf};
 pub use servo::{
-    servo_run, Coordinates, Outputs, Servo, ServoConfig, ServoSample, ServoSampleOf, ServoSolution,
-    ServoSolutionOf, ServoSummary,
+    servo_run, Coordinates, OutputTerms, Outputs, Servo, ServoConfig, ServoSample, ServoSampleOf,
+    ServoSolution, ServoSolutionOf, ServoSummary,
 };
 
 use crate::scalar::Scalar;

@@ -11,11 +11,13 @@
 //! ```text
 //! [ M      -Phi_q^T  -B ] [qdd   ]   [ -h ]
 //! [ Phi_q   0         0 ] [lambda] = [ c  ]   c = gamma - 2 alpha dPhi/dt - beta^2 Phi
-//! [ Y_q     0         0 ] [u     ]   [ s  ]   s = yd'' + 2 alpha_s (yd' - Y_q qd)
-//!                                                  + beta_s^2 (y_d - y) - (dY_q/dt) qd
+//! [ Y_q     0         0 ] [u     ]   [ s  ]   s = yd'' + 2 alpha_s (yd' - y')
+//!                                                  + beta_s^2 (y_d - y) - a_y
 //! ```
 //!
-//! so that the output error `e = y_d - y` obeys `e'' + 2 alpha_s e' +
+//! with `y' = Y_q qd + dy/dt` and `a_y = y'' - Y_q qdd` the outputs' rates
+//! and convective accelerations (explicit time terms included: a marker on
+//! a frame that moves with time), so that the output error `e = y_d - y` obeys `e'' + 2 alpha_s e' +
 //! beta_s^2 e = 0`. It is solved by linearity: the constrained forward
 //! dynamics (the KKT solve of [`crate::accelerations`], a Schur complement
 //! on a Cholesky of `M`) gives `qdd = x_0 + P B u` with `x_0` the
@@ -68,8 +70,9 @@ use nalgebra::allocator::Allocator;
 use nalgebra::Dyn;
 use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SMatrix, SVector, U1};
 
-/// `N` outputs `y(q)` of a model with `Q` coordinates (each fixed or known
-/// at run time), with their Jacobian; [`Coordinates`] selects coordinates.
+/// `N` outputs `y(q, t)` of a model with `Q` coordinates (each fixed or
+/// known at run time), with their Jacobian; [`Coordinates`] selects
+/// coordinates.
 pub trait Outputs<Q: Dim, N: Dim, T: Scalar = f64>
 where
     DefaultAllocator: Allocator<Q> + Allocator<N> + Allocator<N, Q>,
@@ -84,16 +87,43 @@ where
         Ok(())
     }
 
-    /// Writes `y(q)`, `Y_q = dy/dq` and the convective term `(dY_q/dt) qd`
-    /// (so that `y'' = Y_q qdd + (dY_q/dt) qd`). Every output is written.
-    fn evaluate(
-        &self,
-        q: &OVector<T, Q>,
-        qd: &OVector<T, Q>,
-        y: &mut OVector<T, N>,
-        y_q: &mut OMatrix<T, N, Q>,
-        convective: &mut OVector<T, N>,
-    );
+    /// Writes every entry of `out` at `(q, qd, t)`: the outputs, their rates
+    /// (`Y_q qd` plus any explicit time derivative), `Y_q = dy/dq` and the
+    /// convective term, so that `y'' = Y_q qdd + convective`.
+    fn evaluate(&self, q: &OVector<T, Q>, qd: &OVector<T, Q>, t: T, out: &mut OutputTerms<T, Q, N>);
+}
+
+/// What [`Outputs::evaluate`] writes, `N` outputs of a model with `Q`
+/// coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutputTerms<T: Scalar, Q: Dim, N: Dim>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, Q>,
+{
+    /// The outputs `y`.
+    pub y: OVector<T, N>,
+    /// Their rates `y' = Y_q qd + dy/dt`.
+    pub rate: OVector<T, N>,
+    /// Their Jacobian `Y_q = dy/dq`.
+    pub y_q: OMatrix<T, N, Q>,
+    /// The accelerations' part without `qdd`: `y'' - Y_q qdd`.
+    pub convective: OVector<T, N>,
+}
+
+impl<T: Scalar, Q: Dim, N: Dim> OutputTerms<T, Q, N>
+where
+    DefaultAllocator: Allocator<N> + Allocator<N, Q>,
+{
+    /// Zeros for `n` outputs of `q` coordinates.
+    pub fn zeros(q: Q, n: N) -> Self {
+        let y = OVector::<T, N>::zeros_generic(n, U1);
+        OutputTerms {
+            rate: y.clone(),
+            convective: y.clone(),
+            y,
+            y_q: OMatrix::<T, N, Q>::zeros_generic(n, q),
+        }
+    }
 }
 
 /// Prescribed coordinates: output `k` is `q[self.0[k]]` (`Y_q` selects, no
@@ -124,21 +154,21 @@ where
     fn evaluate(
         &self,
         q: &OVector<T, Q>,
-        _qd: &OVector<T, Q>,
-        y: &mut OVector<T, N>,
-        y_q: &mut OMatrix<T, N, Q>,
-        convective: &mut OVector<T, N>,
+        qd: &OVector<T, Q>,
+        _t: T,
+        out: &mut OutputTerms<T, Q, N>,
     ) {
-        y_q.fill(T::zero());
-        convective.fill(T::zero());
+        out.y_q.fill(T::zero());
+        out.convective.fill(T::zero());
         for (k, &i) in self.0.as_ref().iter().enumerate() {
             // Validated indices; an invalid one gives NaN, never a panic.
-            match q.get(i) {
-                Some(&qi) => {
-                    y[k] = qi;
-                    y_q[(k, i)] = T::one();
+            match (q.get(i), qd.get(i)) {
+                (Some(&qi), Some(&qdi)) => {
+                    out.y[k] = qi;
+                    out.rate[k] = qdi;
+                    out.y_q[(k, i)] = T::one();
                 }
-                None => y[k] = T::NAN,
+                _ => (out.y[k], out.rate[k]) = (T::NAN, T::NAN),
             }
         }
     }
@@ -359,15 +389,18 @@ impl<'a, M: ?Sized, O, P, N: Dim, T: Scalar> Servo<'a, M, O, P, N, T> {
             xb.set_column(j, &x);
             mub.set_column(j, &mu);
         }
-        let mut y = OVector::<T, N>::zeros_generic(np, U1);
-        let mut y_q = OMatrix::<T, N, Q>::zeros_generic(np, nq);
-        let mut convective = y.clone();
-        self.outputs
-            .evaluate(q, qd, &mut y, &mut y_q, &mut convective);
-        for o in [&y, &convective] {
+        let mut out = OutputTerms::zeros(nq, np);
+        self.outputs.evaluate(q, qd, t, &mut out);
+        for o in [&out.y, &out.rate, &out.convective] {
             eval::check(o, Quantity::Outputs, t)?;
         }
-        eval::check(&y_q, Quantity::Outputs, t)?;
+        eval::check(&out.y_q, Quantity::Outputs, t)?;
+        let OutputTerms {
+            y,
+            rate,
+            y_q,
+            convective,
+        } = out;
         let target: TargetOf<T, N> = self.path.at(t);
         for (x, quantity) in [
             (&target.position, Quantity::PrescribedPosition),
@@ -385,7 +418,7 @@ impl<'a, M: ?Sized, O, P, N: Dim, T: Scalar> Servo<'a, M, O, P, N, T> {
         }
         let gains = &self.config.output_gains;
         let s = target.acceleration
-            + (target.velocity - &y_q * qd) * T::of(2.0 * gains.alpha)
+            + (target.velocity - rate) * T::of(2.0 * gains.alpha)
             + (target.position - y) * T::of(gains.beta * gains.beta)
             - convective;
         // Scales: the M^-1-norms of the output gradients and of the
