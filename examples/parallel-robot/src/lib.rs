@@ -23,3 +23,12 @@ pub mod scenes {
 pub mod perturbed_scenes {
     include!(concat!(env!("OUT_DIR"), "/perturbed/scenes.rs"));
 }
+
+/// The robot scenes compiled into this crate, for the generic commands
+/// (`flexdyn::cli::eval`, `simulate`, `inverse`) run on them.
+pub const COMPILED_SCENES: flexdyn::compiled::Compiled = flexdyn::compiled::Compiled {
+    scenes: scenes::SCENES,
+    model: scenes::model,
+    perturbed_scenes: perturbed_scenes::SCENES,
+    perturbed_model: perturbed_scenes::model,
+};

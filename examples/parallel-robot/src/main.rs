@@ -18,13 +18,10 @@ struct Cli {
     command: Command,
 }
 
-/// The robot scenes compiled into this binary, for `eval`.
-const ROBOT_SCENES: flexdyn::compiled::Compiled = flexdyn::compiled::Compiled {
-    scenes: robot_crate::scenes::SCENES,
-    model: robot_crate::scenes::model,
-    perturbed_scenes: robot_crate::perturbed_scenes::SCENES,
-    perturbed_model: robot_crate::perturbed_scenes::model,
-};
+/// The default `--max-steps` of the robot's commands, which keep every row
+/// in memory (the generic `flexdyn` commands stream theirs, and allow
+/// [`flexdyn::steps::MAX_STEPS`]).
+const ROWS_IN_MEMORY: u64 = 1_000_000;
 
 #[derive(Subcommand)]
 enum Command {
@@ -47,8 +44,10 @@ enum Command {
         /// Output step, s.
         #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
         dt: f64,
-        /// Largest number of steps of --dt in --duration (refused beyond).
-        #[arg(long, default_value_t = flexdyn::steps::MAX_STEPS)]
+        /// Largest number of steps of --dt in --duration (refused beyond;
+        /// 10^6 unless given: the robot's commands keep their rows in
+        /// memory, for the plot and the state file).
+        #[arg(long, default_value_t = ROWS_IN_MEMORY)]
         max_steps: u64,
         /// Radius of the circle, m.
         #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
@@ -107,8 +106,10 @@ enum Command {
         /// Integration step, s.
         #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
         dt: f64,
-        /// Largest number of steps of --dt in --duration (refused beyond).
-        #[arg(long, default_value_t = flexdyn::steps::MAX_STEPS)]
+        /// Largest number of steps of --dt in --duration (refused beyond;
+        /// 10^6 unless given: the robot's commands keep their rows in
+        /// memory, for the plot and the state file).
+        #[arg(long, default_value_t = ROWS_IN_MEMORY)]
         max_steps: u64,
         /// Output step, s (a multiple of --dt).
         #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
@@ -160,7 +161,7 @@ fn main() -> ExitCode {
             scenes,
             quiet,
         } => report(&out, quick, repeats, &scenes, quiet),
-        Command::Eval(args) => cli::eval::run(&args, &ROBOT_SCENES),
+        Command::Eval(args) => cli::eval::run(&args, &robot_crate::COMPILED_SCENES),
         Command::Inverse {
             scene,
             omega,

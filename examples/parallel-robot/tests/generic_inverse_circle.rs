@@ -12,19 +12,12 @@
 use std::path::{Path, PathBuf};
 
 use flexdyn::cli::inverse::{run, Args};
-use flexdyn::compiled::Compiled;
 use flexdyn::prescribed_motion::FreeRates;
 use flexdyn::table::Table;
 use flexdyn_parallel_robot::robot::{inverse_rows, Circle, Geometry};
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible::ParallelRobotFlexible;
 use flexdyn_parallel_robot::scenes::parallel_robot_rigid::ParallelRobotRigid;
-
-const ROBOT_SCENES: Compiled = Compiled {
-    scenes: flexdyn_parallel_robot::scenes::SCENES,
-    model: flexdyn_parallel_robot::scenes::model,
-    perturbed_scenes: flexdyn_parallel_robot::perturbed_scenes::SCENES,
-    perturbed_model: flexdyn_parallel_robot::perturbed_scenes::model,
-};
+use flexdyn_parallel_robot::COMPILED_SCENES;
 
 fn here(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -66,7 +59,7 @@ fn generic_prescribed(
         csv: csv.clone(),
         quiet: true,
     };
-    run(&args, &ROBOT_SCENES).unwrap();
+    run(&args, &COMPILED_SCENES).unwrap();
     let table = Table::read(&csv).unwrap();
     let tau: Vec<Vec<f64>> = ["tau_1", "tau_2", "tau_3"]
         .iter()

@@ -16,7 +16,6 @@
 use std::path::{Path, PathBuf};
 
 use flexdyn::cli::simulate::{run, Args};
-use flexdyn::compiled::Compiled;
 use flexdyn::table::Table;
 use flexdyn_parallel_robot::robot::{
     initial_state, inverse_rows, simulate_rows, Circle, Geometry, Layout, PdSettings, Scheme,
@@ -24,13 +23,7 @@ use flexdyn_parallel_robot::robot::{
 };
 use flexdyn_parallel_robot::scenes::parallel_robot_flexible::ParallelRobotFlexible;
 use flexdyn_parallel_robot::scenes::parallel_robot_rigid::ParallelRobotRigid;
-
-const ROBOT_SCENES: Compiled = Compiled {
-    scenes: flexdyn_parallel_robot::scenes::SCENES,
-    model: flexdyn_parallel_robot::scenes::model,
-    perturbed_scenes: flexdyn_parallel_robot::perturbed_scenes::SCENES,
-    perturbed_model: flexdyn_parallel_robot::perturbed_scenes::model,
-};
+use flexdyn_parallel_robot::COMPILED_SCENES;
 
 fn here(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
@@ -121,7 +114,7 @@ fn generic_simulate_reproduces_the_flexible_robots_deviation_under_rigid_torques
         columns: vec![],
         quiet: true,
     };
-    run(&args, &ROBOT_SCENES).unwrap();
+    run(&args, &COMPILED_SCENES).unwrap();
     let out = Table::read(&csv).unwrap();
     let marker: Vec<Vec<f64>> = ["x", "y", "z"]
         .iter()

@@ -330,7 +330,13 @@ where
     let mut rho2 = T::zero();
     for _ in 0..RATE_ITERATIONS {
         let n = norm(&dq, &dv);
-        if !(n > T::zero() && n.is_finite()) {
+        if n == T::zero() {
+            // The iterate vanished: `J^2` maps the start (which has a part
+            // along every direction) to zero, no mode at all (a free motion,
+            // or forces constant near the state).
+            return Some(T::zero());
+        }
+        if !n.is_finite() {
             return None;
         }
         (dq, dv) = (dq / n, dv / n);
