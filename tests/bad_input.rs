@@ -506,3 +506,46 @@ fn times_in_messages_have_bounded_digits() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("t = 1e300 s") && err.len() < 200, "{err}");
 }
+
+#[test]
+fn constraint_sets_without_a_solution_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = p(d, "o.csv");
+    // Contradicting rows: refused at generation, located, naming the row
+    // that depends on the others.
+    let contradicting = data("contradicting_constraints.toml");
+    let simulate = |scene: &str| -> Vec<String> {
+        ["simulate", "--scene", scene, "--duration", "1", "--csv", &o]
+            .map(String::from)
+            .to_vec()
+    };
+    let args = simulate(&contradicting);
+    let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    refused(
+        d,
+        &[],
+        &args,
+        "contradicting_constraints.toml:17:14: in constraint `c2`: the constraints cannot all hold",
+    );
+    generate_refused(
+        "contradicting_constraints.toml",
+        &[],
+        &[
+            "Jacobian rows of `c2` are combinations",
+            "contradicts itself",
+        ],
+    );
+    // One row with no real solution: the start cannot be projected, and
+    // the message says the residual stays where the row vanishes.
+    let unsolvable = data("unsolvable_constraint.toml");
+    let args = simulate(&unsolvable);
+    let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    refused(
+        d,
+        &[],
+        &args,
+        "the Jacobian rows of `c1` vanish or are combinations of the rows before them, where \
+         the residual of `c1` is 1e0, not zero: the constraints have no solution near this state",
+    );
+}

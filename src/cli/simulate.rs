@@ -955,15 +955,27 @@ fn singular_rows(
         .filter(|(d, _)| **d)
         .map(|(_, name)| format!("`{name}`"))
         .collect();
-    match rows.is_empty() {
-        true => String::new(),
-        false => format!(
-            " (at t = {} s the Jacobian rows of {} vanish or are combinations of the rows before them: a \
-             singular configuration of the mechanism)",
-            Time(state.t),
-            rows.join(", ")
-        ),
+    if rows.is_empty() {
+        return String::new();
     }
+    // Off the constraints as well: the iteration stalled where the rows
+    // lose rank, short of a solution.
+    let phi = vector(model.nc(), |o| model.constraints(q, state.t, o));
+    let worst = phi.iamax();
+    let meaning = match phi.get(worst) {
+        Some(r) if r.abs() > 1e-6 => format!(
+            ", where the residual of `{}` is {r:e}, not zero: the constraints have no solution \
+             near this state, or meet only at a singular configuration",
+            constraints.get(worst).map_or("?", |c| c.as_str())
+        ),
+        _ => ": a singular configuration of the mechanism".to_owned(),
+    };
+    format!(
+        " (at t = {} s the Jacobian rows of {} vanish or are combinations of the rows before \
+         them{meaning})",
+        Time(state.t),
+        rows.join(", ")
+    )
 }
 
 /// The time loop and its output.
