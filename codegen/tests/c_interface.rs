@@ -2,14 +2,16 @@
 //! the four-bar and the rigid parallel robot, generated with their
 //! `extern "C"` wrappers, are built as a static library in a throwaway
 //! crate; a C program compiled with the system C compiler includes the
-//! generated headers, calls the model terms and the inverse dynamics through
-//! them and prints every result bit for bit. A Rust program calling the same
+//! generated headers, calls the model terms, the four-bar's marker
+//! kinematics (pose, Jacobian, velocity, acceleration bias, by the index
+//! macro the header defines) and the inverse dynamics through them and
+//! prints every result bit for bit. A Rust program calling the same
 //! models through the `Model` trait (and the runtime's `InverseDynamics`)
 //! must print exactly the same bits, matrices row-major as the header says;
 //! the pendulum's mass also matches its closed form `m l^2` with parameters
 //! passed from C in the header's order. The C program also checks the
 //! status codes: null pointers, non-finite inputs, invalid prescribed
-//! coordinates and an unreachable pose.
+//! coordinates, a marker index out of range and an unreachable pose.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -104,6 +106,23 @@ int main(void) {
     TERMS(four_bar, FOUR_BAR, NULL);
     TERMS(parallel_robot_rigid, PARALLEL_ROBOT_RIGID, NULL);
 
+    /* The four-bar's marker: pose, Jacobian, velocity and acceleration
+       bias; an index out of range is refused. */
+    {
+        double q[FOUR_BAR_NQ] = {0.4, 0.9, -0.2}, qd[FOUR_BAR_NQ] = {0.3, -0.1, 0.5};
+        double position[3], rotation[9], jacobian[6 * FOUR_BAR_NQ], velocity[6], bias[6];
+        int s = four_bar_marker_jacobian(NULL, FOUR_BAR_MARKER_coupler_mid, q, 0.3, position, rotation, jacobian);
+        s |= four_bar_marker_motion(NULL, FOUR_BAR_MARKER_coupler_mid, q, qd, 0.3, velocity, bias);
+        print("four_bar.marker.position", position, 3);
+        print("four_bar.marker.rotation", rotation, 9);
+        print("four_bar.marker.jacobian", jacobian, 6 * FOUR_BAR_NQ);
+        print("four_bar.marker.velocity", velocity, 6);
+        print("four_bar.marker.acceleration_bias", bias, 6);
+        printf("status four_bar.marker %d\n", s);
+        printf("status marker_out_of_range %d\n",
+               four_bar_marker_pose(NULL, FOUR_BAR_NM, q, 0.3, position, rotation));
+    }
+
     size_t prescribed[PARALLEL_ROBOT_RIGID_NP] = {9, 10, 11};
     double q[PARALLEL_ROBOT_RIGID_NQ] = {Q0};
     double CIRCLE;
@@ -175,6 +194,19 @@ fn main() {
     terms("four_bar", &four_bar::FourBar);
     let robot = parallel_robot_rigid::ParallelRobotRigid;
     terms("parallel_robot_rigid", &robot);
+    let bar = four_bar::FourBar;
+    let q = SVector::from([0.4, 0.9, -0.2]);
+    let qd = SVector::from([0.3, -0.1, 0.5]);
+    let (mut position, mut rotation) = (SVector::<f64, 3>::zeros(), SMatrix::<f64, 3, 3>::zeros());
+    let mut jacobian = SMatrix::<f64, 6, 3>::zeros();
+    let (mut velocity, mut bias) = (SVector::<f64, 6>::zeros(), SVector::<f64, 6>::zeros());
+    assert!(bar.marker_jacobian(0, &q, 0.3, &mut position, &mut rotation, &mut jacobian));
+    assert!(bar.marker_motion(0, &q, &qd, 0.3, &mut velocity, &mut bias));
+    print("four_bar.marker.position", &position);
+    print("four_bar.marker.rotation", &rotation);
+    print("four_bar.marker.jacobian", &jacobian);
+    print("four_bar.marker.velocity", &velocity);
+    print("four_bar.marker.acceleration_bias", &bias);
     const Q0: [f64; 12] = [Q0];
     const CIRCLE;
     let mut solver = InverseDynamics::<12, 9, 3, 3>::new([9, 10, 11], SVector::from(Q0), InverseConfig::default()).unwrap();
@@ -316,6 +348,8 @@ fn c_program_gets_the_rust_results_through_the_generated_header() {
             "pendulum.terms 0",
             "four_bar.terms 0",
             "parallel_robot_rigid.terms 0",
+            "four_bar.marker 0",
+            "marker_out_of_range 3",
             "inverse 0",
             "null_q 1",
             "null_out 1",
