@@ -162,6 +162,20 @@ fn coulomb_block_decelerates_at_mu_g_and_stops_after_v0_squared_over_2_mu_g() {
         .expect_err("the switch at rest is refused");
     eprintln!("the step at rest: {e}");
     assert_eq!(s, before);
+    // Gauss-Legendre at the same state: its stage iteration fails, and the
+    // message blames the switch, not a mode or too few sweeps.
+    let mut gl_state = before;
+    let gl = GaussLegendre4::default()
+        .step(&model, &mut gl_state, &push, dt)
+        .expect_err("the switch at rest stops Gauss-Legendre too");
+    eprintln!("Gauss-Legendre at rest: {gl}");
+    assert!(
+        matches!(gl.kind, ErrorKind::StageIterationFailed { .. })
+            && gl
+                .to_string()
+                .contains("the forces change abruptly within the step"),
+        "{gl}"
+    );
     // Named for what it is: no mode of the model linearised at rest is near
     // the stages' rate, so the message blames the switch, not a mode.
     assert!(

@@ -176,11 +176,12 @@ pub enum ErrorKind {
         /// True when the increments grew (divergence), false when the sweep
         /// cap ran out on a slowly contracting iteration.
         diverged: bool,
-        /// Divergence only: the spectral radius `rho(J)` (rad/s) of the model
-        /// linearised at the state, from the power iteration of
-        /// [`crate::Rk4`]'s refusal, so that the message names the fastest
-        /// mode and a step that lets the iteration contract; `None` when
-        /// it could not be measured.
+        /// The spectral radius `rho(J)` (rad/s) of the model linearised at
+        /// the state, from the power iteration of [`crate::Rk4`]'s refusal,
+        /// so that the message names the fastest mode and a step that lets
+        /// the iteration contract, or, where no mode comes near the
+        /// contraction limit, abrupt forces; `None` when it could not be
+        /// measured.
         rate: Option<f64>,
     },
     /// An iterative dense decomposition (Jacobi SVD) did not converge within
@@ -422,6 +423,12 @@ pub(crate) fn check_indices(
     Ok(())
 }
 
+/// What a refusal no mode explains means, and what to do.
+const ABRUPT: &str = "the forces change abruptly within the step (a switch such as sign, step, \
+                      abs, min or max of a coordinate or rate, for example Coulomb friction near \
+                      rest, or a sharply stiffening force), which smaller steps do not remove; \
+                      smooth the switch (docs/scene-format.md, Switches)";
+
 impl fmt::Display for ErrorKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
@@ -487,6 +494,18 @@ impl fmt::Display for ErrorKind {
                     dt, increment, sweeps, GAUSS_LEGENDRE_CONTRACTION_LIMIT
                 )?;
                 match rate {
+                    // No mode of the linearised model comes near the limit
+                    // at this step: not a stiffness the step can resolve.
+                    Some(rate)
+                        if dt * rate * crate::ABRUPT_RATIO < GAUSS_LEGENDRE_CONTRACTION_LIMIT =>
+                    {
+                        write!(
+                            f,
+                            ", but the model linearised at the state has no mode near that (the \
+                             fastest at {rate:.3e} rad/s, dt * omega = {:.3e}): {ABRUPT}",
+                            dt * rate
+                        )
+                    }
                     Some(rate) => write!(
                         f,
                         "; the fastest mode is at about {:.3e} rad/s ({:.3e} Hz), so steps must \
@@ -505,14 +524,29 @@ impl fmt::Display for ErrorKind {
                 sweeps,
                 increment,
                 diverged: false,
-                ..
-            } => write!(
-                f,
-                "Gauss-Legendre stage iteration did not converge in {} sweeps at step size {:e} \
-                 (scaled stage increment {:.3e} > tolerance 1): use a smaller step or allow more \
-                 sweeps",
-                sweeps, dt, increment
-            ),
+                rate,
+            } => {
+                write!(
+                    f,
+                    "Gauss-Legendre stage iteration did not converge in {} sweeps at step size \
+                     {:e} (scaled stage increment {:.3e} > tolerance 1)",
+                    sweeps, dt, increment
+                )?;
+                match rate {
+                    Some(rate)
+                        if dt * rate * crate::ABRUPT_RATIO < GAUSS_LEGENDRE_CONTRACTION_LIMIT =>
+                    {
+                        write!(
+                            f,
+                            ", although the model linearised at the state has no mode that \
+                             keeps it from contracting (the fastest at {rate:.3e} rad/s, dt * \
+                             omega = {:.3e}): {ABRUPT}",
+                            dt * rate
+                        )
+                    }
+                    _ => write!(f, ": use a smaller step or allow more sweeps"),
+                }
+            }
             ErrorKind::DecompositionNotConverged { sweeps } => {
                 write!(f, "Jacobi SVD did not converge in {} sweeps", sweeps)
             }
@@ -553,10 +587,7 @@ impl fmt::Display for ErrorKind {
                 f,
                 "step size {:e} refused by the explicit scheme: its stages see dt * rho(J) = \
                  {:.3e}, beyond its stability limit {:e}, but the model linearised at the state \
-                 has no mode faster than {:.3e} rad/s: the forces change abruptly within the \
-                 step (a switch such as sign, step, abs, min or max of a coordinate or rate, \
-                 for example Coulomb friction near rest, or a sharply stiffening force), which \
-                 smaller steps do not remove; smooth the switch (docs/scene-format.md, Switches)",
+                 has no mode faster than {:.3e} rad/s: {ABRUPT}",
                 dt, value, limit, linear_rate
             ),
             ErrorKind::StepSizeUnderflow { dt, min_step } => write!(

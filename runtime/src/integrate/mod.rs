@@ -400,11 +400,9 @@ where
                 }
             }
         }
-        ErrorKind::StageIterationFailed {
-            diverged: true,
-            rate,
-            ..
-        } => *rate = spectral_radius(model, dynamics, s, input).map(Into::into),
+        ErrorKind::StageIterationFailed { rate, .. } => {
+            *rate = spectral_radius(model, dynamics, s, input).map(Into::into)
+        }
         _ => {}
     }
     e
