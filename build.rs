@@ -1,7 +1,8 @@
 //! Regenerates the equations of every scene in `scenes/` into `$OUT_DIR`,
 //! and test-only copies of the pendulum, of a small-scale pendulum
-//! (`tests/casadi/small_pendulum.toml`) and of the four-bar (its marker's
-//! Jacobian) with one emitted coefficient perturbed by 1e-6 (relative),
+//! (`tests/casadi/small_pendulum.toml`), of the four-bar (its marker's
+//! Jacobian) and of the cart-pole (its inverse-dynamics derivatives) with one
+//! emitted coefficient perturbed by 1e-6 (relative),
 //! which `flexdyn eval --perturbed` evaluates and the CasADi validation must
 //! reject (`tests/casadi_validation.rs`).
 use flexdyn_codegen::Builder;
@@ -33,6 +34,11 @@ fn main() {
             // program, stay right).
             .scene("scenes/four_bar.toml")
             .perturb_coefficient("four_bar", "marker_jacobian", 5, 1e-6)
+            // Coefficient 12 of the cart-pole's inverse_dynamics_derivatives
+            // is the second -0.05 of `tau_q[(0, 1)]`: only `d tau/dq` is
+            // wrong (and through it the forward dynamics' `d qdd/dq`).
+            .scene("scenes/cart_pole.toml")
+            .perturb_coefficient("cart_pole", "inverse_dynamics_derivatives", 12, 1e-6)
             .out_dir(out.join("perturbed"))
             .generate()
     });

@@ -77,6 +77,16 @@ pub trait DynModel {
         h_q: &mut [f64],
         h_qd: &mut [f64],
     ) -> bool;
+    /// Inverse dynamics and its derivatives `d tau/dq`, `d tau/dqd` at
+    /// `qdd` (each `nq x nq`), when generated.
+    fn inverse_dynamics_derivatives(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        out: IdDerivatives<'_>,
+    ) -> bool;
     /// Marker names, in index order.
     fn markers(&self) -> Vec<&str>;
     /// Position (3) and rotation (3 x 3) of marker `marker`; `false`
@@ -111,6 +121,16 @@ pub struct MarkerPose<'a> {
     pub rotation: &'a mut [f64],
     /// Jacobian (6 x nq).
     pub jacobian: &'a mut [f64],
+}
+
+/// Where `inverse_dynamics_derivatives` writes `(tau, tau_q, tau_qd)`.
+pub struct IdDerivatives<'a> {
+    /// `tau = M qdd + h` (`nq`).
+    pub tau: &'a mut [f64],
+    /// `d tau / d q` (`nq x nq`).
+    pub tau_q: &'a mut [f64],
+    /// `d tau / d qd` (`nq x nq`).
+    pub tau_qd: &'a mut [f64],
 }
 
 /// Where `dynamics_terms` writes `(M, h, Phi_q, gamma)`.
@@ -291,6 +311,29 @@ where
             })
             .is_some()
     }
+    fn inverse_dynamics_derivatives(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        out: IdDerivatives<'_>,
+    ) -> bool {
+        let mut tau = SVector::<f64, NQ>::zeros();
+        let mut a = SMatrix::<f64, NQ, NQ>::zeros();
+        let mut b = SMatrix::<f64, NQ, NQ>::zeros();
+        let (q, qd, qdd) = (fixed(q), fixed(qd), fixed(qdd));
+        let given = self
+            .0
+            .inverse_dynamics_derivatives(&q, &qd, &qdd, t, &mut tau, &mut a, &mut b);
+        given
+            .then(|| {
+                store(&tau, out.tau);
+                store(&a, out.tau_q);
+                store(&b, out.tau_qd);
+            })
+            .is_some()
+    }
     fn markers(&self) -> Vec<&str> {
         M::MARKERS.to_vec()
     }
@@ -403,6 +446,24 @@ impl Equations<Dyn, Dyn, Dyn> for dyn DynModel + '_ {
             h_q.as_mut_slice(),
             h_qd.as_mut_slice(),
         )
+    }
+    fn inverse_dynamics_derivatives(
+        &self,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        t: f64,
+        tau: &mut DVector<f64>,
+        tau_q: &mut DMatrix<f64>,
+        tau_qd: &mut DMatrix<f64>,
+    ) -> bool {
+        let out = IdDerivatives {
+            tau: tau.as_mut_slice(),
+            tau_q: tau_q.as_mut_slice(),
+            tau_qd: tau_qd.as_mut_slice(),
+        };
+        let (q, qd, qdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+        DynModel::inverse_dynamics_derivatives(self, q, qd, qdd, t, out)
     }
     fn constraints_and_jacobian(
         &self,

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use std::collections::BTreeMap;
 
-use crate::dynamic::{matrix, vector, DynModel, Fused, MarkerPose};
+use crate::dynamic::{matrix, vector, DynModel, Fused, IdDerivatives, MarkerPose};
 use nalgebra::{DMatrix, DVector};
 
 /// One state to evaluate at.
@@ -19,6 +19,9 @@ pub struct State {
     /// Accelerations, for the inverse dynamics (zero when left out).
     #[serde(default)]
     pub qdd: Vec<f64>,
+    /// Actuator inputs, for the forward dynamics (zero when left out).
+    #[serde(default)]
+    pub tau: Vec<f64>,
     /// Time.
     #[serde(default)]
     pub t: f64,
@@ -89,6 +92,31 @@ pub struct Terms {
     /// `dh/dqd`, when generated.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub bias_jacobian_qd: Option<Vec<Vec<f64>>>,
+    /// `tau` as `inverse_dynamics_derivatives` computes it (with its
+    /// derivatives, sharing subexpressions), when generated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fused_inverse_dynamics: Option<Vec<f64>>,
+    /// `d tau / d q` of the inverse dynamics at the state's accelerations,
+    /// when the scene generates `dynamics_derivatives`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inverse_dynamics_q: Option<Vec<Vec<f64>>>,
+    /// `d tau / d qd`, likewise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inverse_dynamics_qd: Option<Vec<Vec<f64>>>,
+    /// The accelerations `M^-1 (B tau - h)` at the state's inputs, for an
+    /// unconstrained scene.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forward_dynamics: Option<Vec<f64>>,
+    /// `d qdd / d q` of the forward dynamics, for an unconstrained scene
+    /// that generates `dynamics_derivatives`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forward_dynamics_q: Option<Vec<Vec<f64>>>,
+    /// `d qdd / d qd`, likewise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forward_dynamics_qd: Option<Vec<Vec<f64>>>,
+    /// `d qdd / d tau` (`nq x nu`), likewise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forward_dynamics_tau: Option<Vec<Vec<f64>>>,
     /// Each marker's kinematics, by name.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub markers: BTreeMap<String, Marker>,
@@ -155,10 +183,40 @@ pub fn check_state(model: &dyn DynModel, s: &State, k: usize) -> Result<(), Stri
             s.qdd.len()
         ));
     }
-    if !(s.q.iter().chain(&s.qd).chain(&s.qdd).all(|x| x.is_finite()) && s.t.is_finite()) {
+    if !(s.tau.is_empty() || s.tau.len() == model.nu()) {
+        return Err(format!(
+            "state {k}: scene `{}` has {} actuators, got {} inputs `tau`",
+            model.name(),
+            model.nu(),
+            s.tau.len()
+        ));
+    }
+    let values = s.q.iter().chain(&s.qd).chain(&s.qdd).chain(&s.tau);
+    if !(values.into_iter().all(|x| x.is_finite()) && s.t.is_finite()) {
         return Err(format!("state {k}: non-finite value"));
     }
     Ok(())
+}
+
+/// One state read from a JSON file (`{"q": [..], "qd": [..], "t": 0}`,
+/// optionally `"params"`, `"qdd"`, `"tau"`), checked against `model`, with
+/// its runtime parameters set on `model`; errors name the file.
+pub fn read_state(path: &std::path::Path, model: &mut dyn DynModel) -> Result<State, String> {
+    let text = crate::table::read_input(path, "state file")?;
+    let s: State = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    check_state(model, &s, 0).map_err(|e| format!("{}: {e}", path.display()))?;
+    for (name, &value) in &s.params {
+        if !value.is_finite() || !model.set_parameter(name, value) {
+            return Err(format!(
+                "{}: `{name}` = {value} is not a runtime parameter value of scene `{}` \
+                 (runtime parameters: {})",
+                path.display(),
+                model.name(),
+                model.parameters().join(", ")
+            ));
+        }
+    }
+    Ok(s)
 }
 
 /// Evaluate every term at one state, with the state's runtime parameters
@@ -213,6 +271,27 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         s.qdd.clone()
     };
     let column = |m: DMatrix<f64>| m.as_slice().to_vec();
+    let (mut id, mut tau_q, mut tau_qd) = (
+        DVector::zeros(nq),
+        DMatrix::zeros(nq, nq),
+        DMatrix::zeros(nq, nq),
+    );
+    let out = IdDerivatives {
+        tau: id.as_mut_slice(),
+        tau_q: tau_q.as_mut_slice(),
+        tau_qd: tau_qd.as_mut_slice(),
+    };
+    let id_derivatives = model
+        .inverse_dynamics_derivatives(q, qd, &qdd, t, out)
+        .then_some((id, tau_q, tau_qd));
+    let tau = if s.tau.is_empty() {
+        vec![0.0; nu]
+    } else {
+        s.tau.clone()
+    };
+    let forward = (nc == 0)
+        .then(|| forward_dynamics(model, q, qd, t, &tau, id_derivatives.is_some()))
+        .transpose()?;
     let terms = Terms {
         mass_matrix: rows(&matrix(nq, nq, |o| model.mass_matrix(q, t, o))),
         bias: vec(nq, &|o| model.bias(q, qd, t, o)),
@@ -237,6 +316,21 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
             .map(|m| rows(&m)),
         bias_jacobian_q: jacobians.as_ref().map(|(h_q, _)| rows(h_q)),
         bias_jacobian_qd: jacobians.as_ref().map(|(_, h_qd)| rows(h_qd)),
+        fused_inverse_dynamics: id_derivatives
+            .as_ref()
+            .map(|(id, ..)| id.as_slice().to_vec()),
+        inverse_dynamics_q: id_derivatives.as_ref().map(|(_, a, _)| rows(a)),
+        inverse_dynamics_qd: id_derivatives.as_ref().map(|(.., b)| rows(b)),
+        forward_dynamics: forward.as_ref().map(|f| f.qdd.as_slice().to_vec()),
+        forward_dynamics_q: forward
+            .as_ref()
+            .and_then(|f| f.derivatives.as_ref().map(|d| rows(&d.0))),
+        forward_dynamics_qd: forward
+            .as_ref()
+            .and_then(|f| f.derivatives.as_ref().map(|d| rows(&d.1))),
+        forward_dynamics_tau: forward
+            .as_ref()
+            .and_then(|f| f.derivatives.as_ref().map(|d| rows(&d.2))),
         markers: model
             .markers()
             .into_iter()
@@ -252,6 +346,46 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
              scene's terms are finite numbers)"
         )),
         None => Ok(terms),
+    }
+}
+
+/// The forward dynamics of an unconstrained scene at one state, with their
+/// derivatives `(d qdd/dq, d qdd/dqd, d qdd/dtau)` where generated.
+struct Forward {
+    qdd: DVector<f64>,
+    derivatives: Option<(DMatrix<f64>, DMatrix<f64>, DMatrix<f64>)>,
+}
+
+/// [`Forward`] at `(q, qd, t)` with inputs `tau`, from the runtime's
+/// solvers (the derivatives when `derivatives`).
+fn forward_dynamics(
+    model: &dyn DynModel,
+    q: &[f64],
+    qd: &[f64],
+    t: f64,
+    tau: &[f64],
+    derivatives: bool,
+) -> Result<Forward, String> {
+    let (q, qd) = (
+        DVector::from_column_slice(q),
+        DVector::from_column_slice(qd),
+    );
+    let tau = DVector::from_column_slice(tau);
+    let failed = |e: flexdyn_runtime::Error| format!("forward dynamics: {e}");
+    if derivatives {
+        let d = flexdyn_runtime::forward_dynamics_derivatives(model, &q, &qd, t, &tau)
+            .map_err(failed)?;
+        Ok(Forward {
+            qdd: d.qdd,
+            derivatives: Some((d.qdd_q, d.qdd_qd, d.qdd_tau)),
+        })
+    } else {
+        let config = flexdyn_runtime::DynamicsConfig::default();
+        let a = flexdyn_runtime::accelerations(model, &config, &q, &qd, t, &tau).map_err(failed)?;
+        Ok(Forward {
+            qdd: a.qdd,
+            derivatives: None,
+        })
     }
 }
 

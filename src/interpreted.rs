@@ -9,7 +9,7 @@ use std::rc::Rc;
 
 use flexdyn_codegen::interpret::{Function, Interpreted, Tape};
 
-use crate::dynamic::{DynModel, Fused, MarkerPose};
+use crate::dynamic::{DynModel, Fused, IdDerivatives, MarkerPose};
 
 /// An interpreted scene with its runtime parameter values. Clones share
 /// the tapes.
@@ -214,6 +214,17 @@ impl DynModel for InterpretedModel {
         h_qd: &mut [f64],
     ) -> bool {
         self.run(Function::BiasJacobians, (q, qd, &[], t), &mut [h_q, h_qd])
+    }
+    fn inverse_dynamics_derivatives(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        out: IdDerivatives<'_>,
+    ) -> bool {
+        let f = Function::InverseDynamicsDerivatives;
+        self.run(f, (q, qd, qdd, t), &mut [out.tau, out.tau_q, out.tau_qd])
     }
     fn markers(&self) -> Vec<&str> {
         self.scene.markers().iter().map(String::as_str).collect()

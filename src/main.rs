@@ -22,6 +22,7 @@ enum Command {
     Eval(cli::eval::Args),
     Simulate(cli::simulate::Args),
     Inverse(cli::inverse::Args),
+    Linearize(cli::linearize::Args),
     Import(cli::import::Args),
 }
 
@@ -32,6 +33,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => cli::eval::run(&args, &flexdyn::compiled::COMPILED_SCENES),
         Command::Simulate(args) => cli::simulate::run(&args, &flexdyn::compiled::COMPILED_SCENES),
         Command::Inverse(args) => cli::inverse::run(&args, &flexdyn::compiled::COMPILED_SCENES),
+        Command::Linearize(args) => cli::linearize::run(&args, &flexdyn::compiled::COMPILED_SCENES),
         Command::Import(args) => cli::import::run(&args),
     };
     match result {

@@ -65,6 +65,10 @@ pub struct Equations {
     /// Jacobians of the bias forces `(dh/dq, dh/dqd)`, when asked for;
     /// entry `[i][j]` is `d h_i / d x_j`.
     pub bias_jacobians: Option<(Matrix, Matrix)>,
+    /// Derivatives of the inverse dynamics `(d tau/dq, d tau/dqd)` at the
+    /// accelerations `Symbol::Qdd`, when asked for; entry `[i][j]` is
+    /// `d tau_i / d x_j`.
+    pub inverse_dynamics_derivatives: Option<(Matrix, Matrix)>,
     /// Total kinetic energy.
     pub kinetic_energy: Id,
     /// Total potential energy.
@@ -221,6 +225,13 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         .bias_jacobians
         .then(|| (g.jacobian(&bias, &q_vars), g.jacobian(&bias, &qd_vars)));
 
+    let inverse_dynamics_derivatives = model.outputs.dynamics_derivatives.then(|| {
+        (
+            g.jacobian(&inverse_dynamics, &q_vars),
+            g.jacobian(&inverse_dynamics, &qd_vars),
+        )
+    });
+
     // Constraints.
     let phi: Vec<Id> = model.constraints.iter().map(|c| c.residual).collect();
     for c in &model.constraints {
@@ -267,6 +278,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         inverse_dynamics,
         coriolis_matrix,
         bias_jacobians,
+        inverse_dynamics_derivatives,
         kinetic_energy,
         potential_energy,
         phi,

@@ -123,6 +123,7 @@ struct OutputsOut {
     coriolis_matrix: bool,
     forces: bool,
     bias_jacobians: bool,
+    dynamics_derivatives: bool,
 }
 
 #[derive(Serialize)]
@@ -264,6 +265,7 @@ pub fn export_json(model: &Model) -> String {
             coriolis_matrix: model.outputs.coriolis_matrix,
             forces: model.outputs.forces,
             bias_jacobians: model.outputs.bias_jacobians,
+            dynamics_derivatives: model.outputs.dynamics_derivatives,
         },
         drop_below: model.drop_below,
     };

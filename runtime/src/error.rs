@@ -33,6 +33,8 @@ pub enum Quantity {
     InverseDynamics,
     /// Analytic bias Jacobians returned by the model.
     BiasJacobian,
+    /// Inverse-dynamics derivatives returned by the model.
+    InverseDynamicsDerivatives,
     /// Constraint residuals `Phi` returned by the model.
     Constraints,
     /// Constraint Jacobian `Phi_q` returned by the model.
@@ -65,6 +67,7 @@ impl Quantity {
             Quantity::Bias => "bias forces h",
             Quantity::InverseDynamics => "inverse dynamics M qdd + h",
             Quantity::BiasJacobian => "bias Jacobians",
+            Quantity::InverseDynamicsDerivatives => "inverse-dynamics derivatives",
             Quantity::Constraints => "constraints Phi",
             Quantity::ConstraintJacobian => "constraint Jacobian Phi_q",
             Quantity::ConstraintTimeDerivative => "constraint time derivative Phi_t",

@@ -33,6 +33,7 @@
 )]
 
 pub mod control;
+mod derivatives;
 mod dynamics;
 mod error;
 mod eval;
@@ -46,6 +47,7 @@ mod projection;
 mod scalar;
 mod state;
 
+pub use derivatives::{forward_dynamics_derivatives, ForwardDerivativesOf};
 pub use dynamics::{accelerations, Accelerations, AccelerationsOf, Baumgarte, DynamicsConfig};
 pub use error::{Error, ErrorKind, Quantity, Stage, Time, GAUSS_LEGENDRE_CONTRACTION_LIMIT};
 pub use input::{FromFn, Input, InputOf, Linear, LinearOf};

@@ -83,6 +83,28 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
         false
     }
 
+    /// Optional exact derivatives of the inverse dynamics: writes `tau = M
+    /// qdd + h`, `tau_q = d tau/dq` and `tau_qd = d tau/dqd` at the
+    /// accelerations `qdd` (each `NQ x NQ`, entry `(i, j) = d tau_i / d
+    /// x_j`; `d tau/dqdd` is `M`) and returns `true`. Generated where the
+    /// scene asks for `dynamics_derivatives`; the default returns `false`
+    /// (not provided). [`crate::forward_dynamics_derivatives`] builds the
+    /// derivatives of the forward dynamics from them.
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_dynamics_derivatives(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        qdd: &SVector<T, NQ>,
+        t: T,
+        tau: &mut SVector<T, NQ>,
+        tau_q: &mut SMatrix<T, NQ, NQ>,
+        tau_qd: &mut SMatrix<T, NQ, NQ>,
+    ) -> bool {
+        let _ = (q, qd, qdd, t, tau, tau_q, tau_qd);
+        false
+    }
+
     /// Names of the runtime parameters (fields of the model struct), in order.
     const PARAMETERS: &'static [&'static str] = &[];
 
@@ -592,6 +614,22 @@ where
         h_q: &mut OMatrix<T, Q, Q>,
         h_qd: &mut OMatrix<T, Q, Q>,
     ) -> bool;
+    /// [`Model::inverse_dynamics_derivatives`] (`false`, not provided, by
+    /// default: a wrapper that changes the forces does not forward it).
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_dynamics_derivatives(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        qdd: &OVector<T, Q>,
+        t: T,
+        tau: &mut OVector<T, Q>,
+        tau_q: &mut OMatrix<T, Q, Q>,
+        tau_qd: &mut OMatrix<T, Q, Q>,
+    ) -> bool {
+        let _ = (q, qd, qdd, t, tau, tau_q, tau_qd);
+        false
+    }
     /// [`Model::constraints_and_jacobian`].
     fn constraints_and_jacobian(
         &self,
@@ -685,6 +723,19 @@ where
         h_qd: &mut SMatrix<T, NQ, NQ>,
     ) -> bool {
         Model::bias_jacobians(self, q, qd, t, h_q, h_qd)
+    }
+    #[inline]
+    fn inverse_dynamics_derivatives(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        qdd: &SVector<T, NQ>,
+        t: T,
+        tau: &mut SVector<T, NQ>,
+        tau_q: &mut SMatrix<T, NQ, NQ>,
+        tau_qd: &mut SMatrix<T, NQ, NQ>,
+    ) -> bool {
+        Model::inverse_dynamics_derivatives(self, q, qd, qdd, t, tau, tau_q, tau_qd)
     }
     #[inline]
     fn constraints_and_jacobian(

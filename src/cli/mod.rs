@@ -7,6 +7,7 @@ pub mod export;
 pub mod generate;
 pub mod import;
 pub mod inverse;
+pub mod linearize;
 pub mod simulate;
 
 /// Prints on stderr (unless `quiet`) what the generator changed in the

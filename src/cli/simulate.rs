@@ -29,11 +29,10 @@ use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
 use crate::dynamic::{matrix, vector, DynModel};
 use crate::error_estimate::{Companion, ErrorEstimate, LOOSENED};
-use crate::eval::check_state;
 use crate::plot::{line_plot, Decimated, Labels, Series, PLOT_ROWS};
 use crate::progress::Progress;
 use crate::steps::{count, per_output, Last, MAX_STEPS};
-use crate::table::{check_output, read_input, CsvWriter, OutputFiles, Table};
+use crate::table::{check_output, CsvWriter, OutputFiles, Table};
 
 /// The integrators `--integrator` accepts.
 pub const INTEGRATORS: [&str; 5] = [
@@ -330,30 +329,16 @@ fn initial_state(
                 .map(|c| c.initial_velocity)
                 .collect(),
             qdd: Vec::new(),
+            tau: Vec::new(),
             t: 0.0,
             params: Default::default(),
         });
     };
-    let text = read_input(path, "state file")?;
-    let s: crate::eval::State =
-        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-    check_state(model, &s, 0).map_err(|e| format!("{}: {e}", path.display()))?;
-    for (name, &value) in &s.params {
-        if !value.is_finite() || !model.set_parameter(name, value) {
-            return Err(format!(
-                "{}: `{name}` = {value} is not a runtime parameter value of scene `{}` \
-                 (runtime parameters: {})",
-                path.display(),
-                model.name(),
-                model.parameters().join(", ")
-            ));
-        }
-    }
-    Ok(s)
+    crate::eval::read_state(path, model)
 }
 
 /// `NAME=VALUE` split at the first `=`.
-fn assignment<'a>(option: &str, text: &'a str) -> Result<(&'a str, &'a str), String> {
+pub(super) fn assignment<'a>(option: &str, text: &'a str) -> Result<(&'a str, &'a str), String> {
     text.split_once('=')
         .map(|(n, v)| (n.trim(), v.trim()))
         .ok_or_else(|| format!("{option} `{text}`: expected NAME=VALUE"))

@@ -400,17 +400,21 @@ def marker_kinematics(position, rotation, q, qd, t) -> list:
     ]
 
 
-def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
+def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool,
+           with_derivatives: bool):
     """The CasADi function of every term, and the names/shapes of its outputs.
 
     The Christoffel matrix (the costliest term: a full Jacobian of `M qd`) is
-    only built when asked for.
+    only built when asked for, and so are the derivatives of the inverse
+    dynamics and (unconstrained scenes) of the forward dynamics
+    `M^-1 (B tau - h)`, each CasADi's `jacobian` of its own expression.
     """
     nq = len(export["coordinates"])
     npar = len(export["runtime_parameters"])
     q = ca.SX.sym("q", nq)
     qd = ca.SX.sym("qd", nq)
     qdd = ca.SX.sym("qdd", nq)
+    tau = ca.SX.sym("tau", len(export["actuators"]))
     t = ca.SX.sym("t")
     p = ca.SX.sym("p", npar)
     vals = build_nodes(export["nodes"], q, qd, t, p)
@@ -475,6 +479,14 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
     if with_bias_jacobians:
         terms.append(("bias_jacobian_q", ca.jacobian(bias, q), (nq, nq)))
         terms.append(("bias_jacobian_qd", ca.jacobian(bias, qd), (nq, nq)))
+    if with_derivatives:
+        terms.append(("inverse_dynamics_q", ca.jacobian(inverse_dynamics, q), (nq, nq)))
+        terms.append(("inverse_dynamics_qd", ca.jacobian(inverse_dynamics, qd), (nq, nq)))
+        if not residuals:
+            forward = ca.solve(mass, ca.mtimes(ca.DM(actuator_map(export)), tau) - bias)
+            terms.append(("forward_dynamics_q", ca.jacobian(forward, q), (nq, nq)))
+            terms.append(("forward_dynamics_qd", ca.jacobian(forward, qd), (nq, nq)))
+            terms.append(("forward_dynamics_tau", ca.jacobian(forward, tau), (nq, tau.numel())))
     for m in export["markers"]:
         what = f"marker `{m.get('name')}`"
         try:
@@ -487,7 +499,7 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool):
         terms += [(marker_term(m["name"], k), e, shape)
                   for k, e, shape in marker_kinematics(position, rotation, q, qd, t)]
     outs = [ca.densify(e) for _, e, _ in terms]
-    func = ca.Function(f"{export['name']}_terms", [q, qd, qdd, t, p], outs)
+    func = ca.Function(f"{export['name']}_terms", [q, qd, qdd, tau, t, p], outs)
     return func, [(name, shape) for name, _, shape in terms]
 
 
@@ -503,11 +515,11 @@ def actuator_map(export: dict) -> "np.ndarray":
     return b
 
 
-def evaluate_casadi(func, shapes, q, qd, qdd, t, p) -> dict:
+def evaluate_casadi(func, shapes, q, qd, qdd, tau, t, p) -> dict:
     """Evaluate the mapped function; every term as an array of shape (N, *shape)."""
     n = q.shape[0]
     mapped = func.map(n)
-    outs = mapped(q.T, qd.T, qdd.T, t.reshape(1, n), p.T)
+    outs = mapped(q.T, qd.T, qdd.T, tau.T, t.reshape(1, n), p.T)
     if not isinstance(outs, (list, tuple)):
         outs = [outs]
     result = {}
@@ -695,6 +707,10 @@ BASE_TERMS = [
 ]
 FORCE_TERMS = ["coriolis_forces", "potential_forces", "damping_forces"]
 JACOBIAN_TERMS = ["bias_jacobian_q", "bias_jacobian_qd"]
+# `outputs = ["dynamics_derivatives"]`: the inverse dynamics' derivatives,
+# and for unconstrained scenes the forward dynamics' ones.
+ID_DERIVATIVE_TERMS = ["fused_inverse_dynamics", "inverse_dynamics_q", "inverse_dynamics_qd"]
+FD_DERIVATIVE_TERMS = ["forward_dynamics_q", "forward_dynamics_qd", "forward_dynamics_tau"]
 # The fused programs (what the solvers call) compute terms again, sharing
 # subexpressions: `constraints_and_jacobian` Phi and Phi_q, `dynamics_terms`
 # M, h, Phi_q and gamma. Each is compared with the same CasADi reference as
@@ -748,8 +764,11 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
     # Accelerations for the inverse dynamics, from their own seeded stream
     # (the states above do not depend on them).
     qdd_all = rng_for(args.seed, f"{name}/qdd").uniform(-2.0, 2.0, size=(n, nq))
-    for s, a in zip(states, qdd_all):
+    nu = len(export["actuators"])
+    tau_all = rng_for(args.seed, f"{name}/tau").uniform(-2.0, 2.0, size=(n, nu))
+    for s, a, u in zip(states, qdd_all, tau_all):
         s["qdd"] = a.tolist()
+        s["tau"] = u.tolist()
     q_all = np.array([s["q"] for s in states], dtype=float).reshape(n, nq)
     qd_all = np.array([s["qd"] for s in states], dtype=float).reshape(n, nq)
     t_all = np.array([s["t"] for s in states], dtype=float)
@@ -788,6 +807,10 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
         required.append("coriolis_matrix")
     if outputs.get("bias_jacobians"):
         required += JACOBIAN_TERMS
+    if nc == 0:
+        required.append("forward_dynamics")
+    if outputs.get("dynamics_derivatives"):
+        required += ID_DERIVATIVE_TERMS + (FD_DERIVATIVE_TERMS if nc == 0 else [])
     markers = [marker_term(m["name"], k) for m in export["markers"] for k in MARKER_TERMS]
     required += markers
     optional = [k for k in FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS if k not in required]
@@ -801,14 +824,21 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
         export,
         "coriolis_matrix" in required or "coriolis_matrix" in present,
         any(k in required or k in present for k in JACOBIAN_TERMS),
+        any(k in required or k in present for k in ID_DERIVATIVE_TERMS),
     )
     t_build = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    ref = evaluate_casadi(func, shapes, q_all, qd_all, qdd_all, t_all, p_all)
-    ref["actuator_map"] = np.broadcast_to(actuator_map(export), (n, nq, len(export["actuators"])))
+    ref = evaluate_casadi(func, shapes, q_all, qd_all, qdd_all, tau_all, t_all, p_all)
+    ref["actuator_map"] = np.broadcast_to(actuator_map(export), (n, nq, nu))
+    if nc == 0:
+        # M^-1 (B tau - h) from CasADi's M and h, solved by numpy.
+        forces = np.einsum("ij,nj->ni", actuator_map(export), tau_all) - ref["bias"]
+        ref["forward_dynamics"] = np.linalg.solve(ref["mass_matrix"], forces[..., None])[..., 0]
     for fused, separate in FUSED_TERMS.items():
         ref[fused] = ref[separate]
+    # `tau` as the program of its derivatives computes it.
+    ref["fused_inverse_dynamics"] = ref["inverse_dynamics"]
     t_casadi = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -817,9 +847,15 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
         return CANCEL_FLOOR * max((finite_max(ref[t]) for t in terms), default=0.0)
 
     # Markers' terms (lengths, angles) are scaled among themselves, the
-    # others (forces, energies) among themselves.
-    floor = floor_of(t for t in ref if t not in UNSCALED_TERMS and not is_marker_term(t))
-    marker_floor = floor_of(t for t in ref if is_marker_term(t))
+    # forward dynamics and their derivatives (accelerations) among
+    # themselves, the others (forces, energies) among themselves.
+    def group(t):
+        if is_marker_term(t):
+            return "markers"
+        return "accelerations" if t.startswith("forward_dynamics") else "forces"
+
+    floors = {g: floor_of(t for t in ref if t not in UNSCALED_TERMS and group(t) == g)
+              for g in ("forces", "markers", "accelerations")}
     for term in required + [k for k in optional if k in present]:
         shape = ref[term].shape[1:]
         row = {"term": term, "shape": "x".join(map(str, shape)) or "scalar"}
@@ -829,11 +865,11 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
         else:
             row.update(compare(rust_array(results, term, shape), ref[term],
                                term_rtol(export, term),
-                               marker_floor if is_marker_term(term) else floor))
+                               floors[group(term)]))
             row["missing"] = False
         rows.append(row)
     known = set(BASE_TERMS + list(FUSED_TERMS) + FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS
-                + markers)
+                + markers + ["forward_dynamics"] + ID_DERIVATIVE_TERMS + FD_DERIVATIVE_TERMS)
     unchecked = sorted(present - known)
     t_compare = time.perf_counter() - t0
 

@@ -106,12 +106,13 @@ impl Context<'_> {
                 "coriolis_matrix" => outputs.coriolis_matrix = true,
                 "forces" => outputs.forces = true,
                 "bias_jacobians" => outputs.bias_jacobians = true,
+                "dynamics_derivatives" => outputs.dynamics_derivatives = true,
                 other => {
                     return Err(self.err(
                         o.span().start,
                         None,
                         format!(
-                        "unknown output `{other}` (known: coriolis_matrix, forces, bias_jacobians)"
+                        "unknown output `{other}` (known: coriolis_matrix, forces, bias_jacobians, dynamics_derivatives)"
                     ),
                     ))
                 }

@@ -193,6 +193,10 @@ pub struct Outputs {
     /// Exact Jacobians of the bias forces, `dh/dq` and `dh/dqd` (for the
     /// Newton matrix of implicit integrators).
     pub bias_jacobians: bool,
+    /// Exact derivatives of the inverse dynamics, `d tau / d q` and
+    /// `d tau / d qd` (`d tau / d qdd` is `M`), for linearization and
+    /// optimal control.
+    pub dynamics_derivatives: bool,
 }
 
 /// Scalar type of the generated code (scene key `precision`,

@@ -419,6 +419,21 @@ table! {
                 .map(|(h_q, h_qd)| Terms::Nodes(vec![h_q.clone(), h_qd.clone()]))
         },
     },
+    /// `inverse_dynamics_derivatives`: `tau`, `d tau/dq`, `d tau/dqd`
+    /// (optional output).
+    InverseDynamicsDerivatives => Spec {
+        name: "inverse_dynamics_derivatives",
+        doc: "Inverse dynamics `tau = M qdd + h` and its exact derivatives `tau_q = d tau/dq`, `tau_qd = d tau/dqd` at the accelerations `qdd` (entry `(i, j)` is `d tau_i / d x_j`; `d tau/dqdd` is `M`), from one program.",
+        inputs: Inputs::Accelerations,
+        outputs: &[vector("tau", NQ), matrix("tau_q", NQ, false), matrix("tau_qd", NQ, false)],
+        optional: true,
+        per_marker: false,
+        terms: |_, eq| {
+            eq.inverse_dynamics_derivatives.as_ref().map(|(tau_q, tau_qd)| {
+                Terms::Nodes(vec![column(&eq.inverse_dynamics), tau_q.clone(), tau_qd.clone()])
+            })
+        },
+    },
     /// `marker_pose`: a marker's position (3) and rotation (3 x 3).
     MarkerPose => Spec {
         name: "marker_pose",

@@ -18,7 +18,7 @@ fn casadi_validates_every_term_of_every_robot_scene() {
         scenes: here.join("scenes"),
         negative: &[(
             "examples/parallel-robot/scenes/parallel_robot_rigid.toml",
-            "mass_matrix",
+            &["mass_matrix"],
         )],
     });
 }
