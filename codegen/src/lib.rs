@@ -81,7 +81,7 @@ pub use files::{check_output, read_limited, write_atomic, OutputFiles};
 pub use import::{import_urdf, UrdfOptions};
 pub use model::{
     Actuator, Body, Component, Constraint, Coordinate, FlexibleLink, Marker, Model, Outputs,
-    Precision, RuntimeParameter,
+    Precision, RuntimeParameter, OUTPUTS,
 };
 pub use redundancy::dependent_rows;
 pub use schedule::OpCount;

@@ -19,6 +19,7 @@ fn import(urdf: &str) -> Result<String, Error> {
 fn import_with(urdf: &str, fix: &[&str]) -> Result<String, Error> {
     let options = UrdfOptions {
         fix: fix.iter().map(|s| s.to_string()).collect(),
+        ..Default::default()
     };
     import_urdf(
         &Source::new(Path::new("robot.urdf"), urdf.to_owned()),

@@ -37,6 +37,11 @@ pub struct UrdfArgs {
     /// the parent body (e.g. a gripper's fingers); may be repeated.
     #[arg(long = "fix", value_name = "JOINT")]
     pub fix: Vec<String>,
+    /// An optional output for the scene to generate (its `outputs` list,
+    /// e.g. `dynamics_derivatives`); may be repeated.
+    #[arg(long = "output", value_name = "NAME",
+          value_parser = clap::builder::PossibleValuesParser::new(crate::codegen::OUTPUTS))]
+    pub outputs: Vec<String>,
 }
 
 /// Run the command.
@@ -45,6 +50,7 @@ pub fn run(args: &Args) -> Result<(), String> {
     let text = read_input(&args.urdf, "URDF file")?;
     let options = UrdfOptions {
         fix: args.fix.clone(),
+        outputs: args.outputs.clone(),
     };
     let scene = import_urdf(&Source::new(&args.urdf, text), &options).map_err(|e| e.to_string())?;
     Model::from_source(&Source::new(&args.out, scene.clone())).map_err(|e| {

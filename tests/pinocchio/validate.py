@@ -23,6 +23,12 @@ is compared with Pinocchio's frame of that link: position and rotation
 (`computeFrameJacobian`), the velocity and, at zero joint accelerations, the
 classical acceleration (`getFrameVelocity`, `getFrameClassicalAcceleration`).
 
+UR5, Panda and Baxter are imported once more with `--output
+dynamics_derivatives`: their `d tau/dq`, `d tau/dqd` (at random
+accelerations) against `computeRNEADerivatives`, and their forward dynamics
+with `d qdd/dq`, `d qdd/dqd`, `d qdd/dtau` (at random inputs) against `aba`
+and `computeABADerivatives`.
+
 `--perturb` changes one inertia entry of each imported scene
 (the first entry of the last rigid body's inertia, times 1 + 1e-6) and
 moves its last marker by 1e-6 m before evaluating it: the comparison must
@@ -67,6 +73,10 @@ ROBOTS = [
     ("xarm7", "xarm_description/urdf/xarm7.urdf", [], False),
     ("z1", "z1_description/urdf/z1.urdf", [], False),
 ]
+
+# Robots whose generated derivatives (`--output dynamics_derivatives`) are
+# compared with Pinocchio's RNEA and ABA derivatives.
+DERIVATIVES = ("ur5", "panda", "baxter")
 
 # Robots validated again with rotor inertias: `armature = ARMATURE[k]` added
 # to the k-th actuator of the imported scene, `model.armature` set alike.
@@ -187,6 +197,104 @@ def reference_model(path, fixed):
     return model
 
 
+def pin_state(model, joints, coordinates, q, qd, qdd):
+    """Pinocchio's configuration, velocity and acceleration of the scene's
+    coordinates `q`, rates `qd` and accelerations `qdd` (joints matched by
+    name; a continuous joint's configuration is (cos, sin))."""
+    qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+    for i, c in enumerate(coordinates):
+        j = joints[c]
+        if j.nq == 2:  # continuous: (cos, sin)
+            qp[j.idx_q : j.idx_q + 2] = [np.cos(q[i]), np.sin(q[i])]
+        else:
+            qp[j.idx_q] = q[i]
+        vp[j.idx_v] = qd[i]
+        ap[j.idx_v] = qdd[i]
+    return qp, vp, ap
+
+
+def imported_joints(model, scene):
+    """The scene's coordinate names, and Pinocchio's joints by those names."""
+    with open(scene) as f:
+        coordinates = re.findall(r'^\[\[coordinates\]\]\n(?:#.*\n)*name = "([^"]*)"', f.read(), re.M)
+    joints = {identifier(model.names[jid]): model.joints[jid] for jid in range(1, model.njoints)}
+    if any(c not in joints for c in coordinates) or model.nv != len(coordinates):
+        sys.exit(f"{scene}: coordinates {coordinates} do not match Pinocchio's joints {list(joints)}")
+    return coordinates, joints
+
+
+DERIVATIVE_TERMS = ("d tau/dq", "d tau/dqd", "qdd", "d qdd/dq", "d qdd/dqd", "d qdd/dtau")
+
+
+def derivatives_check(name, path, fixed, args):
+    """The robot imported with `--output dynamics_derivatives`: `flexdyn
+    eval`'s `inverse_dynamics_q`, `inverse_dynamics_qd` against Pinocchio's
+    `computeRNEADerivatives`, and `forward_dynamics` with its derivatives
+    against `computeABADerivatives` (joint damping `d qd` added: `d tau/dqd
+    + diag(d)`, and the ABA at `B tau - d qd`, so `d qdd/dqd - M^-1
+    diag(d)`), at `args.states` random states, each relative to the scale of
+    the term."""
+    scene = os.path.join(args.work, f"{name}_derivatives.toml")
+    cmd = [args.flexdyn, "import", "urdf", path, "--out", scene, "--output", "dynamics_derivatives"]
+    for j in fixed:
+        cmd += ["--fix", j]
+    run(cmd)
+    if args.perturb:
+        with open(scene) as f:
+            text = perturb(f.read())
+        with open(scene, "w") as f:
+            f.write(text)
+    model = reference_model(path, fixed)
+    coordinates, joints = imported_joints(model, scene)
+    data = model.createData()
+    n = len(coordinates)
+    order = [joints[c].idx_v for c in coordinates]
+    ix = np.ix_(order, order)
+    rng = np.random.default_rng(20261126)
+    states, refs = [], []
+    for _ in range(args.states):
+        q = rng.uniform(-np.pi, np.pi, n)
+        qd = rng.uniform(-3.0, 3.0, n)
+        qdd = rng.uniform(-5.0, 5.0, n)
+        tau = rng.uniform(-20.0, 20.0, n)
+        qp, vp, ap = pin_state(model, joints, coordinates, q, qd, qdd)
+        damping = np.diag(model.damping)
+        # Copies: the returned arrays are views of `data`, which the ABA
+        # derivatives below overwrite.
+        dq, dv = (d.copy() for d in pin.computeRNEADerivatives(model, data, qp, vp, ap)[:2])
+        # The scene's actuator j drives coordinate j with gain 1.
+        tau_p = np.zeros(model.nv)
+        tau_p[order] = tau
+        tau_p -= model.damping * vp
+        fq, fv, minv = pin.computeABADerivatives(model, data, qp, vp, tau_p)
+        minv = np.triu(minv) + np.triu(minv, 1).T
+        qdd_ref = pin.aba(model, data, qp, vp, tau_p)
+        refs.append({
+            "d tau/dq": dq[ix], "d tau/dqd": (dv + damping)[ix], "qdd": qdd_ref[order],
+            "d qdd/dq": fq[ix], "d qdd/dqd": (fv - minv @ damping)[ix], "d qdd/dtau": minv[ix],
+        })
+        states.append({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist(), "tau": tau.tolist(), "t": 0.0})
+    states_file = os.path.join(args.work, f"{name}_derivatives.states.json")
+    with open(states_file, "w") as f:
+        json.dump({"states": states}, f)
+    out_file = os.path.join(args.work, f"{name}_derivatives.eval.json")
+    run([args.flexdyn, "eval", "--interpret", "--scene", scene, "--states", states_file, "--out", out_file])
+    with open(out_file) as f:
+        results = json.load(f)["results"]
+    keys = {"d tau/dq": "inverse_dynamics_q", "d tau/dqd": "inverse_dynamics_qd", "qdd": "forward_dynamics",
+            "d qdd/dq": "forward_dynamics_q", "d qdd/dqd": "forward_dynamics_qd", "d qdd/dtau": "forward_dynamics_tau"}
+    ok = True
+    for term in DERIVATIVE_TERMS:
+        worst = max(float(np.abs(np.array(r[keys[term]]) - ref[term]).max()) for r, ref in zip(results, refs))
+        scale = max(float(np.abs(ref[term]).max()) for ref in refs)
+        rel = worst / max(scale, 1e-300)
+        good = rel <= TOLERANCE
+        ok &= good
+        print(f"{name}: derivatives: {term}: max error {worst:.3e}, scale {scale:.3e}, "
+              f"relative {rel:.3e} {'ok' if good else 'FAILED'}")
+    return ok
+
+
 def validate(name, path, fixed, scan, args, armature=None):
     scene = os.path.join(args.work, f"{name}.toml")
     cmd = [args.flexdyn, "import", "urdf", path, "--out", scene]
@@ -215,20 +323,12 @@ def validate(name, path, fixed, scan, args, armature=None):
             text = perturb(f.read())
         with open(scene, "w") as f:
             f.write(text)
-    with open(scene) as f:
-        coordinates = re.findall(r'^\[\[coordinates\]\]\n(?:#.*\n)*name = "([^"]*)"', f.read(), re.M)
-    n = len(coordinates)
-
     model = reference_model(path, fixed)
-    joints = {}
-    for jid in range(1, model.njoints):
-        joints[identifier(model.names[jid])] = model.joints[jid]
+    coordinates, joints = imported_joints(model, scene)
+    n = len(coordinates)
     for c, v in zip(coordinates, armature or []):
         model.armature[joints[c].idx_v] = v
     data = model.createData()
-    missing = [c for c in coordinates if c not in joints]
-    if missing or model.nv != n:
-        sys.exit(f"{name}: coordinates {coordinates} do not match Pinocchio's joints {list(joints)}")
 
     rng = np.random.default_rng(20261123)
     states, refs, pin_states = [], [], []
@@ -236,15 +336,7 @@ def validate(name, path, fixed, scan, args, armature=None):
         q = rng.uniform(-np.pi, np.pi, n)
         qd = rng.uniform(-3.0, 3.0, n)
         qdd = rng.uniform(-5.0, 5.0, n)
-        qp, vp, ap = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
-        for i, c in enumerate(coordinates):
-            j = joints[c]
-            if j.nq == 2:  # continuous: (cos, sin)
-                qp[j.idx_q : j.idx_q + 2] = [np.cos(q[i]), np.sin(q[i])]
-            else:
-                qp[j.idx_q] = q[i]
-            vp[j.idx_v] = qd[i]
-            ap[j.idx_v] = qdd[i]
+        qp, vp, ap = pin_state(model, joints, coordinates, q, qd, qdd)
         order = [joints[c].idx_v for c in coordinates]
         m = pin.crba(model, data, qp)
         m = np.triu(m) + np.triu(m, 1).T
@@ -397,6 +489,8 @@ def main():
         ok &= validate(name, os.path.join(base, rel), fixed, scan, args)
         if name in ARMATURE:
             ok &= validate(name, os.path.join(base, rel), fixed, False, args, ARMATURE[name])
+        if name in DERIVATIVES:
+            ok &= derivatives_check(name, os.path.join(base, rel), fixed, args)
     for name, rel in INVERSE:
         ok &= inverse_check(name, os.path.join(base, rel), args)
     print("pinocchio validation:", "passed" if ok else "FAILED")

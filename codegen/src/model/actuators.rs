@@ -111,9 +111,7 @@ impl Context<'_> {
                     return Err(self.err(
                         o.span().start,
                         None,
-                        format!(
-                        "unknown output `{other}` (known: coriolis_matrix, forces, bias_jacobians, dynamics_derivatives)"
-                    ),
+                        format!("unknown output `{other}` (known: {})", super::OUTPUTS.join(", ")),
                     ))
                 }
             }

@@ -183,6 +183,14 @@ pub struct Actuator {
     pub gain: f64,
 }
 
+/// The names of the optional outputs a scene may list in `outputs`.
+pub const OUTPUTS: &[&str] = &[
+    "coriolis_matrix",
+    "forces",
+    "bias_jacobians",
+    "dynamics_derivatives",
+];
+
 /// Optional outputs a scene may ask for.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Outputs {

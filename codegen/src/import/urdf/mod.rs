@@ -40,6 +40,9 @@ pub struct UrdfOptions {
     /// Joints (URDF names) held fixed at zero: their child links are merged
     /// into the parent's body, as with a fixed joint.
     pub fix: Vec<String>,
+    /// Optional outputs the scene asks for (its `outputs` list: names of
+    /// [`crate::model::OUTPUTS`]).
+    pub outputs: Vec<String>,
 }
 
 /// Largest magnitude accepted for a length, mass, inertia, angle or rate.
@@ -133,7 +136,7 @@ pub fn import_urdf(source: &Source, options: &UrdfOptions) -> Result<String, Err
              --fix): a scene needs at least one coordinate",
         ));
     }
-    Ok(write_scene(source, robot, &links, &joints, &tree))
+    Ok(write_scene(source, robot, &links, &joints, &tree, &options.outputs))
 }
 
 fn at(source: &Source, node: roxmltree::Node, message: impl Into<String>) -> Error {

@@ -126,6 +126,7 @@ pub(super) fn write_scene(
     links: &[Link],
     joints: &[Joint],
     tree: &Tree,
+    outputs: &[String],
 ) -> String {
     let names = names(links, joints);
     let robot_name = robot.attribute("name").unwrap_or("robot");
@@ -169,6 +170,10 @@ pub(super) fn write_scene(
         ))
     );
     let _ = writeln!(w, "gravity = [0, 0, -9.81]");
+    if !outputs.is_empty() {
+        let list: Vec<String> = outputs.iter().map(|o| quoted(o)).collect();
+        let _ = writeln!(w, "outputs = [{}]", list.join(", "));
+    }
 
     for &j in &moving {
         let joint = &joints[j];
