@@ -87,6 +87,17 @@ pub trait DynModel {
         t: f64,
         out: IdDerivatives<'_>,
     ) -> bool;
+    /// Derivatives `da/dq`, `da/dqd` (each `nc x nq`) of the acceleration
+    /// constraint `a = Phi_q qdd - gamma`, when generated.
+    fn constraint_acceleration_derivatives(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        a_q: &mut [f64],
+        a_qd: &mut [f64],
+    ) -> bool;
     /// Marker names, in index order.
     fn markers(&self) -> Vec<&str>;
     /// Position (3) and rotation (3 x 3) of marker `marker`; `false`
@@ -334,6 +345,28 @@ where
             })
             .is_some()
     }
+    fn constraint_acceleration_derivatives(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        a_q: &mut [f64],
+        a_qd: &mut [f64],
+    ) -> bool {
+        let mut a = SMatrix::<f64, NC, NQ>::zeros();
+        let mut b = SMatrix::<f64, NC, NQ>::zeros();
+        let (q, qd, qdd) = (fixed(q), fixed(qd), fixed(qdd));
+        let given = self
+            .0
+            .constraint_acceleration_derivatives(&q, &qd, &qdd, t, &mut a, &mut b);
+        given
+            .then(|| {
+                store(&a, a_q);
+                store(&b, a_qd);
+            })
+            .is_some()
+    }
     fn markers(&self) -> Vec<&str> {
         M::MARKERS.to_vec()
     }
@@ -464,6 +497,19 @@ impl Equations<Dyn, Dyn, Dyn> for dyn DynModel + '_ {
         };
         let (q, qd, qdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
         DynModel::inverse_dynamics_derivatives(self, q, qd, qdd, t, out)
+    }
+    fn constraint_acceleration_derivatives(
+        &self,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        qdd: &DVector<f64>,
+        t: f64,
+        a_q: &mut DMatrix<f64>,
+        a_qd: &mut DMatrix<f64>,
+    ) -> bool {
+        let (q, qd, qdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
+        let (a_q, a_qd) = (a_q.as_mut_slice(), a_qd.as_mut_slice());
+        DynModel::constraint_acceleration_derivatives(self, q, qd, qdd, t, a_q, a_qd)
     }
     fn constraints_and_jacobian(
         &self,

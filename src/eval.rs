@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 use crate::dynamic::{matrix, vector, DynModel, Fused, IdDerivatives, MarkerPose};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Dyn};
 
 /// One state to evaluate at.
 #[derive(Debug, Clone, Deserialize)]
@@ -103,12 +103,14 @@ pub struct Terms {
     /// `d tau / d qd`, likewise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub inverse_dynamics_qd: Option<Vec<Vec<f64>>>,
-    /// The accelerations `M^-1 (B tau - h)` at the state's inputs, for an
-    /// unconstrained scene.
+    /// The accelerations at the state's inputs: `M^-1 (B tau - h)` for an
+    /// unconstrained scene; for a constrained scene that generates
+    /// `dynamics_derivatives`, those of the ideal constrained equations
+    /// (`M qdd - Phi_q^T lambda = B tau - h`, `Phi_q qdd = gamma`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub forward_dynamics: Option<Vec<f64>>,
-    /// `d qdd / d q` of the forward dynamics, for an unconstrained scene
-    /// that generates `dynamics_derivatives`.
+    /// `d qdd / d q` of the forward dynamics, for a scene that generates
+    /// `dynamics_derivatives`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub forward_dynamics_q: Option<Vec<Vec<f64>>>,
     /// `d qdd / d qd`, likewise.
@@ -117,6 +119,19 @@ pub struct Terms {
     /// `d qdd / d tau` (`nq x nu`), likewise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub forward_dynamics_tau: Option<Vec<Vec<f64>>>,
+    /// The constraint forces `lambda` with `forward_dynamics`, for a
+    /// constrained scene that generates `dynamics_derivatives`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub constraint_forces: Option<Vec<f64>>,
+    /// `d lambda / d q`, likewise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub constraint_forces_q: Option<Vec<Vec<f64>>>,
+    /// `d lambda / d qd`, likewise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub constraint_forces_qd: Option<Vec<Vec<f64>>>,
+    /// `d lambda / d tau` (`nc x nu`), likewise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub constraint_forces_tau: Option<Vec<Vec<f64>>>,
     /// Each marker's kinematics, by name.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub markers: BTreeMap<String, Marker>,
@@ -289,9 +304,12 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
     } else {
         s.tau.clone()
     };
-    let forward = (nc == 0)
-        .then(|| forward_dynamics(model, q, qd, t, &tau, id_derivatives.is_some()))
+    let generated = id_derivatives.is_some();
+    let forward = (nc == 0 || generated)
+        .then(|| forward_dynamics(model, q, qd, t, &tau, generated))
         .transpose()?;
+    let derivatives = forward.as_ref().and_then(|f| f.derivatives.as_ref());
+    let constrained = derivatives.filter(|_| nc > 0);
     let terms = Terms {
         mass_matrix: rows(&matrix(nq, nq, |o| model.mass_matrix(q, t, o))),
         bias: vec(nq, &|o| model.bias(q, qd, t, o)),
@@ -322,15 +340,13 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         inverse_dynamics_q: id_derivatives.as_ref().map(|(_, a, _)| rows(a)),
         inverse_dynamics_qd: id_derivatives.as_ref().map(|(.., b)| rows(b)),
         forward_dynamics: forward.as_ref().map(|f| f.qdd.as_slice().to_vec()),
-        forward_dynamics_q: forward
-            .as_ref()
-            .and_then(|f| f.derivatives.as_ref().map(|d| rows(&d.0))),
-        forward_dynamics_qd: forward
-            .as_ref()
-            .and_then(|f| f.derivatives.as_ref().map(|d| rows(&d.1))),
-        forward_dynamics_tau: forward
-            .as_ref()
-            .and_then(|f| f.derivatives.as_ref().map(|d| rows(&d.2))),
+        forward_dynamics_q: derivatives.map(|d| rows(&d.qdd_q)),
+        forward_dynamics_qd: derivatives.map(|d| rows(&d.qdd_qd)),
+        forward_dynamics_tau: derivatives.map(|d| rows(&d.qdd_tau)),
+        constraint_forces: constrained.map(|d| d.lambda.as_slice().to_vec()),
+        constraint_forces_q: constrained.map(|d| rows(&d.lambda_q)),
+        constraint_forces_qd: constrained.map(|d| rows(&d.lambda_qd)),
+        constraint_forces_tau: constrained.map(|d| rows(&d.lambda_tau)),
         markers: model
             .markers()
             .into_iter()
@@ -349,12 +365,15 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
     }
 }
 
-/// The forward dynamics of an unconstrained scene at one state, with their
-/// derivatives `(d qdd/dq, d qdd/dqd, d qdd/dtau)` where generated.
+/// The forward dynamics of a scene at one state, with their derivatives
+/// (and the constraint forces') where generated.
 struct Forward {
     qdd: DVector<f64>,
-    derivatives: Option<(DMatrix<f64>, DMatrix<f64>, DMatrix<f64>)>,
+    derivatives: Option<Derivatives>,
 }
+
+/// [`flexdyn_runtime::ForwardDerivativesOf`] at run-time sizes.
+pub type Derivatives = flexdyn_runtime::ForwardDerivativesOf<f64, Dyn, Dyn, Dyn>;
 
 /// [`Forward`] at `(q, qd, t)` with inputs `tau`, from the runtime's
 /// solvers (the derivatives when `derivatives`).
@@ -376,8 +395,8 @@ fn forward_dynamics(
         let d = flexdyn_runtime::forward_dynamics_derivatives(model, &q, &qd, t, &tau)
             .map_err(failed)?;
         Ok(Forward {
-            qdd: d.qdd,
-            derivatives: Some((d.qdd_q, d.qdd_qd, d.qdd_tau)),
+            qdd: d.qdd.clone(),
+            derivatives: Some(d),
         })
     } else {
         let config = flexdyn_runtime::DynamicsConfig::default();

@@ -226,6 +226,18 @@ impl DynModel for InterpretedModel {
         let f = Function::InverseDynamicsDerivatives;
         self.run(f, (q, qd, qdd, t), &mut [out.tau, out.tau_q, out.tau_qd])
     }
+    fn constraint_acceleration_derivatives(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        a_q: &mut [f64],
+        a_qd: &mut [f64],
+    ) -> bool {
+        let f = Function::ConstraintAccelerationDerivatives;
+        self.run(f, (q, qd, qdd, t), &mut [a_q, a_qd])
+    }
     fn markers(&self) -> Vec<&str> {
         self.scene.markers().iter().map(String::as_str).collect()
     }

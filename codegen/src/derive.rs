@@ -69,6 +69,11 @@ pub struct Equations {
     /// accelerations `Symbol::Qdd`, when asked for; entry `[i][j]` is
     /// `d tau_i / d x_j`.
     pub inverse_dynamics_derivatives: Option<(Matrix, Matrix)>,
+    /// Derivatives `(da/dq, da/dqd)` of the acceleration constraint `a =
+    /// Phi_q qdd - gamma` (the second time derivative of `Phi` along the
+    /// motion) at the accelerations `Symbol::Qdd`, for a constrained scene
+    /// that asks for `dynamics_derivatives`.
+    pub constraint_acceleration_derivatives: Option<(Matrix, Matrix)>,
     /// Total kinetic energy.
     pub kinetic_energy: Id,
     /// Total potential energy.
@@ -247,6 +252,11 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     let velocity_residual = g.time_derivative_at_zero_acceleration(&phi);
     let rates = g.time_derivative_at_zero_acceleration(&velocity_residual);
     let gamma: Vec<Id> = rates.iter().map(|&r| g.neg(r)).collect();
+    let constraint_acceleration_derivatives =
+        (model.outputs.dynamics_derivatives && !phi.is_empty()).then(|| {
+            let a = g.jvp(&velocity_residual, &motion);
+            (g.jacobian(&a, &q_vars), g.jacobian(&a, &qd_vars))
+        });
 
     let markers = model
         .markers
@@ -279,6 +289,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         coriolis_matrix,
         bias_jacobians,
         inverse_dynamics_derivatives,
+        constraint_acceleration_derivatives,
         kinetic_energy,
         potential_energy,
         phi,

@@ -155,15 +155,6 @@ where
         z.norm()
     }
 
-    /// `M^-1 b`, in place, for every column of `b`.
-    pub(crate) fn solve_mass<K: Dim>(&self, b: &mut OMatrix<T, Q, K>)
-    where
-        DefaultAllocator: Allocator<Q, K>,
-    {
-        solve_lower(&self.l, b);
-        solve_lower_transpose(&self.l, b);
-    }
-
     /// Solves `M x - Phi_q^T mu = f`, `Phi_q x = c`.
     pub(crate) fn solve(
         &self,

@@ -105,6 +105,26 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
         false
     }
 
+    /// Optional exact derivatives of the acceleration constraint `a = Phi_q
+    /// qdd - gamma` (the second time derivative of `Phi` along the motion):
+    /// writes `a_q = da/dq` and `a_qd = da/dqd` (each `NC x NQ`) at the
+    /// accelerations `qdd` and returns `true`. Generated for constrained
+    /// scenes that ask for `dynamics_derivatives`; the default returns
+    /// `false`. `a` is linear in `qdd`, and `a_qd = 2 d(Phi_q qd +
+    /// Phi_t)/dq`.
+    fn constraint_acceleration_derivatives(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        qdd: &SVector<T, NQ>,
+        t: T,
+        a_q: &mut SMatrix<T, NC, NQ>,
+        a_qd: &mut SMatrix<T, NC, NQ>,
+    ) -> bool {
+        let _ = (q, qd, qdd, t, a_q, a_qd);
+        false
+    }
+
     /// Names of the runtime parameters (fields of the model struct), in order.
     const PARAMETERS: &'static [&'static str] = &[];
 
@@ -630,6 +650,20 @@ where
         let _ = (q, qd, qdd, t, tau, tau_q, tau_qd);
         false
     }
+    /// [`Model::constraint_acceleration_derivatives`] (`false`, not
+    /// provided, by default).
+    fn constraint_acceleration_derivatives(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        qdd: &OVector<T, Q>,
+        t: T,
+        a_q: &mut OMatrix<T, C, Q>,
+        a_qd: &mut OMatrix<T, C, Q>,
+    ) -> bool {
+        let _ = (q, qd, qdd, t, a_q, a_qd);
+        false
+    }
     /// [`Model::constraints_and_jacobian`].
     fn constraints_and_jacobian(
         &self,
@@ -736,6 +770,18 @@ where
         tau_qd: &mut SMatrix<T, NQ, NQ>,
     ) -> bool {
         Model::inverse_dynamics_derivatives(self, q, qd, qdd, t, tau, tau_q, tau_qd)
+    }
+    #[inline]
+    fn constraint_acceleration_derivatives(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        qdd: &SVector<T, NQ>,
+        t: T,
+        a_q: &mut SMatrix<T, NC, NQ>,
+        a_qd: &mut SMatrix<T, NC, NQ>,
+    ) -> bool {
+        Model::constraint_acceleration_derivatives(self, q, qd, qdd, t, a_q, a_qd)
     }
     #[inline]
     fn constraints_and_jacobian(

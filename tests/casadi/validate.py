@@ -482,11 +482,24 @@ def derive(export: dict, with_coriolis_matrix: bool, with_bias_jacobians: bool,
     if with_derivatives:
         terms.append(("inverse_dynamics_q", ca.jacobian(inverse_dynamics, q), (nq, nq)))
         terms.append(("inverse_dynamics_qd", ca.jacobian(inverse_dynamics, qd), (nq, nq)))
-        if not residuals:
-            forward = ca.solve(mass, ca.mtimes(ca.DM(actuator_map(export)), tau) - bias)
-            terms.append(("forward_dynamics_q", ca.jacobian(forward, q), (nq, nq)))
-            terms.append(("forward_dynamics_qd", ca.jacobian(forward, qd), (nq, nq)))
-            terms.append(("forward_dynamics_tau", ca.jacobian(forward, tau), (nq, tau.numel())))
+        forces = ca.mtimes(ca.DM(actuator_map(export)), tau) - bias
+        nc = len(residuals)
+        if nc:
+            # The ideal constrained equations: [M, -Phi_q^T; Phi_q, 0]
+            # [qdd; lambda] = [B tau - h; gamma], solved symbolically.
+            kkt = ca.vertcat(ca.horzcat(mass, -phi_q.T), ca.horzcat(phi_q, ca.SX(nc, nc)))
+            solution = ca.solve(kkt, ca.vertcat(forces, gamma))
+            forward, multipliers = solution[:nq], solution[nq:]
+            terms.append(("forward_dynamics", forward, (nq,)))
+            terms.append(("constraint_forces", multipliers, (nc,)))
+            terms.append(("constraint_forces_q", ca.jacobian(multipliers, q), (nc, nq)))
+            terms.append(("constraint_forces_qd", ca.jacobian(multipliers, qd), (nc, nq)))
+            terms.append(("constraint_forces_tau", ca.jacobian(multipliers, tau), (nc, tau.numel())))
+        else:
+            forward = ca.solve(mass, forces)
+        terms.append(("forward_dynamics_q", ca.jacobian(forward, q), (nq, nq)))
+        terms.append(("forward_dynamics_qd", ca.jacobian(forward, qd), (nq, nq)))
+        terms.append(("forward_dynamics_tau", ca.jacobian(forward, tau), (nq, tau.numel())))
     for m in export["markers"]:
         what = f"marker `{m.get('name')}`"
         try:
@@ -711,6 +724,9 @@ JACOBIAN_TERMS = ["bias_jacobian_q", "bias_jacobian_qd"]
 # and for unconstrained scenes the forward dynamics' ones.
 ID_DERIVATIVE_TERMS = ["fused_inverse_dynamics", "inverse_dynamics_q", "inverse_dynamics_qd"]
 FD_DERIVATIVE_TERMS = ["forward_dynamics_q", "forward_dynamics_qd", "forward_dynamics_tau"]
+# Constrained scenes: the constraint forces with the forward dynamics.
+MULTIPLIER_TERMS = ["constraint_forces", "constraint_forces_q", "constraint_forces_qd",
+                    "constraint_forces_tau"]
 # The fused programs (what the solvers call) compute terms again, sharing
 # subexpressions: `constraints_and_jacobian` Phi and Phi_q, `dynamics_terms`
 # M, h, Phi_q and gamma. Each is compared with the same CasADi reference as
@@ -810,7 +826,9 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
     if nc == 0:
         required.append("forward_dynamics")
     if outputs.get("dynamics_derivatives"):
-        required += ID_DERIVATIVE_TERMS + (FD_DERIVATIVE_TERMS if nc == 0 else [])
+        required += ID_DERIVATIVE_TERMS + FD_DERIVATIVE_TERMS
+        if nc:
+            required += ["forward_dynamics"] + MULTIPLIER_TERMS
     markers = [marker_term(m["name"], k) for m in export["markers"] for k in MARKER_TERMS]
     required += markers
     optional = [k for k in FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS if k not in required]
@@ -848,14 +866,18 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
 
     # Markers' terms (lengths, angles) are scaled among themselves, the
     # forward dynamics and their derivatives (accelerations) among
-    # themselves, the others (forces, energies) among themselves.
+    # themselves, the constraint forces (whose units depend on the
+    # constraint) among themselves, the others (forces, energies) among
+    # themselves.
     def group(t):
         if is_marker_term(t):
             return "markers"
-        return "accelerations" if t.startswith("forward_dynamics") else "forces"
+        if t.startswith("forward_dynamics"):
+            return "accelerations"
+        return "multipliers" if t.startswith("constraint_forces") else "forces"
 
     floors = {g: floor_of(t for t in ref if t not in UNSCALED_TERMS and group(t) == g)
-              for g in ("forces", "markers", "accelerations")}
+              for g in ("forces", "markers", "accelerations", "multipliers")}
     for term in required + [k for k in optional if k in present]:
         shape = ref[term].shape[1:]
         row = {"term": term, "shape": "x".join(map(str, shape)) or "scalar"}
@@ -869,7 +891,8 @@ def validate_scene(scene: Path, binary: Path, args, workdir: Path) -> dict:
             row["missing"] = False
         rows.append(row)
     known = set(BASE_TERMS + list(FUSED_TERMS) + FORCE_TERMS + ["coriolis_matrix"] + JACOBIAN_TERMS
-                + markers + ["forward_dynamics"] + ID_DERIVATIVE_TERMS + FD_DERIVATIVE_TERMS)
+                + markers + ["forward_dynamics"] + ID_DERIVATIVE_TERMS + FD_DERIVATIVE_TERMS
+                + MULTIPLIER_TERMS)
     unchecked = sorted(present - known)
     t_compare = time.perf_counter() - t0
 

@@ -111,7 +111,10 @@ impl Context<'_> {
                     return Err(self.err(
                         o.span().start,
                         None,
-                        format!("unknown output `{other}` (known: {})", super::OUTPUTS.join(", ")),
+                        format!(
+                            "unknown output `{other}` (known: {})",
+                            super::OUTPUTS.join(", ")
+                        ),
                     ))
                 }
             }

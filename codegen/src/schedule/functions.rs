@@ -434,6 +434,21 @@ table! {
             })
         },
     },
+    /// `constraint_acceleration_derivatives`: `da/dq`, `da/dqd` of `a = Phi_q
+    /// qdd - gamma` (optional output, constrained scenes).
+    ConstraintAccelerationDerivatives => Spec {
+        name: "constraint_acceleration_derivatives",
+        doc: "Exact derivatives `a_q = da/dq`, `a_qd = da/dqd` (each nc x nq) of the acceleration constraint `a = Phi_q qdd - gamma` (the second time derivative of `Phi` along the motion) at the accelerations `qdd`; `a_qd` is `2 d(Phi_q qd + Phi_t)/dq`.",
+        inputs: Inputs::Accelerations,
+        outputs: &[matrix("a_q", NC, false), matrix("a_qd", NC, false)],
+        optional: true,
+        per_marker: false,
+        terms: |_, eq| {
+            eq.constraint_acceleration_derivatives
+                .as_ref()
+                .map(|(a_q, a_qd)| Terms::Nodes(vec![a_q.clone(), a_qd.clone()]))
+        },
+    },
     /// `marker_pose`: a marker's position (3) and rotation (3 x 3).
     MarkerPose => Spec {
         name: "marker_pose",

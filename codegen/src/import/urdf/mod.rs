@@ -136,7 +136,14 @@ pub fn import_urdf(source: &Source, options: &UrdfOptions) -> Result<String, Err
              --fix): a scene needs at least one coordinate",
         ));
     }
-    Ok(write_scene(source, robot, &links, &joints, &tree, &options.outputs))
+    Ok(write_scene(
+        source,
+        robot,
+        &links,
+        &joints,
+        &tree,
+        &options.outputs,
+    ))
 }
 
 fn at(source: &Source, node: roxmltree::Node, message: impl Into<String>) -> Error {
