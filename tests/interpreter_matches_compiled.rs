@@ -18,6 +18,7 @@ fn a_state_of_the_wrong_length_is_a_clear_error() {
         q: vec![0.1, 0.2],
         qd: vec![0.0; 3],
         qdd: Vec::new(),
+        tau: Vec::new(),
         t: 0.0,
         params: BTreeMap::new(),
     };

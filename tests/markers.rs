@@ -155,6 +155,7 @@ fn a_marker_has_the_closed_form_kinematics_with_explicit_time_terms() {
             q: vec![a, b],
             qd: vec![ad, bd],
             qdd: Vec::new(),
+            tau: Vec::new(),
             t,
             params: Default::default(),
         };
@@ -368,6 +369,7 @@ fn springs_dampers_and_expressions_between_points_are_their_written_out_forms() 
             q: q.to_vec(),
             qd: qd.to_vec(),
             qdd: vec![0.1, 0.2, 0.3],
+            tau: Vec::new(),
             t: 0.0,
             params: Default::default(),
         };
@@ -552,6 +554,7 @@ fn a_cantilevers_tip_marker_sags_as_euler_bernoulli_says() {
             q,
             qd: vec![0.0; n],
             qdd: Vec::new(),
+            tau: Vec::new(),
             t: 0.0,
             params: Default::default(),
         };

@@ -865,14 +865,14 @@ impl RangeWatch {
 }
 
 /// A state of a model of run-time size.
-type DynState = StateOf<f64, Dyn>;
+pub(super) type DynState = StateOf<f64, Dyn>;
 
 /// Where the rows of a run go, as they come; an error stops the run.
 type Emit<'e> = &'e mut dyn FnMut(&[f64]) -> Result<(), String>;
 
 /// Project the initial state onto the constraints, reporting what changed
 /// (unless `quiet`); an error when it cannot be done.
-fn make_consistent(
+pub(super) fn make_consistent(
     model: &dyn DynModel,
     state: &mut DynState,
     quiet: bool,

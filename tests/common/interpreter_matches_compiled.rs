@@ -30,10 +30,15 @@ fn states(path: &std::path::Path, model: &flexdyn::codegen::Model) -> Vec<State>
             let (q, qd, t) = common::random_state(model, &mut rng);
             // Accelerations of the size of the velocities, another order.
             let qdd = qd.iter().rev().map(|v| 1.5 * v - 0.2).collect();
+            // Inputs of the same size, for the forward dynamics.
+            let tau = (0..model.actuators.len())
+                .map(|j| 0.7 * qd[j % qd.len()] + 0.1)
+                .collect();
             State {
                 q,
                 qd,
                 qdd,
+                tau,
                 t,
                 params: BTreeMap::new(),
             }
