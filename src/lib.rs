@@ -17,6 +17,7 @@ pub mod plot;
 pub mod prescribed_motion;
 pub mod progress;
 pub mod spline;
+pub mod state_feedback;
 pub mod steps;
 pub mod table;
 

@@ -1,11 +1,15 @@
 //! `flexdyn linearize`: the cart-pole's upright linearization against its
-//! closed form; the five-bar's linearization in independent coordinates
+//! closed form, and the worked example of docs/derivatives.md (an LQR gain
+//! from it, `flexdyn simulate --feedback` recovering from a push); the
+//! five-bar's linearization in independent coordinates
 //! against central differences of its reduced dynamics, built here from the
 //! runtime's constrained accelerations and a Newton solve of the
 //! constraints (independent of the tool's reduction); and the refusals.
 
 #[path = "common/cli.rs"]
 mod cli;
+#[path = "common/python_env.rs"]
+mod python_env;
 const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
 
 use flexdyn::dynamic::DynModel;
@@ -28,7 +32,10 @@ fn linearize(args: &[&str]) -> Value {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&out.stdout).expect("JSON")
+    match out.stdout.is_empty() {
+        true => Value::Null,
+        false => serde_json::from_slice(&out.stdout).expect("JSON"),
+    }
 }
 
 fn matrix(v: &Value) -> DMatrix<f64> {
@@ -263,4 +270,159 @@ fn linearize_refuses_what_it_cannot_do() {
         ],
         "add `outputs = [\"dynamics_derivatives\"]`",
     );
+}
+
+/// Reads a CSV written by `flexdyn simulate`: its header and rows.
+fn read_csv(path: &std::path::Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_owned)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn an_lqr_gain_from_the_linearization_recovers_the_cart_pole_from_a_push() {
+    let repo = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let Some(python) = python_env::test_python(&repo, "linearize (LQR example)") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let file = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    std::fs::write(
+        file("upright.json"),
+        r#"{"q": [0, 0], "qd": [0, 0], "t": 0}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        file("pushed.json"),
+        r#"{"q": [0, 0.2], "qd": [0, 0], "t": 0}"#,
+    )
+    .unwrap();
+    let lin = linearize(&[
+        "--scene",
+        "scenes/cart_pole.toml",
+        "--state",
+        &file("upright.json"),
+        "--out",
+        &file("lin.json"),
+    ]);
+    assert_eq!(lin, Value::Null, "with --out nothing on standard output");
+    let out = python_env::run(
+        Command::new(python)
+            .arg(repo.join("docs/derivatives/lqr.py"))
+            .args([
+                file("lin.json"),
+                file("k.json"),
+                "--q".into(),
+                "1,10,1,1".into(),
+            ])
+            .env("PYTHONDONTWRITEBYTECODE", "1"),
+        "the LQR design",
+    );
+    assert!(out.status.success(), "{}", python_env::output_text(&out));
+    let k: Value = serde_json::from_str(&std::fs::read_to_string(file("k.json")).unwrap()).unwrap();
+    // The closed loop A - B K is stable.
+    let (a, b, gain) = (matrix(&k["A"]), matrix(&k["B"]), matrix(&k["K"]));
+    let closed = &a - &b * &gain;
+    let eig = closed.complex_eigenvalues();
+    assert!(eig.iter().all(|z| z.re < -0.1), "closed loop {eig}");
+    // The nonlinear cart-pole under u = -K x from theta = 0.2 rad.
+    let run = |feedback: bool, csv: &str| {
+        let mut args = vec![
+            "simulate".to_owned(),
+            "--scene".into(),
+            "scenes/cart_pole.toml".into(),
+            "--initial".into(),
+            file("pushed.json"),
+            "--duration".into(),
+            "8".into(),
+            "--dt".into(),
+            "0.01".into(),
+            "--quiet".into(),
+            "--csv".into(),
+            file(csv),
+        ];
+        if feedback {
+            args.extend(["--feedback".into(), file("k.json")]);
+        }
+        let out = Command::new(BIN)
+            .args(&args)
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let (header, rows) = read_csv(&dir.path().join(csv));
+        let theta = header.iter().position(|c| c == "theta").unwrap();
+        rows.iter().map(|r| r[theta]).collect::<Vec<f64>>()
+    };
+    let closed = run(true, "closed.csv");
+    let open = run(false, "open.csv");
+    assert!(
+        closed.iter().all(|t| t.abs() <= 0.2 + 1e-9),
+        "the push grows"
+    );
+    assert!(closed.last().unwrap().abs() < 2e-3, "{:?}", closed.last());
+    assert!(
+        open.iter().any(|t| t.abs() > 1.5),
+        "without feedback the pole falls"
+    );
+}
+
+#[test]
+fn a_feedback_file_that_does_not_fit_the_scene_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let k = cli::p(dir.path(), "k.json");
+    let csv = cli::p(dir.path(), "out.csv");
+    let args = [
+        "simulate",
+        "--scene",
+        "scenes/cart_pole.toml",
+        "--duration",
+        "0.1",
+        "--feedback",
+        &k,
+        "--csv",
+        &csv,
+    ];
+    for (text, needle) in [
+        (
+            r#"{"states": ["x", "psi"], "inputs": ["force"], "K": [[1, 2]]}"#,
+            "state `psi` is neither",
+        ),
+        (
+            r#"{"states": ["x"], "inputs": ["push"], "K": [[1]]}"#,
+            "input `push` is not an actuator",
+        ),
+        (
+            r#"{"states": ["x", "x_dot"], "inputs": ["force"], "K": [[1]]}"#,
+            "one row per input (1) of one gain per state (2)",
+        ),
+        (
+            r#"{"states": ["x"], "inputs": ["force"], "K": [[1]], "x0": [0, 0]}"#,
+            "`x0` has 2 entries, expected 1",
+        ),
+        (
+            r#"{"states": ["x"], "inputs": ["force", "force"], "K": [[1], [2]]}"#,
+            "listed twice",
+        ),
+        (
+            r#"{"states": ["x"], "inputs": ["force"], "K": [[1e999]]}"#,
+            "k.json",
+        ),
+    ] {
+        std::fs::write(&k, text).unwrap();
+        cli::refused(dir.path(), &["k.json"], &args, needle);
+    }
 }

@@ -17,7 +17,7 @@
 
 use std::path::PathBuf;
 
-use flexdyn_runtime::control::{Feedback, JointPdOf, TargetOf};
+use flexdyn_runtime::control::{Feedback, FeedbackLaw, JointPdOf, TargetOf};
 use flexdyn_runtime::{
     project, AdaptiveRk4, Equations, ErrorKind, FromFn, GaussLegendre4, GeneralizedAlphaConfig,
     GeneralizedAlphaOf, InputOf, IntegratorOf, ProjectionConfig, Rk4, SemiImplicitEuler, StateOf,
@@ -90,6 +90,12 @@ pub struct Args {
     /// Target of a PD-driven coordinate: `COORD=EXPR`.
     #[arg(long, value_name = "COORD=EXPR")]
     pub target: Vec<String>,
+    /// Linear state feedback `u = u0 - K (x - x0)` from JSON: the output of
+    /// `flexdyn linearize` with a gain matrix `"K"` (one row per input of
+    /// its `inputs`, one gain per entry of its `states`: coordinates and
+    /// `<coordinate>_dot` rates), added to the other inputs.
+    #[arg(long, value_name = "K.json")]
+    pub feedback: Option<PathBuf>,
     /// Integrator: adaptive-rk4 (default), rk4, semi-implicit-euler,
     /// gauss-legendre, gen-alpha.
     #[arg(long, default_value = "adaptive-rk4")]
@@ -219,6 +225,7 @@ struct Pd {
 struct Setup<'a> {
     model: &'a dyn DynModel,
     drives: Vec<Drive>,
+    feedback: Option<crate::state_feedback::StateFeedback>,
     state: crate::eval::State,
     duration: f64,
     grid: Grid,
@@ -261,6 +268,10 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     let setup = Setup {
         model,
         drives: drives(args, &parsed, model)?,
+        feedback: match &args.feedback {
+            Some(path) => Some(crate::state_feedback::StateFeedback::read(path, model)?),
+            None => None,
+        },
         state,
         duration: args.duration,
         grid,
@@ -605,8 +616,13 @@ impl Setup<'_> {
             }
             target
         };
-        let law =
+        let pd =
             JointPdOf::of_sizes(nq, joints, kp, kd, reference).map_err(|e| format!("--pd: {e}"))?;
+        let feedback = self.feedback.as_ref();
+        let law = |q: &DVector<f64>, qd: &DVector<f64>, t: f64| match feedback {
+            Some(f) => pd.input(q, qd, t) + f.input(q, qd),
+            None => pd.input(q, qd, t),
+        };
         let closed = Feedback::new(model, law);
         let open = FromFn(|t: f64| {
             let mut u = DVector::zeros(nu.0);
