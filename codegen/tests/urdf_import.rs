@@ -346,3 +346,84 @@ fn names_cannot_escape_into_the_scene_text() {
     assert_eq!(model.nq(), 2);
     assert!(model.constraints.is_empty());
 }
+
+#[test]
+fn angles_within_their_written_precision_of_a_multiple_of_pi_over_twelve_are_snapped() {
+    let urdf = ARM
+        .replace(
+            r#"rpy="0 1.5707963267948966 0""#,
+            r#"rpy="0 1.57079632679 3.1415926""#,
+        )
+        .replace(
+            r#"rpy="-1.5707963267948966 0 0""#,
+            r#"rpy="-1.570796325 1.57 5.4949E-05""#,
+        );
+    let snapped = import(&urdf).unwrap();
+    // Written to 1e-11 and 1e-7 (truncated): pi/2 and pi exactly.
+    assert!(
+        snapped.contains("angle = 1.5707963267948966 }"),
+        "{snapped}"
+    );
+    assert!(snapped.contains("angle = 3.141592653589793 }"), "{snapped}");
+    // 1.8e-9 from pi/2 but written to 1e-9; 8e-4 from pi/2 (beyond 1e-5);
+    // 5.5e-5 from zero written to 1e-9: as written.
+    for kept in ["-1.570796325", "angle = 1.57 ", "5.4949e-5"] {
+        assert!(snapped.contains(kept), "{kept} kept in\n{snapped}");
+    }
+    assert!(
+        snapped.contains("# 2 rpy angles agreeing with a multiple of pi/12"),
+        "{snapped}"
+    );
+    assert!(snapped.contains("largest change 5.4e-8 rad"), "{snapped}");
+    let options = UrdfOptions {
+        keep_angles: true,
+        ..Default::default()
+    };
+    let kept = import_urdf(&Source::new(Path::new("robot.urdf"), urdf), &options).unwrap();
+    assert!(kept.contains("angle = 1.57079632679 }"), "{kept}");
+    assert!(kept.contains("angle = 3.1415926 }"), "{kept}");
+    assert!(!kept.contains("pi/12"), "{kept}");
+    load(&snapped);
+    load(&kept);
+}
+
+#[test]
+fn an_unphysical_inertia_is_accepted_only_where_no_energy_depends_on_it() {
+    // The base is fixed to the world: it carries no energy (as TIAGo's
+    // 1e-6 kg antennas, whose tensors are not positive semi-definite).
+    let base = ARM.replacen(
+        r#"<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>"#,
+        r#"<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="-1e-8"/>"#,
+        1,
+    );
+    let scene = import(&base).unwrap();
+    assert!(
+        scene.contains("base (its inertia tensor is not physical)"),
+        "{scene}"
+    );
+    load(&scene);
+    // The tool is merged into the upper arm: its own tensor slightly off,
+    // the combined one physical.
+    let tool = ARM.replacen(
+        r#"<inertia ixx="0.002" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="0.004"/>"#,
+        r#"<inertia ixx="0.002" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="-1e-6"/>"#,
+        1,
+    );
+    let scene = import(&tool).unwrap();
+    assert!(
+        scene.contains("# link \"tool\"'s own inertia tensor is not physical; the combined one is"),
+        "{scene}"
+    );
+    load(&scene);
+    // Far off, the combined body is not physical either: refused at the
+    // tool's <inertia>.
+    let e = import(&tool.replacen(r#"izz="-1e-6""#, r#"izz="-1""#, 1))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("robot.urdf:18:")
+            && e.contains("link `tool`")
+            && e.contains("so is the body it is merged into (upper, tool)"),
+        "{e}"
+    );
+}

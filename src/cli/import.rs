@@ -37,6 +37,12 @@ pub struct UrdfArgs {
     /// the parent body (e.g. a gripper's fingers); may be repeated.
     #[arg(long = "fix", value_name = "JOINT")]
     pub fix: Vec<String>,
+    /// Keep every `rpy` angle as written. By default an angle that agrees
+    /// with a multiple of pi/12 to within one unit of its last written digit
+    /// (and 1e-5 rad) is taken as exact: `1.57079632679` as pi/2, which
+    /// keeps `cos` of it an exact zero in the generated code.
+    #[arg(long)]
+    pub keep_angles: bool,
     /// An optional output for the scene to generate (its `outputs` list,
     /// e.g. `dynamics_derivatives`); may be repeated.
     #[arg(long = "output", value_name = "NAME",
@@ -50,6 +56,7 @@ pub fn run(args: &Args) -> Result<(), String> {
     let text = read_input(&args.urdf, "URDF file")?;
     let options = UrdfOptions {
         fix: args.fix.clone(),
+        keep_angles: args.keep_angles,
         outputs: args.outputs.clone(),
     };
     let scene = import_urdf(&Source::new(&args.urdf, text), &options).map_err(|e| e.to_string())?;

@@ -40,10 +40,19 @@ pub struct UrdfOptions {
     /// Joints (URDF names) held fixed at zero: their child links are merged
     /// into the parent's body, as with a fixed joint.
     pub fix: Vec<String>,
+    /// Keep every angle as written: by default an `rpy` angle that agrees
+    /// with a multiple of `pi/12` to within one unit of its last written
+    /// digit (and at most [`SNAP_LIMIT`] rad) is taken to be that multiple.
+    pub keep_angles: bool,
     /// Optional outputs the scene asks for (its `outputs` list: names of
     /// [`crate::model::OUTPUTS`]).
     pub outputs: Vec<String>,
 }
+
+/// The largest change of an angle that snapping makes, rad (about two
+/// seconds of arc): an angle written as `1.5708` (3.7e-6 from `pi/2`) is
+/// snapped, `1.57` (8e-4) is kept as written.
+pub const SNAP_LIMIT: f64 = 1e-5;
 
 /// Largest magnitude accepted for a length, mass, inertia, angle or rate.
 const ABSURD: f64 = 1e9;
@@ -66,11 +75,13 @@ struct Pose {
     translation: Vector3<f64>,
 }
 
-/// An `<origin>` as written.
+/// An `<origin>` as read: `rpy` after snapping ([`read::snap_angle`]),
+/// `snapped` the change of each angle (zero where it was kept).
 #[derive(Debug, Clone, Copy, Default)]
 struct Origin {
     xyz: [f64; 3],
     rpy: [f64; 3],
+    snapped: [f64; 3],
 }
 
 #[derive(Debug, Clone)]
@@ -79,6 +90,10 @@ struct Inertial {
     mass: f64,
     /// `[ixx, ixy, ixz, iyy, iyz, izz]`.
     inertia: [f64; 6],
+    /// What is wrong with the tensor, if anything, and where its
+    /// `<inertia>` is (a byte offset): an error only where the link's
+    /// body carries energy and its combined inertia is wrong too.
+    problem: Option<(usize, String)>,
 }
 
 #[derive(Debug, Clone)]
@@ -136,14 +151,7 @@ pub fn import_urdf(source: &Source, options: &UrdfOptions) -> Result<String, Err
              --fix): a scene needs at least one coordinate",
         ));
     }
-    Ok(write_scene(
-        source,
-        robot,
-        &links,
-        &joints,
-        &tree,
-        &options.outputs,
-    ))
+    write_scene(source, robot, &links, &joints, &tree, &options.outputs)
 }
 
 fn at(source: &Source, node: roxmltree::Node, message: impl Into<String>) -> Error {

@@ -75,7 +75,7 @@ fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, tag: &str) -> Option<roxmltree::
     node.children().find(|c| c.has_tag_name(tag))
 }
 
-fn origin(source: &Source, parent: roxmltree::Node) -> Result<Origin, Error> {
+fn origin(source: &Source, parent: roxmltree::Node, keep_angles: bool) -> Result<Origin, Error> {
     let Some(o) = child(parent, "origin") else {
         return Ok(Origin::default());
     };
@@ -83,10 +83,42 @@ fn origin(source: &Source, parent: roxmltree::Node) -> Result<Origin, Error> {
         Some(t) => numbers::<3>(source, o, name, t),
         None => Ok([0.0; 3]),
     };
+    let written = read("rpy")?;
+    let mut rpy = written;
+    if !keep_angles {
+        let words = o.attribute("rpy").unwrap_or_default().split_whitespace();
+        for (angle, word) in rpy.iter_mut().zip(words) {
+            *angle = snap_angle(word, *angle);
+        }
+    }
     Ok(Origin {
         xyz: read("xyz")?,
-        rpy: read("rpy")?,
+        rpy,
+        snapped: std::array::from_fn(|k| rpy[k] - written[k]),
     })
+}
+
+/// The angle `value`, written as `text`, snapped to the multiple of
+/// `pi/12` it agrees with to within one unit of its last written digit,
+/// when that is at most [`super::SNAP_LIMIT`] away: `1.57079632679`
+/// (4.9e-12 from `pi/2`, written to 1e-11), `1.5708` and `3.1415926`
+/// (truncated) become `pi/2` and `pi`; `1.570796325` (1.8e-9 away, written to
+/// 1e-9), `1.57` and zero's neighbours (`5.5e-5`, `-1.9e-8`, written to finer
+/// digits) stay as written.
+pub(super) fn snap_angle(text: &str, value: f64) -> f64 {
+    use std::f64::consts::PI;
+    let n = (value * 12.0 / PI).round();
+    let exact = n * (PI / 12.0);
+    let (mantissa, exponent) = match text.find(['e', 'E']) {
+        Some(k) => (&text[..k], text[k + 1..].parse::<i32>().unwrap_or(0)),
+        None => (text, 0),
+    };
+    let decimals = mantissa.find('.').map_or(0, |k| mantissa.len() - k - 1) as i32;
+    let unit = 10f64.powi(exponent - decimals);
+    match (value - exact).abs() <= unit.min(super::SNAP_LIMIT) {
+        true => exact,
+        false => value,
+    }
 }
 
 pub(super) fn read_robot(
@@ -105,7 +137,7 @@ pub(super) fn read_robot(
             return Err(at(source, node, format!("more than {MAX_LINKS} links")));
         }
         let inertial = child(node, "inertial")
-            .map(|i| read_inertial(source, i, &name))
+            .map(|i| read_inertial(source, i, &name, options.keep_angles))
             .transpose()?;
         links.push(Link { name, inertial });
     }
@@ -216,7 +248,7 @@ pub(super) fn read_robot(
             kind,
             parent,
             child: child_link,
-            origin: origin(source, node)?,
+            origin: origin(source, node, options.keep_angles)?,
             axis,
             limit,
             velocity,
@@ -232,7 +264,12 @@ pub(super) fn read_robot(
     Ok((links, joints))
 }
 
-fn read_inertial(source: &Source, node: roxmltree::Node, link: &str) -> Result<Inertial, Error> {
+fn read_inertial(
+    source: &Source,
+    node: roxmltree::Node,
+    link: &str,
+    keep_angles: bool,
+) -> Result<Inertial, Error> {
     let ctx = format!("link `{link}`");
     let m = child(node, "mass")
         .ok_or_else(|| at(source, node, format!("{ctx}: <inertial> has no <mass>")))?;
@@ -249,12 +286,12 @@ fn read_inertial(source: &Source, node: roxmltree::Node, link: &str) -> Result<I
     {
         inertia[k] = number(source, i, name)?;
     }
-    if let Some(problem) = inertia_problem(&tensor(&inertia)) {
-        return Err(at(source, i, format!("{ctx}: {problem}")));
-    }
+    let problem =
+        inertia_problem(&tensor(&inertia)).map(|p| (i.range().start, format!("{ctx}: {p}")));
     Ok(Inertial {
-        origin: origin(source, node)?,
+        origin: origin(source, node, keep_angles)?,
         mass,
         inertia,
+        problem,
     })
 }

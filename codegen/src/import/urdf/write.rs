@@ -5,7 +5,8 @@ use std::fmt::Write;
 
 use super::tree::{combine, Tree};
 use super::{Inertial, Joint, Kind, Link, Pose};
-use crate::error::Source;
+use crate::error::{Error, Source};
+use crate::inertia::inertia_problem;
 use crate::load::parse::RESERVED;
 
 /// A scene identifier from a URDF name: letters, digits and `_` (others
@@ -127,7 +128,7 @@ pub(super) fn write_scene(
     joints: &[Joint],
     tree: &Tree,
     outputs: &[String],
-) -> String {
+) -> Result<String, Error> {
     let names = names(links, joints);
     let robot_name = robot.attribute("name").unwrap_or("robot");
     let mut taken = BTreeSet::new();
@@ -161,6 +162,27 @@ pub(super) fn write_scene(
         joints.len(),
         moving.len()
     );
+    let changes: Vec<f64> = joints
+        .iter()
+        .map(|j| &j.origin)
+        .chain(
+            links
+                .iter()
+                .filter_map(|l| l.inertial.as_ref().map(|i| &i.origin)),
+        )
+        .flat_map(|o| o.snapped)
+        .filter(|d| *d != 0.0)
+        .collect();
+    if !changes.is_empty() {
+        let largest = changes.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        let _ = writeln!(
+            w,
+            "# {} rpy angles agreeing with a multiple of pi/12 to their last written digit are \
+             taken as\n# exact (largest change {largest:.1e} rad; `--keep-angles` keeps them as \
+             written).",
+            changes.len()
+        );
+    }
     let _ = writeln!(w, "name = {}", quoted(&scene_name));
     let _ = writeln!(
         w,
@@ -260,7 +282,7 @@ pub(super) fn write_scene(
         }
     }
 
-    write_bodies(w, links, joints, tree, &names);
+    write_bodies(w, source, links, joints, tree, &names)?;
 
     for &j in &moving {
         if joints[j].damping > 0.0 {
@@ -288,11 +310,27 @@ pub(super) fn write_scene(
         let _ = writeln!(w, "name = {link}");
         let _ = writeln!(w, "frame = {link}");
     }
-    s
+    Ok(s)
 }
 
-/// One `rigid_body` per moving body.
-fn write_bodies(w: &mut String, links: &[Link], joints: &[Joint], tree: &Tree, names: &Names) {
+/// One `rigid_body` per moving body. A link's inertia tensor that is not
+/// physical (see [`Inertial::problem`]) is accepted, with a comment, where
+/// the link is fixed to the world (it carries no energy) or merged into a
+/// body whose combined tensor is physical; otherwise it is an error at the
+/// link's `<inertia>`.
+fn write_bodies(
+    w: &mut String,
+    source: &Source,
+    links: &[Link],
+    joints: &[Joint],
+    tree: &Tree,
+    names: &Names,
+) -> Result<(), Error> {
+    let problem = |l: usize| links[l].inertial.as_ref().and_then(|i| i.problem.as_ref());
+    let refuse = |l: usize, also: &str| {
+        let (at, problem) = problem(l).expect("a link with a problem");
+        source.error_at(*at, None, format!("{problem}{also}"))
+    };
     // Links of each body (by the body's frame link), with their poses in it.
     let mut bodies: BTreeMap<usize, Vec<(Pose, usize)>> = BTreeMap::new();
     let mut pose: Vec<Pose> = vec![Pose::identity(); links.len()];
@@ -310,7 +348,10 @@ fn write_bodies(w: &mut String, links: &[Link], joints: &[Joint], tree: &Tree, n
             .is_some_and(|i| i.mass > 0.0 || i.inertia.iter().any(|&v| v != 0.0));
         match tree.body_of(joints, l) {
             Some(body) => bodies.entry(body).or_default().push((pose[l], l)),
-            None if massive => ignored.push(names.link[l].clone()),
+            None if massive => ignored.push(match problem(l) {
+                Some(_) => format!("{} (its inertia tensor is not physical)", names.link[l]),
+                None => names.link[l].clone(),
+            }),
             None => {}
         }
     }
@@ -338,6 +379,9 @@ fn write_bodies(w: &mut String, links: &[Link], joints: &[Joint], tree: &Tree, n
                 let _ = writeln!(w, "\n# Body {} is massless.", quoted(body_name));
             }
             [(_, l)] => {
+                if problem(*l).is_some() {
+                    return Err(refuse(*l, ""));
+                }
                 let i = links[*l].inertial.as_ref().expect("filtered above");
                 let _ = writeln!(w, "\n[[components]]");
                 let _ = writeln!(w, "name = {}", quoted(&format!("{}_body", names.link[*l])));
@@ -371,7 +415,30 @@ fn write_bodies(w: &mut String, links: &[Link], joints: &[Joint], tree: &Tree, n
                     .map(|&(p, l)| (p, links[l].inertial.as_ref().expect("filtered above")))
                     .collect();
                 let b = combine(&inertials);
+                let odd: Vec<usize> = many
+                    .iter()
+                    .map(|&(_, l)| l)
+                    .filter(|&l| problem(l).is_some())
+                    .collect();
+                if let Some(&l) = odd.first() {
+                    if let Some(p) = inertia_problem(&b.tensor) {
+                        return Err(refuse(
+                            l,
+                            &format!(
+                                ", and so is the body it is merged into ({}): {p}",
+                                merged.join(", ")
+                            ),
+                        ));
+                    }
+                }
                 let _ = writeln!(w, "\n[[components]]");
+                for &l in &odd {
+                    let _ = writeln!(
+                        w,
+                        "# link {}'s own inertia tensor is not physical; the combined one is",
+                        quoted(&names.link[l])
+                    );
+                }
                 let _ = writeln!(
                     w,
                     "# the links {} joined by fixed joints, inertias combined",
@@ -388,4 +455,5 @@ fn write_bodies(w: &mut String, links: &[Link], joints: &[Joint], tree: &Tree, n
             }
         }
     }
+    Ok(())
 }
