@@ -21,7 +21,8 @@
 //!
 //! Before timing, every result of both sides is compared on every state
 //! (coordinates matched by joint name); the run stops if they disagree by
-//! more than 1e-12 relative to the scale of the term.
+//! more than 1e-10 relative to the scale of the term (flexdyn's import
+//! snaps angles written as `1.57079632679` to `pi/2`, about 5e-12).
 //!
 //! Times are the benchmark thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`),
 //! not wall-clock time, so that other jobs on a shared machine, which take
@@ -29,6 +30,11 @@
 //! behind in the caches still does).
 
 use std::ffi::{c_char, c_void, CStr, CString};
+
+/// Largest relative difference to Pinocchio accepted before timing: the
+/// import's snapping of angles written to a few digits (about 5e-12 of the
+/// scale for the UR5) with room to spare.
+const AGREEMENT: f64 = 1e-10;
 
 use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
@@ -359,9 +365,12 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
         worst[2],
         worst[3]
     );
-    // aba goes through a factorisation on our side: a looser bound.
+    // aba goes through a factorisation on our side: a looser bound. The
+    // import snaps angles written to 11 digits (UR5's `1.57079632679`) to
+    // exact multiples of pi/12, which Pinocchio keeps as written: about
+    // 5e-12 of the scale.
     assert!(
-        worst[..3].iter().all(|&e| e < 1e-12) && worst[3] < 1e-9,
+        worst[..3].iter().all(|&e| e < AGREEMENT) && worst[3] < 1e-9,
         "{name}: flexdyn and Pinocchio disagree"
     );
 
@@ -496,7 +505,7 @@ fn compare_marker<R: Model<N, 0, N> + Default, const N: usize>(
          Jacobian to Pinocchio's computeFrameJacobian over {} states: {worst:.1e}",
         states.len()
     );
-    assert!(worst < 1e-12, "{name}: flexdyn and Pinocchio disagree");
+    assert!(worst < AGREEMENT, "{name}: flexdyn and Pinocchio disagree");
     let mut g = c.benchmark_group(format!("{name} {marker}"));
     let mut i = 0;
     g.bench_function("flexdyn marker_jacobian", |b| {
