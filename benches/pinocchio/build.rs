@@ -46,6 +46,7 @@ fn main() {
             .unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", urdf.display())));
         let options = flexdyn_codegen::UrdfOptions {
             fix: fixed.iter().map(|s| s.to_string()).collect(),
+            outputs: vec!["dynamics_derivatives".into()],
             ..Default::default()
         };
         let scene =

@@ -8,6 +8,11 @@
 //!   `rnea`;
 //! * forward dynamics (generated terms + the runtime's Cholesky solve,
 //!   `flexdyn_runtime::accelerations`) against `aba`;
+//! * the generated `inverse_dynamics_derivatives` (`tau`, `d tau/dq`,
+//!   `d tau/dqd` in one program) against `computeRNEADerivatives`, and the
+//!   runtime's `forward_dynamics_derivatives` (generated terms and
+//!   derivatives, a Cholesky factorisation and `2 nq + nu` solves) against
+//!   `computeABADerivatives`;
 //! * the end effector's pose and Jacobian in `LOCAL_WORLD_ALIGNED` (the
 //!   generated `marker_jacobian` of the marker the import puts at the link)
 //!   against `computeFrameJacobian` of a frame at the same place (fixed to
@@ -21,8 +26,9 @@
 //!
 //! Before timing, every result of both sides is compared on every state
 //! (coordinates matched by joint name); the run stops if they disagree by
-//! more than 1e-10 relative to the scale of the term (flexdyn's import
-//! snaps angles written as `1.57079632679` to `pi/2`, about 5e-12).
+//! more than 1e-9 relative to the scale of the term (flexdyn's import
+//! snaps angles written as `1.57079632679` to `pi/2`: up to 1e-10 per
+//! state).
 //!
 //! Times are the benchmark thread's CPU time (`CLOCK_THREAD_CPUTIME_ID`),
 //! not wall-clock time, so that other jobs on a shared machine, which take
@@ -31,15 +37,16 @@
 
 use std::ffi::{c_char, c_void, CStr, CString};
 
-/// Largest relative difference to Pinocchio accepted before timing: the
-/// import's snapping of angles written to a few digits (about 5e-12 of the
-/// scale for the UR5) with room to spare.
-const AGREEMENT: f64 = 1e-10;
+/// Largest relative difference to Pinocchio accepted before timing (per
+/// state, relative to the larger of 1 and the state's largest magnitude):
+/// the import's snapping of angles written to a few digits (4.9e-12 rad for
+/// the UR5, up to 4e-10 N m in its bias forces) with room to spare.
+const AGREEMENT: f64 = 1e-9;
 
 use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use flexdyn_runtime::nalgebra::{SMatrix, SVector};
-use flexdyn_runtime::{accelerations, DynamicsConfig, Model};
+use flexdyn_runtime::{accelerations, forward_dynamics_derivatives, DynamicsConfig, Model};
 
 mod robots {
     /// One joint of Pinocchio's model as its URDF parser built it (see
@@ -89,6 +96,10 @@ extern "C" {
     fn pin_bench_crba_nle(b: *mut c_void, q: *const f64, v: *const f64);
     fn pin_bench_rnea(b: *mut c_void, q: *const f64, v: *const f64, a: *const f64);
     fn pin_bench_aba(b: *mut c_void, q: *const f64, v: *const f64, tau: *const f64);
+    fn pin_bench_rnea_derivatives(b: *mut c_void, q: *const f64, v: *const f64, a: *const f64);
+    fn pin_bench_aba_derivatives(b: *mut c_void, q: *const f64, v: *const f64, tau: *const f64);
+    fn pin_bench_read_rnea_derivatives(b: *const c_void, dq: *mut f64, dv: *mut f64);
+    fn pin_bench_read_aba_derivatives(b: *const c_void, dq: *mut f64, dv: *mut f64, minv: *mut f64);
     fn pin_bench_joint_placement(b: *mut c_void, q: *const f64, joint: i32, out: *mut f64);
     fn pin_bench_add_frame(b: *mut c_void, joint: i32, placement: *const f64) -> i32;
     fn pin_bench_frame_jacobian(b: *mut c_void, frame: i32, q: *const f64);
@@ -432,6 +443,134 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
     g.finish();
 }
 
+/// The generated `inverse_dynamics_derivatives` (`d tau/dq`, `d tau/dqd`)
+/// against `computeRNEADerivatives`, and the runtime's
+/// `forward_dynamics_derivatives` (`d qdd/dq`, `d qdd/dqd`, `d qdd/dtau`)
+/// against `computeABADerivatives`: checked on every state, then timed side
+/// by side.
+fn compare_derivatives<R: Model<N, 0, N> + Default, const N: usize>(
+    c: &mut Criterion<ThreadCpuTime>,
+    name: &str,
+) {
+    let robot = R::default();
+    let pin = Pinocchio::load(name, &R::COORDINATES);
+    let states = states::<N>(&pin, 300);
+    let p = &pin.to_pin;
+    // Pinocchio's column-major n x n matrix in flexdyn's coordinate order.
+    let reorder =
+        |m: &[f64]| -> Vec<f64> { (0..N * N).map(|k| m[p[k % N] + N * p[k / N]]).collect() };
+    let mut worst = [0.0f64; 5];
+    for s in &states {
+        let mut tau = SVector::<f64, N>::zeros();
+        let (mut tq, mut tv) = (SMatrix::<f64, N, N>::zeros(), SMatrix::<f64, N, N>::zeros());
+        assert!(robot
+            .inverse_dynamics_derivatives(&s.q, &s.qd, &s.qdd, 0.0, &mut tau, &mut tq, &mut tv));
+        let d =
+            forward_dynamics_derivatives(&robot, &s.q, &s.qd, 0.0, &s.tau).expect("derivatives");
+        let (mut dq, mut dv, mut fq, mut fv, mut minv) = (
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+        );
+        // SAFETY: every array holds N or N * N numbers, as the model has N velocities.
+        unsafe {
+            pin_bench_rnea_derivatives(
+                pin.handle,
+                s.pin[0].as_ptr(),
+                s.pin[1].as_ptr(),
+                s.pin[2].as_ptr(),
+            );
+            pin_bench_read_rnea_derivatives(pin.handle, dq.as_mut_ptr(), dv.as_mut_ptr());
+            pin_bench_aba_derivatives(
+                pin.handle,
+                s.pin[0].as_ptr(),
+                s.pin[1].as_ptr(),
+                s.pin[3].as_ptr(),
+            );
+            pin_bench_read_aba_derivatives(
+                pin.handle,
+                fq.as_mut_ptr(),
+                fv.as_mut_ptr(),
+                minv.as_mut_ptr(),
+            );
+        }
+        for (k, (ours, theirs)) in [
+            (tq.as_slice(), &dq),
+            (tv.as_slice(), &dv),
+            (d.qdd_q.as_slice(), &fq),
+            (d.qdd_qd.as_slice(), &fv),
+            (d.qdd_tau.as_slice(), &minv),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            worst[k] = worst[k].max(relative_error(ours, &reorder(theirs)));
+        }
+    }
+    println!(
+        "{name}: largest relative difference to Pinocchio's derivatives over {} states:          dtau/dq {:.1e}, dtau/dv {:.1e}, ddq/dq {:.1e}, ddq/dv {:.1e}, ddq/dtau {:.1e}",
+        states.len(),
+        worst[0],
+        worst[1],
+        worst[2],
+        worst[3],
+        worst[4]
+    );
+    assert!(
+        worst[..2].iter().all(|&e| e < AGREEMENT) && worst[2..].iter().all(|&e| e < 1e-9),
+        "{name}: flexdyn's and Pinocchio's derivatives disagree"
+    );
+    let mut g = c.benchmark_group(format!("{name} derivatives"));
+    let mut i = 0;
+    g.bench_function("flexdyn inverse_dynamics_derivatives", |b| {
+        let mut tau = SVector::<f64, N>::zeros();
+        let (mut tq, mut tv) = (SMatrix::<f64, N, N>::zeros(), SMatrix::<f64, N, N>::zeros());
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            robot
+                .inverse_dynamics_derivatives(&s.q, &s.qd, &s.qdd, 0.0, &mut tau, &mut tq, &mut tv);
+            black_box((&tau, &tq, &tv));
+        })
+    });
+    g.bench_function("pinocchio computeRNEADerivatives", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            // SAFETY: arrays of N numbers for a model of N velocities.
+            unsafe {
+                pin_bench_rnea_derivatives(
+                    pin.handle,
+                    s.pin[0].as_ptr(),
+                    s.pin[1].as_ptr(),
+                    s.pin[2].as_ptr(),
+                )
+            }
+        })
+    });
+    g.bench_function("flexdyn forward_dynamics_derivatives", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            black_box(forward_dynamics_derivatives(&robot, &s.q, &s.qd, 0.0, &s.tau).map(|d| d.qdd))
+        })
+    });
+    g.bench_function("pinocchio computeABADerivatives", |b| {
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            // SAFETY: arrays of N numbers for a model of N velocities.
+            unsafe {
+                pin_bench_aba_derivatives(
+                    pin.handle,
+                    s.pin[0].as_ptr(),
+                    s.pin[1].as_ptr(),
+                    s.pin[3].as_ptr(),
+                )
+            }
+        })
+    });
+    g.finish();
+}
+
 /// The generated pose and Jacobian of marker `marker` against Pinocchio's
 /// `computeFrameJacobian` of a frame fixed to its last joint at the same
 /// place: checked on every state, then timed side by side.
@@ -534,6 +673,8 @@ fn next<'a, T>(states: &'a [T], i: &mut usize) -> &'a T {
 fn robots(c: &mut Criterion<ThreadCpuTime>) {
     compare::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
     compare::<panda::Panda, { panda::NQ }>(c, "panda");
+    compare_derivatives::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
+    compare_derivatives::<panda::Panda, { panda::NQ }>(c, "panda");
     compare_marker::<ur5::Ur5, { ur5::NQ }>(c, "ur5", "tool0");
     compare_marker::<panda::Panda, { panda::NQ }>(c, "panda", "panda_hand");
 }

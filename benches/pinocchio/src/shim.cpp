@@ -1,7 +1,8 @@
 // A thin C interface to Pinocchio for the side-by-side benchmark: builds a
 // pinocchio::Model joint by joint from plain numbers (those of Pinocchio's
 // own URDF parser, written out by dump_model.py at build time), and runs
-// crba + nonLinearEffects, rnea and aba on caller-owned arrays, and a
+// crba + nonLinearEffects, rnea and aba (and their analytical derivatives,
+// computeRNEADerivatives and computeABADerivatives) on caller-owned arrays, and a
 // frame's placement and Jacobian (computeFrameJacobian). The model is
 // built here, not by the prebuilt parser: that library is compiled for
 // SSE2 with Eigen's 16-byte alignment, and handing it a Model compiled with
@@ -13,11 +14,13 @@
 // dynamics, subtracted from the torque for aba). The timed entry points only
 // compute (results stay in Pinocchio's Data); separate readers copy them out
 // for the comparison.
+#include <pinocchio/algorithm/aba-derivatives.hpp>
 #include <pinocchio/algorithm/aba.hpp>
 #include <pinocchio/algorithm/crba.hpp>
 #include <pinocchio/algorithm/frames.hpp>
 #include <pinocchio/algorithm/jacobian.hpp>
 #include <pinocchio/algorithm/kinematics.hpp>
+#include <pinocchio/algorithm/rnea-derivatives.hpp>
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
@@ -199,6 +202,47 @@ void pin_bench_aba(void *p, const double *q, const double *v, const double *tau)
   const int n = b->model.nv;
   b->tau_damped = VecMap(tau, n) - b->model.damping.cwiseProduct(VecMap(v, n));
   pinocchio::aba(b->model, b->data, VecMap(q, n), VecMap(v, n), b->tau_damped);
+}
+
+void pin_bench_rnea_derivatives(void *p, const double *q, const double *v, const double *a) {
+  auto *b = static_cast<Bench *>(p);
+  const int n = b->model.nv;
+  pinocchio::computeRNEADerivatives(b->model, b->data, VecMap(q, n), VecMap(v, n), VecMap(a, n));
+}
+
+void pin_bench_aba_derivatives(void *p, const double *q, const double *v, const double *tau) {
+  auto *b = static_cast<Bench *>(p);
+  const int n = b->model.nv;
+  b->tau_damped = VecMap(tau, n) - b->model.damping.cwiseProduct(VecMap(v, n));
+  pinocchio::computeABADerivatives(b->model, b->data, VecMap(q, n), VecMap(v, n), b->tau_damped);
+}
+
+// Copies the last computeRNEADerivatives out (column-major): dtau/dq, and
+// dtau/dv with the damping's diag(d) added.
+void pin_bench_read_rnea_derivatives(const void *p, double *dq, double *dv) {
+  const auto *b = static_cast<const Bench *>(p);
+  const int n = b->model.nv;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      dq[i + n * j] = b->data.dtau_dq(i, j);
+      dv[i + n * j] = b->data.dtau_dv(i, j) + (i == j ? b->model.damping[j] : 0.0);
+    }
+  }
+}
+
+// Copies the last computeABADerivatives out (column-major): ddq/dq, ddq/dv
+// less M^-1 diag(d) (the damping's part), and M^-1 (symmetrised) = ddq/dtau.
+void pin_bench_read_aba_derivatives(const void *p, double *dq, double *dv, double *minv) {
+  const auto *b = static_cast<const Bench *>(p);
+  const int n = b->model.nv;
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const double m = i <= j ? b->data.Minv(i, j) : b->data.Minv(j, i);
+      minv[i + n * j] = m;
+      dq[i + n * j] = b->data.ddq_dq(i, j);
+      dv[i + n * j] = b->data.ddq_dv(i, j) - m * b->model.damping[j];
+    }
+  }
 }
 
 // Copies the last results out: M (symmetrised, column-major), nle and tau
