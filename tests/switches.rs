@@ -185,3 +185,44 @@ fn coulomb_block_decelerates_at_mu_g_and_stops_after_v0_squared_over_2_mu_g() {
         "{e}"
     );
 }
+
+#[test]
+fn gen_alpha_stopping_at_a_switch_names_the_switching_component() {
+    let dir = tempfile::tempdir().unwrap();
+    let start = dir.path().join("start.json");
+    std::fs::write(&start, r#"{"q": [0], "qd": [1], "t": 0}"#).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_flexdyn"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args([
+            "simulate",
+            "--scene",
+            "scenes/coulomb_block.toml",
+            "--initial",
+        ])
+        .arg(&start)
+        .args([
+            "--duration",
+            "1",
+            "--dt",
+            "0.01",
+            "--integrator",
+            "gen-alpha",
+            "--csv",
+        ])
+        .arg(dir.path().join("out.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    // The block stops at v0/(mu g) = 0.34 s; Newton fails at the switch.
+    assert!(
+        err.contains("Newton iteration did not converge")
+            && err.contains("the forces of `friction` switch with the state")
+            && err.contains("smooth the switch"),
+        "{err}"
+    );
+    assert!(
+        !dir.path().join("out.csv").exists(),
+        "nothing written half-way"
+    );
+}

@@ -237,6 +237,8 @@ struct Setup<'a> {
     markers: Vec<usize>,
     /// The constraints' names, in the model's order.
     constraints: Vec<String>,
+    /// The components whose forces switch with the state.
+    switching: Vec<String>,
 }
 
 /// Run the command on the scenes of `compiled`.
@@ -281,6 +283,11 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         quiet: args.quiet,
         markers,
         constraints: parsed.constraints.iter().map(|c| c.name.clone()).collect(),
+        switching: parsed
+            .switching_components()
+            .into_iter()
+            .map(str::to_owned)
+            .collect(),
     };
     let mut outputs = OutputFiles::default();
     let mut csv = CsvWriter::create(&mut outputs, &args.csv, &columns)?;
@@ -646,6 +653,7 @@ impl Setup<'_> {
             quiet: self.quiet,
             markers: &self.markers,
             constraints: &self.constraints,
+            switching: &self.switching,
             emit,
         };
         // The companion of a fixed-step integrator of order `order`.
@@ -992,6 +1000,8 @@ struct Run<'a, 'e> {
     markers: &'a [usize],
     /// The constraints' names.
     constraints: &'a [String],
+    /// The components whose forces switch with the state.
+    switching: &'a [String],
     emit: Emit<'e>,
 }
 
@@ -1082,9 +1092,25 @@ impl Run<'_, '_> {
     }
 
     /// The error of step `k` (of size `h`, from `state`), with a hint where
-    /// a coordinate has no mass.
+    /// a coordinate has no mass, or where an implicit integrator's Newton
+    /// iteration failed on a scene whose forces switch.
     fn failure(&self, k: u64, state: &DynState, h: f64, e: flexdyn_runtime::Error) -> String {
         let hint = match e.kind {
+            ErrorKind::NewtonNotConverged { .. }
+                if e.stage.is_none() && !self.switching.is_empty() =>
+            {
+                format!(
+                    " (the forces of {} switch with the state: sign, step, abs, min or max of \
+                     a coordinate or rate; at a switch the Newton iteration has no smooth \
+                     Jacobian to follow, which smaller steps do not change: smooth the switch, \
+                     docs/scene-format.md, Switches)",
+                    self.switching
+                        .iter()
+                        .map(|c| format!("`{c}`"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            }
             ErrorKind::MassMatrixNotPositiveDefinite { pivot, .. } => self
                 .model
                 .coordinates()

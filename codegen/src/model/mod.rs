@@ -307,6 +307,30 @@ impl Model {
         self.coordinates.len()
     }
 
+    /// The components whose energies switch with the state: a `sign`,
+    /// `step` or `abs` (also inside `min`, `max`) of an expression of the
+    /// coordinates or rates, where the forces jump or kink and the Newton
+    /// iterations of implicit integrators may not converge.
+    pub fn switching_components(&self) -> Vec<&str> {
+        use crate::expr::{Func, Node, Symbol};
+        let g = &self.graph;
+        self.components
+            .iter()
+            .filter(|c| {
+                g.reachable(&[c.kinetic, c.potential, c.dissipation])
+                    .into_iter()
+                    .any(|id| match g.node(id) {
+                        Node::Call(Func::Sign | Func::Step | Func::Abs, arg) => g
+                            .symbols(&[*arg])
+                            .iter()
+                            .any(|s| matches!(s, Symbol::Q(_) | Symbol::Qd(_))),
+                        _ => false,
+                    })
+            })
+            .map(|c| c.name.as_str())
+            .collect()
+    }
+
     /// The scene's symbolic inputs: `T`, `V`, `D` of every component in
     /// order, then every constraint residual (what the export writes).
     pub fn input_roots(&self) -> Vec<Id> {
