@@ -177,17 +177,64 @@ fn csv_row(s: &mut String, row: &[f64]) {
     s.push('\n');
 }
 
-/// A CSV written row by row as a run produces it (the text of
-/// [`Table::to_csv`], never all in memory), through
-/// [`OutputFiles::create`]: a regular file appears whole when the outputs
-/// are committed, or not at all; a device or FIFO gets the rows as they
-/// come. While it exists, an interrupt (SIGINT, SIGTERM) does not kill the
-/// process: the next row fails (and the run with it, leaving no partial
-/// temporary file); a second one kills it.
-pub struct CsvWriter {
+/// A text output written piece by piece as a run produces it (never all
+/// in memory), through [`OutputFiles::create`]: a regular file appears
+/// whole when the outputs are committed, or not at all; a device or FIFO
+/// gets the text as it comes. While one exists, an interrupt (SIGINT,
+/// SIGTERM) does not kill the process: the next write fails (and the run
+/// with it, leaving no partial temporary file); a second one kills it.
+pub struct TextWriter {
     out: BufWriter<std::fs::File>,
-    line: String,
     path: PathBuf,
+}
+
+impl TextWriter {
+    /// Open the output `path` in `outputs`; errors name `path`.
+    pub fn create(outputs: &mut OutputFiles, path: &Path) -> Result<TextWriter, String> {
+        let writer = TextWriter {
+            out: BufWriter::new(outputs.create(path)?),
+            path: path.to_path_buf(),
+        };
+        interrupt::catch(true);
+        Ok(writer)
+    }
+
+    /// Append `text`, the output at time `t` when given (the error after an
+    /// interrupt names it).
+    pub fn write(&mut self, text: &str, t: Option<f64>) -> Result<(), String> {
+        if interrupt::caught() {
+            return Err(format!(
+                "interrupted at t = {} s: {} not written",
+                t.map_or(String::new(), |t| Time(t).to_string()),
+                self.path.display()
+            ));
+        }
+        self.out
+            .write_all(text.as_bytes())
+            .map_err(|e| self.failed(e))
+    }
+
+    /// Write out what is buffered; the writer is done.
+    pub fn finish(mut self) -> Result<(), String> {
+        self.out.flush().map_err(|e| self.failed(e))
+    }
+
+    fn failed(&self, e: std::io::Error) -> String {
+        format!("cannot write {}: {e}", self.path.display())
+    }
+}
+
+impl Drop for TextWriter {
+    fn drop(&mut self) {
+        interrupt::catch(false);
+    }
+}
+
+/// A CSV written row by row as a run produces it (the text of
+/// [`Table::to_csv`]), a [`TextWriter`].
+pub struct CsvWriter {
+    text: TextWriter,
+    line: String,
 }
 
 impl CsvWriter {
@@ -198,60 +245,36 @@ impl CsvWriter {
         path: &Path,
         columns: &[String],
     ) -> Result<CsvWriter, String> {
-        let mut writer = CsvWriter {
-            out: BufWriter::new(outputs.create(path)?),
-            line: columns.join(","),
-            path: path.to_path_buf(),
-        };
-        writer.line.push('\n');
-        writer.flush_line()?;
-        interrupt::catch(true);
-        Ok(writer)
+        let mut text = TextWriter::create(outputs, path)?;
+        text.write(&(columns.join(",") + "\n"), None)?;
+        Ok(CsvWriter {
+            text,
+            line: String::new(),
+        })
     }
 
     /// Append a row (as long as the columns); an error after an interrupt.
     pub fn row(&mut self, row: &[f64]) -> Result<(), String> {
-        if interrupt::caught() {
-            return Err(format!(
-                "interrupted at t = {} s: {} not written",
-                row.first()
-                    .copied()
-                    .map_or(String::new(), |t| Time(t).to_string()),
-                self.path.display()
-            ));
-        }
+        self.line.clear();
         csv_row(&mut self.line, row);
-        self.flush_line()
+        self.text.write(&self.line, row.first().copied())
     }
 
     /// Write out what is buffered; the writer is done.
-    pub fn finish(mut self) -> Result<(), String> {
-        self.out.flush().map_err(|e| self.failed(e))
-    }
-
-    fn flush_line(&mut self) -> Result<(), String> {
-        let written = self.out.write_all(self.line.as_bytes());
-        self.line.clear();
-        written.map_err(|e| self.failed(e))
-    }
-
-    fn failed(&self, e: std::io::Error) -> String {
-        format!("cannot write {}: {e}", self.path.display())
-    }
-}
-
-impl Drop for CsvWriter {
-    fn drop(&mut self) {
-        interrupt::catch(false);
+    pub fn finish(self) -> Result<(), String> {
+        self.text.finish()
     }
 }
 
 /// SIGINT and SIGTERM noted instead of killing the process, while a
-/// [`CsvWriter`] streams (Unix; elsewhere they kill it as before).
+/// [`TextWriter`] streams (Unix; elsewhere they kill it as before).
 mod interrupt {
-    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
     static CAUGHT: AtomicBool = AtomicBool::new(false);
+
+    /// How many writers are streaming.
+    static WRITERS: AtomicUsize = AtomicUsize::new(0);
 
     /// Whether an interrupt arrived since [`catch`]`(true)`.
     pub fn caught() -> bool {
@@ -263,10 +286,17 @@ mod interrupt {
         CAUGHT.store(true, Ordering::Relaxed);
     }
 
-    /// Note the next interrupt (`on`; the one after it kills as usual), or
-    /// restore the default (kill). A signal the process ignores stays
-    /// ignored.
+    /// Note the next interrupt (`on`, by the first writer; the one after it
+    /// kills as usual), or restore the default (kill; by the last writer).
+    /// A signal the process ignores stays ignored.
     pub fn catch(on: bool) {
+        let writers = match on {
+            true => WRITERS.fetch_add(1, Ordering::SeqCst) + 1,
+            false => WRITERS.fetch_sub(1, Ordering::SeqCst) - 1,
+        };
+        if writers != usize::from(on) {
+            return;
+        }
         CAUGHT.store(false, Ordering::Relaxed);
         #[cfg(unix)]
         // SAFETY: `sigaction` reads and sets plain, zero-initialised

@@ -12,8 +12,9 @@
 
 #[path = "common/cli.rs"]
 mod cli;
+#[path = "common/limits.rs"]
+mod limits;
 
-use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -55,25 +56,7 @@ const SECONDS: u64 = 30;
 /// beyond fails: the run aborts) and its time to [`SECONDS`] (an endless
 /// or stuck run is killed).
 fn limited() -> Command {
-    let mut command = Command::new(BIN);
-    // SAFETY: `alarm` and `setrlimit` are async-signal-safe, as `pre_exec`
-    // requires.
-    unsafe {
-        command.pre_exec(|| {
-            libc::alarm(SECONDS as libc::c_uint);
-            for (resource, value) in [(libc::RLIMIT_AS, SMALL), (libc::RLIMIT_CPU, SECONDS)] {
-                let limit = libc::rlimit {
-                    rlim_cur: value as libc::rlim_t,
-                    rlim_max: value as libc::rlim_t,
-                };
-                if libc::setrlimit(resource, &limit) != 0 {
-                    return Err(std::io::Error::last_os_error());
-                }
-            }
-            Ok(())
-        });
-    }
-    command
+    limits::limited(BIN, SMALL, SECONDS)
 }
 
 fn swinging(dir: &Path) -> String {

@@ -18,11 +18,6 @@ struct Cli {
     command: Command,
 }
 
-/// The default `--max-steps` of the robot's commands, which keep every row
-/// in memory (the generic `flexdyn` commands stream theirs, and allow
-/// [`flexdyn::steps::MAX_STEPS`]).
-const ROWS_IN_MEMORY: u64 = 1_000_000;
-
 #[derive(Subcommand)]
 enum Command {
     /// Inverse dynamics of the parallel robot along a circle of the platform
@@ -44,10 +39,9 @@ enum Command {
         /// Output step, s.
         #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
         dt: f64,
-        /// Largest number of steps of --dt in --duration (refused beyond;
-        /// 10^6 unless given: the robot's commands keep their rows in
-        /// memory, for the plot and the state file).
-        #[arg(long, default_value_t = ROWS_IN_MEMORY)]
+        /// Largest number of steps of --dt in --duration (refused before the
+        /// run).
+        #[arg(long, default_value_t = flexdyn::steps::MAX_STEPS)]
         max_steps: u64,
         /// Radius of the circle, m.
         #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
@@ -106,10 +100,9 @@ enum Command {
         /// Integration step, s.
         #[arg(long, default_value_t = 0.001, allow_negative_numbers = true)]
         dt: f64,
-        /// Largest number of steps of --dt in --duration (refused beyond;
-        /// 10^6 unless given: the robot's commands keep their rows in
-        /// memory, for the plot and the state file).
-        #[arg(long, default_value_t = ROWS_IN_MEMORY)]
+        /// Largest number of steps of --dt in --duration (refused before the
+        /// run).
+        #[arg(long, default_value_t = flexdyn::steps::MAX_STEPS)]
         max_steps: u64,
         /// Output step, s (a multiple of --dt).
         #[arg(long, default_value_t = 0.005, allow_negative_numbers = true)]
@@ -244,7 +237,9 @@ struct InverseOutputs {
     states: Option<PathBuf>,
 }
 
-/// `(duration, dt, max_steps)`: the run's span, step and step limit.
+/// `(duration, dt, max_steps)`: the run's span, step and step limit. The
+/// rows are streamed to the files as they are computed (the plot from a
+/// bounded copy of them): a run of any length needs the same memory.
 fn inverse(
     scene: &Path,
     circle: &robot_crate::robot::Circle,
@@ -252,19 +247,15 @@ fn inverse(
     files: &InverseOutputs,
     quiet: bool,
 ) -> Result<(), String> {
-    use robot_crate::robot::{inverse_rows, output_times};
+    use flexdyn::plot::{Decimated, PLOT_ROWS};
+    use flexdyn::table::{CsvWriter, OutputFiles, TextWriter};
+    use robot_crate::robot::{each_output_time, stream_inverse_rows};
     let (parsed, geometry) = robot_scene(scene, "inverse")?;
     if !(circle.omega.is_finite() && circle.radius.is_finite() && circle.radius >= 0.0) {
         return Err("--omega must be finite and --radius finite and non-negative".into());
     }
-    let times = output_times(duration, dt, max_steps)?;
-    let mut progress =
-        flexdyn::progress::Progress::new(times.len() as u64, "inverse dynamics", quiet);
-    let solutions = robot_crate::with_robot_model!(parsed.name.as_str(), model => {
-        inverse_rows(&model, &geometry, circle, &times, &mut || progress.inc())
-    })
-    .ok_or_else(|| format!("scene `{}` is not a robot scene", parsed.name))??;
-    progress.finish();
+    let times = each_output_time(duration, dt, max_steps)?;
+    check_outputs([&files.csv, &files.states, &files.plot])?;
     let flexible = parsed.nq() > 12;
     let mut columns = vec![
         "t", "tau_1", "tau_2", "tau_3", "px", "py", "pz", "vx", "vy", "vz", "th11", "th21", "th31",
@@ -272,43 +263,80 @@ fn inverse(
     if flexible {
         columns.extend(["dx", "dy", "dz"]);
     }
-    let mut table = flexdyn::table::Table::new(&columns);
-    for s in &solutions {
-        // Flexible scenes: the prescribed path, and the platform's deviation from it.
-        let [p, v, _] = if flexible {
-            circle.at(s.t)
-        } else {
-            [s.p, s.v, [0.0; 3]]
-        };
-        let mut row = vec![
-            s.t, s.tau[0], s.tau[1], s.tau[2], p[0], p[1], p[2], v[0], v[1], v[2], s.th[0],
-            s.th[1], s.th[2],
-        ];
-        if flexible {
-            row.extend((0..3).map(|k| s.p[k] - p[k]));
-        }
-        table.push(row);
+    let columns: Vec<String> = columns.into_iter().map(String::from).collect();
+    let mut outputs = OutputFiles::default();
+    let mut csv = files
+        .csv
+        .as_ref()
+        .map(|path| CsvWriter::create(&mut outputs, path, &columns))
+        .transpose()?;
+    // The `flexdyn eval` input format, `{"states":[{...},...]}`, a state at a time.
+    let mut states = files
+        .states
+        .as_ref()
+        .map(|path| {
+            let mut states = TextWriter::create(&mut outputs, path)?;
+            states.write("{\"states\":[", None)?;
+            Ok::<_, String>(states)
+        })
+        .transpose()?;
+    let mut separator = "";
+    // The plotted torques (after `t`) of a bounded copy of the rows.
+    let mut kept = files.plot.as_ref().map(|_| Decimated::new(PLOT_ROWS));
+    let mut peak = [0.0; 3];
+    let mut row = Vec::with_capacity(columns.len());
+    let mut progress =
+        flexdyn::progress::Progress::new(times.len() as u64, "inverse dynamics", quiet);
+    robot_crate::with_robot_model!(parsed.name.as_str(), model => {
+        stream_inverse_rows(&model, &geometry, circle, times.clone(), &mut |s| {
+            // Flexible scenes: the prescribed path, and the platform's deviation from it.
+            let [p, v, _] = if flexible {
+                circle.at(s.t)
+            } else {
+                [s.p, s.v, [0.0; 3]]
+            };
+            if let Some(csv) = &mut csv {
+                row.clear();
+                row.extend([
+                    s.t, s.tau[0], s.tau[1], s.tau[2], p[0], p[1], p[2], v[0], v[1], v[2],
+                    s.th[0], s.th[1], s.th[2],
+                ]);
+                if flexible {
+                    row.extend((0..3).map(|k| s.p[k] - p[k]));
+                }
+                csv.row(&row)?;
+            }
+            if let Some(states) = &mut states {
+                let state = serde_json::json!({ "t": s.t, "q": s.q, "qd": s.qd });
+                states.write(separator, Some(s.t))?;
+                states.write(&state.to_string(), Some(s.t))?;
+                separator = ",";
+            }
+            if let Some(kept) = &mut kept {
+                kept.push(&[s.t, s.tau[0], s.tau[1], s.tau[2]]);
+            }
+            for (peak, tau) in peak.iter_mut().zip(s.tau) {
+                *peak = f64::max(*peak, tau.abs());
+            }
+            progress.inc();
+            Ok(())
+        })
+    })
+    .ok_or_else(|| format!("scene `{}` is not a robot scene", parsed.name))??;
+    progress.finish();
+    if let Some(csv) = csv {
+        csv.finish()?;
     }
-    let mut outputs = flexdyn::table::OutputFiles::default();
-    if let Some(path) = &files.csv {
-        outputs.write(path, |tmp| table.write(tmp))?;
+    if let Some(mut states) = states {
+        states.write("]}\n", None)?;
+        states.finish()?;
     }
-    if let Some(path) = &files.states {
-        let states: Vec<serde_json::Value> = solutions
-            .iter()
-            .map(|s| serde_json::json!({ "t": s.t, "q": s.q, "qd": s.qd }))
-            .collect();
-        let text = serde_json::to_string(&serde_json::json!({ "states": states }))
-            .map_err(|e| e.to_string())?;
-        outputs.write(path, |tmp| {
-            std::fs::write(tmp, text + "\n").map_err(|e| format!("cannot write: {e}"))
-        })?;
-    }
-    if let Some(path) = &files.plot {
+    if let (Some(path), Some(kept)) = (&files.plot, kept) {
+        let rows = kept.rows();
         let series: Vec<flexdyn::plot::Series> = (1..=3)
             .map(|i| flexdyn::plot::Series {
                 label: ["tau_1", "tau_2", "tau_3"][i - 1],
-                points: solutions.iter().map(|s| (s.t, s.tau[i - 1])).collect(),
+                points: rows.iter().map(|r| (r[0], r[i])).collect(),
             })
             .collect();
         let title = format!(
@@ -329,12 +357,19 @@ fn inverse(
     }
     outputs.commit()?;
     if !quiet {
-        for i in 0..3 {
-            let peak = solutions.iter().map(|s| s.tau[i].abs()).fold(0.0, f64::max);
+        for (i, peak) in peak.iter().enumerate() {
             println!("chain {}: max |tau_{}| = {:.4} N m", i + 1, i + 1, peak);
         }
     }
     Ok(())
+}
+
+/// Each output file given can be written (checked before the run).
+fn check_outputs<const N: usize>(paths: [&Option<PathBuf>; N]) -> Result<(), String> {
+    paths
+        .into_iter()
+        .flatten()
+        .try_for_each(|path| flexdyn::table::check_output(path))
 }
 
 struct SimulateArgs {
@@ -353,9 +388,13 @@ struct SimulateArgs {
     quiet: bool,
 }
 
+/// The rows are streamed to the CSV as they are computed (the plot from a
+/// bounded copy of them): a run of any length needs the same memory.
 fn simulate(a: &SimulateArgs) -> Result<(), String> {
+    use flexdyn::plot::{Decimated, PLOT_ROWS};
     use flexdyn::steps::{count, per_output, Last};
-    use robot_crate::robot::{simulate_rows, PdSettings, Scheme, TorqueTable};
+    use flexdyn::table::{CsvWriter, OutputFiles};
+    use robot_crate::robot::{stream_simulate_rows, PdSettings, Scheme, TorqueTable};
     let (parsed, geometry) = robot_scene(&a.scene, "simulate")?;
     let flexible = parsed.nq() > 12;
     let table = flexdyn::table::Table::read(&a.torques)?;
@@ -406,8 +445,33 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
     let steps = usize::try_from(count(duration, a.dt, Last::Within, a.max_steps)?)
         .map_err(|_| "too many steps for this machine".to_string())?;
     let every = per_output("--output-dt", a.output_dt, "--dt", a.dt)? as usize;
+    check_outputs([&a.csv, &a.plot])?;
+    let deviation = |r: &robot_crate::robot::SimRow| {
+        let want = path.at(r.t);
+        [r.p[0] - want[0], r.p[1] - want[1], r.p[2] - want[2]]
+    };
+    let columns: Vec<String> = [
+        "t", "px", "py", "pz", "th11", "th21", "th31", "phi_max", "tau_1", "tau_2", "tau_3", "dx",
+        "dy", "dz",
+    ]
+    .map(String::from)
+    .into();
+    let mut outputs = OutputFiles::default();
+    let mut csv = a
+        .csv
+        .as_ref()
+        .map(|path| CsvWriter::create(&mut outputs, path, &columns))
+        .transpose()?;
+    // The plotted values (after `t`) of a bounded copy of the rows: the
+    // deviation in mm for a flexible scene, the position otherwise.
+    let (labels, scale) = match flexible {
+        true => (["dx", "dy", "dz"], 1e3),
+        false => (["px", "py", "pz"], 1.0),
+    };
+    let mut kept = a.plot.as_ref().map(|_| Decimated::new(PLOT_ROWS));
+    let (mut peak, mut last) = ([0.0; 3], 0.0);
     let mut progress = flexdyn::progress::Progress::new(steps as u64, "forward dynamics", a.quiet);
-    let rows = robot_crate::with_robot_model!(parsed.name.as_str(), model => simulate_rows(
+    robot_crate::with_robot_model!(parsed.name.as_str(), model => stream_simulate_rows(
         &model,
         &geometry,
         scheme,
@@ -416,33 +480,33 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
         pd.as_ref(),
         (a.dt, steps, every),
         &mut || progress.inc(),
+        &mut |r| {
+            let d = deviation(&r);
+            if let Some(csv) = &mut csv {
+                csv.row(&[
+                    r.t, r.p[0], r.p[1], r.p[2], r.th[0], r.th[1], r.th[2], r.phi_max, r.tau[0],
+                    r.tau[1], r.tau[2], d[0], d[1], d[2],
+                ])?;
+            }
+            if let Some(kept) = &mut kept {
+                let plotted = if flexible { d } else { r.p };
+                kept.push(&[r.t, scale * plotted[0], scale * plotted[1], scale * plotted[2]]);
+            }
+            for (peak, d) in peak.iter_mut().zip(d) {
+                *peak = f64::max(*peak, d.abs());
+            }
+            last = r.t;
+            Ok(())
+        },
     ))
     .ok_or_else(|| format!("scene `{}` is not a robot scene", parsed.name))??;
     progress.finish();
-    let deviation = |r: &robot_crate::robot::SimRow| {
-        let want = path.at(r.t);
-        [r.p[0] - want[0], r.p[1] - want[1], r.p[2] - want[2]]
-    };
-    let mut out = flexdyn::table::Table::new(&[
-        "t", "px", "py", "pz", "th11", "th21", "th31", "phi_max", "tau_1", "tau_2", "tau_3", "dx",
-        "dy", "dz",
-    ]);
-    for r in &rows {
-        let d = deviation(r);
-        out.push(vec![
-            r.t, r.p[0], r.p[1], r.p[2], r.th[0], r.th[1], r.th[2], r.phi_max, r.tau[0], r.tau[1],
-            r.tau[2], d[0], d[1], d[2],
-        ]);
+    if let Some(csv) = csv {
+        csv.finish()?;
     }
-    let mut outputs = flexdyn::table::OutputFiles::default();
-    if let Some(path) = &a.csv {
-        outputs.write(path, |tmp| out.write(tmp))?;
-    }
-    if let Some(plot) = &a.plot {
-        let (labels, scale, title, y) = if flexible {
+    if let (Some(plot), Some(kept)) = (&a.plot, kept) {
+        let (title, y) = if flexible {
             (
-                ["dx", "dy", "dz"],
-                1e3,
                 format!(
                     "Platform deviation from the torques' path, {}{}",
                     parsed.name,
@@ -452,21 +516,17 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
             )
         } else {
             (
-                ["px", "py", "pz"],
-                1.0,
                 "Platform position under the given torques".to_string(),
                 "position (m)",
             )
         };
+        let rows = kept.rows();
         let series: Vec<flexdyn::plot::Series> = labels
             .iter()
             .enumerate()
             .map(|(k, label)| flexdyn::plot::Series {
                 label,
-                points: rows
-                    .iter()
-                    .map(|r| (r.t, scale * if flexible { deviation(r)[k] } else { r.p[k] }))
-                    .collect(),
+                points: rows.iter().map(|r| (r[0], r[k + 1])).collect(),
             })
             .collect();
         outputs.write(plot, |tmp| {
@@ -483,23 +543,17 @@ fn simulate(a: &SimulateArgs) -> Result<(), String> {
     }
     outputs.commit()?;
     if !a.quiet {
-        let last = rows.last().map_or(0.0, |r| r.t);
         println!(
             "simulated {:.3} s in {} steps of {} s",
             last - t0,
             steps,
             a.dt
         );
-        let peak = |k: usize| {
-            rows.iter()
-                .map(|r| deviation(r)[k].abs())
-                .fold(0.0, f64::max)
-        };
         println!(
             "max |dx| = {:.4} mm, max |dy| = {:.4} mm, max |dz| = {:.4} mm",
-            1e3 * peak(0),
-            1e3 * peak(1),
-            1e3 * peak(2)
+            1e3 * peak[0],
+            1e3 * peak[1],
+            1e3 * peak[2]
         );
     }
     Ok(())

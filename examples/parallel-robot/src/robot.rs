@@ -12,6 +12,11 @@
 //! and forward runs with the joint-space PD loop ([`simulate_rows`], the
 //! runtime's [`flexdyn_runtime::control::JointPd`]), all from the robot in
 //! static equilibrium on its path ([`initial_state`]).
+//!
+//! Each run is streamed: its `stream_` form hands every row to a callback
+//! ([`Emit`]) as it is computed, so that a run of any length needs the same
+//! memory (the command line writes the rows as they come); the form without
+//! the prefix collects them, for the tests and the report.
 
 use std::f64::consts::PI;
 use std::fmt;
@@ -227,8 +232,40 @@ impl Circle {
 /// ([`flexdyn::steps::count`], whose errors name `--dt`, `--duration` and
 /// `--max-steps`).
 pub fn output_times(duration: f64, dt: f64, max_steps: u64) -> Result<Vec<f64>, String> {
+    Ok(each_output_time(duration, dt, max_steps)?.collect())
+}
+
+/// The times of [`output_times`] one at a time, never all in memory (the
+/// command line's runs, of any length).
+pub fn each_output_time(
+    duration: f64,
+    dt: f64,
+    max_steps: u64,
+) -> Result<impl ExactSizeIterator<Item = f64> + Clone, String> {
     let steps = flexdyn::steps::count(duration, dt, flexdyn::steps::Last::Within, max_steps)?;
-    Ok((0..=steps).map(|k| k as f64 * dt).collect())
+    let count = usize::try_from(steps)
+        .ok()
+        .and_then(|steps| steps.checked_add(1))
+        .ok_or_else(|| format!("{steps} steps: too many for this machine"))?;
+    Ok((0..count).map(move |k| k as f64 * dt))
+}
+
+/// Where a streamed run hands each row as it is computed: an error stops the
+/// run and is its error.
+pub type Emit<'a, R> = &'a mut dyn FnMut(R) -> Result<(), String>;
+
+/// The rows that `run` emits, collected; `tick` is called after each.
+fn collect_rows<R>(
+    tick: &mut dyn FnMut(),
+    run: impl FnOnce(Emit<'_, R>) -> Result<(), String>,
+) -> Result<Vec<R>, String> {
+    let mut rows = Vec::new();
+    run(&mut |row| {
+        rows.push(row);
+        tick();
+        Ok(())
+    })?;
+    Ok(rows)
 }
 
 /// Solution of the rigid robot's inverse dynamics at one time.
@@ -250,9 +287,26 @@ pub fn inverse_along<M, const NQ: usize, const NC: usize>(
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
+    collect_rows(tick, |emit| {
+        stream_inverse_along(model, g, circle, times.iter().copied(), emit)
+    })
+}
+
+/// [`inverse_along`], each solution handed to `emit` as it is computed.
+pub fn stream_inverse_along<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    g: &Geometry,
+    circle: &Circle,
+    times: impl IntoIterator<Item = f64>,
+    emit: Emit<'_, flexdyn_runtime::InverseSolution<NQ, NC, 3>>,
+) -> Result<(), String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
     use flexdyn_runtime::nalgebra::SVector;
     let layout = Layout::of(model)?;
-    let start = times.first().copied().unwrap_or(0.0);
+    let mut times = times.into_iter().peekable();
+    let start = times.peek().copied().unwrap_or(0.0);
     let rigid =
         inverse_kinematics(g, circle.at(start)[0]).map_err(|e| format!("at t = {start} s: {e}"))?;
     let mut q0 = SVector::<f64, NQ>::zeros();
@@ -265,9 +319,8 @@ where
         flexdyn_runtime::InverseConfig::default(),
     )
     .map_err(|e| e.to_string())?;
-    let mut out = Vec::with_capacity(times.len());
     let mut sol = flexdyn_runtime::InverseSolution::<NQ, NC, 3>::default();
-    for &t in times {
+    for t in times {
         let [p, v, a] = circle.at(t);
         // The closed form tells precisely why a point cannot be reached.
         let ik = inverse_kinematics(g, p).map_err(|e| format!("at t = {t} s: {e}"))?;
@@ -294,10 +347,9 @@ where
                 ));
             }
         }
-        out.push(sol);
-        tick();
+        emit(sol)?;
     }
-    Ok(out)
+    Ok(())
 }
 
 /// How far (rad) the solved joint angles may be from the closed-form
@@ -357,6 +409,22 @@ pub fn inverse_rows<M, const NQ: usize, const NC: usize>(
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
+    collect_rows(tick, |emit| {
+        stream_inverse_rows(model, g, circle, times.iter().copied(), emit)
+    })
+}
+
+/// [`inverse_rows`], each row handed to `emit` as it is computed.
+pub fn stream_inverse_rows<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    g: &Geometry,
+    circle: &Circle,
+    times: impl Iterator<Item = f64> + Clone,
+    emit: Emit<'_, InverseRow>,
+) -> Result<(), String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
     let layout = Layout::of(model)?;
     let row = |t: f64, tau: [f64; 3], q: &[f64], qd: &[f64]| InverseRow {
         t,
@@ -368,31 +436,23 @@ where
         qd: qd.to_vec(),
     };
     if layout.is_flexible() {
-        let samples = flexible_inverse(model, &layout, g, circle, times, tick)?;
-        Ok(samples
-            .iter()
-            .map(|s| {
-                row(
-                    s.state.t,
-                    s.tau.into(),
-                    s.state.q.as_slice(),
-                    s.state.qd.as_slice(),
-                )
-            })
-            .collect())
+        stream_flexible_inverse(model, &layout, g, circle, times, &mut |s| {
+            emit(row(
+                s.state.t,
+                s.tau.into(),
+                s.state.q.as_slice(),
+                s.state.qd.as_slice(),
+            ))
+        })
     } else {
-        let sols = inverse_along(model, g, circle, times, tick)?;
-        Ok(sols
-            .iter()
-            .map(|s| {
-                row(
-                    s.t,
-                    [s.tau[0], s.tau[1], s.tau[2]],
-                    s.q.as_slice(),
-                    s.qd.as_slice(),
-                )
-            })
-            .collect())
+        stream_inverse_along(model, g, circle, times, &mut |s| {
+            emit(row(
+                s.t,
+                [s.tau[0], s.tau[1], s.tau[2]],
+                s.q.as_slice(),
+                s.qd.as_slice(),
+            ))
+        })
     }
 }
 
@@ -441,24 +501,43 @@ pub fn flexible_inverse<M, const NQ: usize, const NC: usize>(
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
+    collect_rows(tick, |emit| {
+        stream_flexible_inverse(model, layout, g, circle, times.iter().copied(), emit)
+    })
+}
+
+/// [`flexible_inverse`], each sample handed to `emit` as it is computed
+/// (`times` is gone through twice before the run, to check it).
+pub fn stream_flexible_inverse<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    layout: &Layout,
+    g: &Geometry,
+    circle: &Circle,
+    times: impl Iterator<Item = f64> + Clone,
+    emit: Emit<'_, flexdyn_runtime::control::ServoSample<NQ, 3>>,
+) -> Result<(), String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
     use flexdyn_runtime::control::{servo_run, Coordinates, Servo, ServoConfig, Target};
     use flexdyn_runtime::integrate::{GeneralizedAlpha, StepSettings};
-    let Some(&t0) = times.first() else {
-        return Ok(Vec::new());
+    let mut later = times.clone();
+    let Some(t0) = later.next() else {
+        return Ok(());
     };
-    let dt = times.get(1).map_or(0.0, |t1| t1 - t0);
-    if let Some(k) = times.windows(2).position(|w| {
-        let step = w[1] - w[0];
-        !(step > 0.0 && (step - dt).abs() <= 1e-9 * dt)
-    }) {
-        return Err(format!(
-            "the inverse-dynamics times must increase in even steps: t = {} s after t = {} s \
-             (step {dt} s from t = {t0} s)",
-            times[k + 1],
-            times[k]
-        ));
+    let dt = later.clone().next().map_or(0.0, |t1| t1 - t0);
+    let (mut before, mut steps) = (t0, 0);
+    for t in later {
+        let step = t - before;
+        if !(step > 0.0 && (step - dt).abs() <= 1e-9 * dt) {
+            return Err(format!(
+                "the inverse-dynamics times must increase in even steps: t = {t} s after \
+                 t = {before} s (step {dt} s from t = {t0} s)"
+            ));
+        }
+        (before, steps) = (t, steps + 1);
     }
-    for &t in times {
+    for t in times {
         inverse_kinematics(g, circle.at(t)[0]).map_err(|e| format!("at t = {t} s: {e}"))?;
     }
     let [p0, v0, _] = circle.at(t0);
@@ -486,14 +565,18 @@ where
         ..Default::default()
     };
     let mut integ = GeneralizedAlpha::<NQ, NC>::new(settings, config);
-    let mut out = Vec::with_capacity(times.len());
-    servo_run(&servo, &mut integ, &mut state, dt, times.len() - 1, |s| {
-        out.push(*s);
-        tick();
-        std::ops::ControlFlow::Continue(())
+    let mut stopped = Ok(());
+    servo_run(&servo, &mut integ, &mut state, dt, steps, |s| {
+        match emit(*s) {
+            Ok(()) => std::ops::ControlFlow::Continue(()),
+            Err(e) => {
+                stopped = Err(e);
+                std::ops::ControlFlow::Break(())
+            }
+        }
     })
     .map_err(|e| e.to_string())?;
-    Ok(out)
+    stopped
 }
 
 /// Actuator torques sampled in time, linearly interpolated between samples
@@ -679,7 +762,7 @@ where
 pub fn simulate<M, const NQ: usize, const NC: usize>(
     (name, model): (&str, &M),
     scheme: Scheme,
-    mut state: flexdyn_runtime::State<NQ>,
+    state: flexdyn_runtime::State<NQ>,
     torques: &TorqueTable,
     dt: f64,
     steps: usize,
@@ -693,12 +776,43 @@ where
         flexdyn_runtime::nalgebra::Const<3>,
     >,
 {
+    collect_rows(&mut || {}, |emit| {
+        stream_simulate(
+            (name, model),
+            scheme,
+            state,
+            torques,
+            (dt, steps, every),
+            tick,
+            emit,
+        )
+    })
+}
+
+/// [`simulate`], each recorded state handed to `emit` as it is reached;
+/// `(dt, steps, every)` as there.
+pub fn stream_simulate<M, const NQ: usize, const NC: usize>(
+    (name, model): (&str, &M),
+    scheme: Scheme,
+    mut state: flexdyn_runtime::State<NQ>,
+    torques: &TorqueTable,
+    (dt, steps, every): (f64, usize, usize),
+    tick: &mut dyn FnMut(),
+    emit: Emit<'_, flexdyn_runtime::State<NQ>>,
+) -> Result<(), String>
+where
+    M: flexdyn_runtime::Equations<
+        flexdyn_runtime::nalgebra::Const<NQ>,
+        flexdyn_runtime::nalgebra::Const<NC>,
+        flexdyn_runtime::nalgebra::Const<3>,
+    >,
+{
     use flexdyn_runtime::integrate::{GeneralizedAlpha, Rk4, SemiImplicitEuler, StepSettings};
     use flexdyn_runtime::nalgebra::Const;
     use flexdyn_runtime::{FromFn, IntegratorOf};
     let input = FromFn(|t: f64| flexdyn_runtime::nalgebra::SVector::<f64, 3>::from(torques.at(t)));
     let settings = StepSettings::with_projection();
-    let mut out = vec![state];
+    emit(state)?;
     let explain = |e: flexdyn_runtime::Error| match e.kind {
         flexdyn_runtime::ErrorKind::StepTooLarge { .. } if scheme == Scheme::Rk4 => format!(
             "{e}: the explicit RK4 scheme is unstable at this step for the stiffest motion \
@@ -722,7 +836,7 @@ where
         for k in 1..=steps {
             integ(&mut state).map_err(explain)?;
             if k % every.max(1) == 0 {
-                out.push(state);
+                emit(state)?;
             }
             tick();
         }
@@ -753,7 +867,7 @@ where
             run(&mut |s| g.step(model, s, &input, dt).map(|_| ()))?;
         }
     }
-    Ok(out)
+    Ok(())
 }
 
 /// Expands `$callback!` with every robot scene the robot commands
@@ -853,18 +967,39 @@ pub struct SimRow {
 /// Forward dynamics of any robot scene from the robot in static equilibrium on its path
 /// ([`initial_state`]) at `t0` with its platform at `p` moving at `v`, under
 /// `torques` plus the PD loop `pd` if given, `steps` steps of `dt`, recording
-/// every `every` steps.
+/// every `every` steps. `tick` is called after each step.
 #[allow(clippy::too_many_arguments)]
 pub fn simulate_rows<M, const NQ: usize, const NC: usize>(
+    model: &M,
+    g: &Geometry,
+    scheme: Scheme,
+    start: (f64, [f64; 3], [f64; 3]),
+    torques: &TorqueTable,
+    pd: Option<&PdSettings>,
+    run: (f64, usize, usize),
+    tick: &mut dyn FnMut(),
+) -> Result<Vec<SimRow>, String>
+where
+    M: flexdyn_runtime::Model<NQ, NC, 3>,
+{
+    collect_rows(&mut || {}, |emit| {
+        stream_simulate_rows(model, g, scheme, start, torques, pd, run, tick, emit)
+    })
+}
+
+/// [`simulate_rows`], each row handed to `emit` as it is recorded.
+#[allow(clippy::too_many_arguments)]
+pub fn stream_simulate_rows<M, const NQ: usize, const NC: usize>(
     model: &M,
     g: &Geometry,
     scheme: Scheme,
     (t0, p, v): (f64, [f64; 3], [f64; 3]),
     torques: &TorqueTable,
     pd: Option<&PdSettings>,
-    (dt, steps, every): (f64, usize, usize),
+    run: (f64, usize, usize),
     tick: &mut dyn FnMut(),
-) -> Result<Vec<SimRow>, String>
+    emit: Emit<'_, SimRow>,
+) -> Result<(), String>
 where
     M: flexdyn_runtime::Model<NQ, NC, 3>,
 {
@@ -890,52 +1025,47 @@ where
             })
         })
         .transpose()?;
-    let states = match &pd {
+    let mut record = |s: flexdyn_runtime::State<NQ>| {
+        let mut phi = SVector::<f64, NC>::zeros();
+        model.constraints(&s.q, s.t, &mut phi);
+        let ff = torques.at(s.t);
+        let fb = pd
+            .as_ref()
+            .map_or(SVector::zeros(), |pd| pd.input(&s.q, &s.qd, s.t));
+        emit(SimRow {
+            t: s.t,
+            p: layout.platform.map(|i| s.q[i]),
+            th: layout.actuated.map(|i| s.q[i]),
+            phi_max: phi.amax(),
+            tau: std::array::from_fn(|j| ff[j] + fb[j]),
+        })
+    };
+    match &pd {
         Some(pd) => {
             let closed = Feedback {
                 inner: model,
                 law: |q: &SVector<f64, NQ>, qd: &SVector<f64, NQ>, t: f64| pd.input(q, qd, t),
             };
-            simulate(
+            stream_simulate(
                 (M::NAME, &closed),
                 scheme,
                 start,
                 torques,
-                dt,
-                steps,
-                every,
+                run,
                 tick,
-            )?
+                &mut record,
+            )
         }
-        None => simulate(
+        None => stream_simulate(
             (M::NAME, model),
             scheme,
             start,
             torques,
-            dt,
-            steps,
-            every,
+            run,
             tick,
-        )?,
-    };
-    Ok(states
-        .iter()
-        .map(|s| {
-            let mut phi = SVector::<f64, NC>::zeros();
-            model.constraints(&s.q, s.t, &mut phi);
-            let ff = torques.at(s.t);
-            let fb = pd
-                .as_ref()
-                .map_or(SVector::zeros(), |pd| pd.input(&s.q, &s.qd, s.t));
-            SimRow {
-                t: s.t,
-                p: layout.platform.map(|i| s.q[i]),
-                th: layout.actuated.map(|i| s.q[i]),
-                phi_max: phi.amax(),
-                tau: std::array::from_fn(|j| ff[j] + fb[j]),
-            }
-        })
-        .collect())
+            &mut record,
+        ),
+    }
 }
 
 /// The rigid robot's twelve coordinates, in the order of

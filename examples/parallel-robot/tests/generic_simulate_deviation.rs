@@ -101,6 +101,7 @@ fn generic_simulate_reproduces_the_flexible_robots_deviation_under_rigid_torques
         inputs_csv: Some(inputs_csv),
         pd: (1..=3).map(|j| format!("tau_{j}={KP},{KD}")).collect(),
         target: vec![],
+        feedback: None,
         integrator: "gen-alpha".into(),
         tolerance: None,
         rho_inf: Some(0.0),
