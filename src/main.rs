@@ -20,7 +20,7 @@ enum Command {
     Generate(cli::generate::Args),
     Export(cli::export::Args),
     Eval(cli::eval::Args),
-    Simulate(cli::simulate::Args),
+    Simulate(Box<cli::simulate::Args>),
     Inverse(cli::inverse::Args),
     Linearize(cli::linearize::Args),
     Import(cli::import::Args),
