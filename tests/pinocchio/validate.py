@@ -184,6 +184,15 @@ def perturb(text):
     return text
 
 
+def perturb_file(scene, args):
+    """With `--perturb`, the scene file perturbed in place ([`perturb`])."""
+    if args.perturb:
+        with open(scene) as f:
+            text = perturb(f.read())
+        with open(scene, "w") as f:
+            f.write(text)
+
+
 LITERAL = re.compile(r"(?<![A-Za-z0-9_.])(\d+\.\d*(?:e[-+]?\d+)?|\d+e[-+]?\d+)")
 
 
@@ -241,17 +250,9 @@ def derivatives_check(name, path, fixed, args):
     + diag(d)`, and the ABA at `B tau - d qd`, so `d qdd/dqd - M^-1
     diag(d)`), at `args.states` random states, each relative to the scale of
     the term."""
-    scene = os.path.join(args.work, f"{name}_derivatives.toml")
-    cmd = [args.flexdyn, "import", "urdf", path, "--out", scene, "--output", "dynamics_derivatives",
-           "--keep-angles"]
-    for j in fixed:
-        cmd += ["--fix", j]
-    run(cmd)
-    if args.perturb:
-        with open(scene) as f:
-            text = perturb(f.read())
-        with open(scene, "w") as f:
-            f.write(text)
+    scene = import_robot(f"{name}_derivatives", path, fixed, args, "--output", "dynamics_derivatives",
+                         "--keep-angles")
+    perturb_file(scene, args)
     model = reference_model(path, fixed)
     coordinates, joints = imported_joints(model, scene)
     data = model.createData()
@@ -394,11 +395,7 @@ def validate(name, path, fixed, scan, args, armature=None):
         with open(scene, "w") as f:
             f.write(text)
         name += " with armature"
-    if args.perturb:
-        with open(scene) as f:
-            text = perturb(f.read())
-        with open(scene, "w") as f:
-            f.write(text)
+    perturb_file(scene, args)
     model = reference_model(path, fixed)
     coordinates, joints = imported_joints(model, scene)
     n = len(coordinates)
