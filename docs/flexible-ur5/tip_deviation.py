@@ -4,14 +4,14 @@ against statics.
 
 Runs `flexdyn inverse` on the flexible UR5 with the motor-side joint angles
 prescribed (the elastic coordinates, the gear twists and the tube's modes,
-integrated by the servo path), then places `tool0` by forward kinematics of
-the scene's own frames (read from the TOML):
-* rigid robot: the prescribed angles, no twist;
-* flexible robot: link angles = prescribed + twist. The forearm tube is
-  taken straight (its closed-form tip deflection and end slope under its
-  own weight and the wrist's move the flange by about 10 um, against a
-  deviation of tenths of a millimetre from the gears; docs/flexible-ur5.md),
-  so the plotted deviation is the gears'.
+integrated by the servo path), then evaluates the scene's `tool0` marker
+with `flexdyn eval` (the generated marker kinematics, on the frames that
+hang from the tube's deformed end) at three states per time:
+* rigid robot: the prescribed angles, twists and tube modes zero;
+* gears only: the twists as integrated, the tube straight (modes zero);
+* flexible robot: every coordinate as integrated (twists and bending).
+The deviation is flexible - rigid; the tube's share is flexible - gears
+only.
 
 Check (fails loudly): at t = 0 the inverse starts at rest in static
 equilibrium, so each gear's spring balances gravity on the link side:
@@ -26,6 +26,7 @@ numpy and matplotlib.
 
 import argparse
 import csv
+import json
 import math
 import subprocess
 import sys
@@ -46,6 +47,8 @@ PRESCRIBE = {
     "wrist_3_joint": "0",
 }
 TWISTS = {"shoulder_lift_twist": "shoulder_lift_gear", "elbow_twist": "elbow_gear"}
+# The tube's modal coordinates are named `<component>_eta<k>`.
+MODE_PREFIX = "forearm_tube_eta"
 
 
 def rot(axis, a):
@@ -96,6 +99,22 @@ def potential(scene, q):
     return v
 
 
+def marker_positions(flexdyn, names, states):
+    """`tool0`'s world position at each state (coordinates by name, rates
+    zero), from `flexdyn eval` of the scene's generated marker."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "states.json"
+        path.write_text(json.dumps({"states": [
+            {"q": [s[n] for n in names], "qd": [0.0] * len(names), "t": 0.0} for s in states
+        ]}))
+        out = subprocess.run([flexdyn, "eval", "--scene", str(SCENE), "--states", str(path)],
+                             capture_output=True, text=True)
+    if out.returncode != 0:
+        sys.exit(f"flexdyn eval failed: {out.stderr}")
+    out = out.stdout
+    return np.array([r["markers"]["tool0"]["position"] for r in json.loads(out)["results"]])
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--flexdyn", default=str(ROOT / "target" / "release" / "flexdyn"))
@@ -130,19 +149,26 @@ def main():
         worst = max(worst, rel)
         print(f"{tw}: k e = {spring:.4f} N m, -dV/de = {-dv:.4f} N m, relative difference {rel:.2e}")
 
-    # Tip deviation along the trajectory.
-    dev = []
+    # Tip deviation along the trajectory: the generated marker at the
+    # flexible state, with the tube straight, and at the rigid state.
+    every = list(coord)  # the model's coordinates, the tube's modes included
+    elastic = [n for n in every if n in TWISTS or n.startswith(MODE_PREFIX)]
+    variants = {"flexible": [], "gears": [], "rigid": []}
     for i in range(len(data)):
-        qf = {n: coord[n][i] for n in names}
-        qr = dict(qf)
-        for tw in TWISTS:
-            qr[tw] = 0.0
-        dev.append(frames(scene, qf)["tool0"][0] - frames(scene, qr)["tool0"][0])
-    dev = np.array(dev) * 1e3
+        qf = {n: coord[n][i] for n in every}
+        variants["flexible"].append(qf)
+        variants["gears"].append({n: 0.0 if n.startswith(MODE_PREFIX) else v for n, v in qf.items()})
+        variants["rigid"].append({n: 0.0 if n in elastic else v for n, v in qf.items()})
+    tool = {k: marker_positions(args.flexdyn, every, v) for k, v in variants.items()}
+    dev = (tool["flexible"] - tool["rigid"]) * 1e3
+    tube = (tool["flexible"] - tool["gears"]) * 1e3
     t = data[:, 0]
     norm = np.linalg.norm(dev, axis=1)
+    tube_norm = np.linalg.norm(tube, axis=1)
     print(f"tool0 deviation: max {norm.max():.4f} mm at t = {t[norm.argmax()]:.3f} s, "
           f"{norm[0]:.4f} mm at t = 0, {norm[-1]:.4f} mm at t = {t[-1]:.3f} s")
+    print(f"of which the tube's bending: {tube_norm[0] * 1e3:.2f} um at t = 0, "
+          f"max {tube_norm.max() * 1e3:.2f} um at t = {t[tube_norm.argmax()]:.3f} s")
 
     import matplotlib
 
@@ -155,8 +181,13 @@ def main():
     ax.plot(t, norm, "k", label="|deviation|")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("tool0 flexible - rigid (mm)")
+    ax2 = ax.twinx()
+    ax2.plot(t, tube_norm * 1e3, "k--", label="|tube bending's share| (um, right)")
+    ax2.set_ylabel("tube bending's share (um)")
+    ax2.set_ylim(0, 1.2 * tube_norm.max() * 1e3)
+    ax2.legend(loc="lower right")
     ax.set_title("ur5_flexible: tool flange deviation along the inverse-dynamics trajectory")
-    ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5))
+    ax.legend(loc="center left", ncol=4)
     ax.grid(True)
     fig.tight_layout()
     fig.savefig(args.png, dpi=100)
