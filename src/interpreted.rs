@@ -5,7 +5,7 @@
 
 use std::cell::RefCell;
 use std::path::Path;
-use std::rc::Rc;
+use std::sync::Arc;
 
 use flexdyn_codegen::interpret::{Function, Interpreted, Tape};
 
@@ -15,7 +15,7 @@ use crate::dynamic::{DynModel, Fused, IdDerivatives, MarkerPose};
 /// the tapes.
 #[derive(Debug, Clone)]
 pub struct InterpretedModel {
-    scene: Rc<Interpreted>,
+    scene: Arc<Interpreted>,
     params: Vec<f64>,
     /// `q = 0`, where the actuator map is evaluated.
     origin: Vec<f64>,
@@ -47,7 +47,7 @@ impl InterpretedModel {
         let params = scene.parameters().iter().map(|(_, v)| *v).collect();
         InterpretedModel {
             origin: vec![0.0; scene.nq()],
-            scene: Rc::new(scene),
+            scene: Arc::new(scene),
             params,
             scratch: RefCell::new(Vec::new()),
             outputs: RefCell::new(Vec::new()),

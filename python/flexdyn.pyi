@@ -1,0 +1,75 @@
+"""flexdyn: exact, generated equations of motion for rigid and flexible
+multibody systems (scene files and URDF robots), from Python."""
+
+from os import PathLike
+from typing import Mapping, Optional, Sequence, Union
+
+import numpy as np
+import numpy.typing as npt
+
+ArrayLike = npt.ArrayLike
+Time = Union[float, Sequence[float], npt.NDArray[np.float64]]
+Path = Union[str, PathLike]
+
+class Model:
+    """A scene's equations of motion, generated in memory and interpreted
+    (bitwise the numbers of its compiled module). Every array argument is
+    one state (`(nq,)`) or a batch (`(N, nq)`, evaluated in Rust, in
+    parallel for large N); `t` a number or one per state."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def nq(self) -> int: ...
+    @property
+    def nc(self) -> int: ...
+    @property
+    def nu(self) -> int: ...
+    @property
+    def coordinates(self) -> list[str]: ...
+    @property
+    def actuators(self) -> list[str]: ...
+    @property
+    def markers(self) -> list[str]: ...
+    @property
+    def scene(self) -> str: ...
+    def mass_matrix(self, q: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def bias(self, q: ArrayLike, qd: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def inverse_dynamics(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def forward_dynamics(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def constraints(self, q: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def constraint_jacobian(self, q: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def constraint_rhs(self, q: ArrayLike, qd: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def kinetic_energy(self, q: ArrayLike, qd: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def potential_energy(self, q: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+
+def load(path: Path) -> Model:
+    """A scene file; `ValueError` with file and line for a bad one."""
+
+def from_urdf(path: Path, fix: Sequence[str] = ..., outputs: Sequence[str] = ..., keep_angles: bool = False) -> Model:
+    """A URDF robot, as `flexdyn import urdf`."""
+
+def simulate(
+    model: Model,
+    duration: float,
+    initial: Optional[Mapping[str, ArrayLike]] = None,
+    inputs: Optional[Mapping[str, str]] = None,
+    integrator: Optional[str] = None,
+    dt: Optional[float] = None,
+    quiet: bool = False,
+    options: Optional[Mapping[str, object]] = None,
+) -> dict[str, npt.NDArray[np.float64]]:
+    """`flexdyn simulate`: the CSV's columns, and `q`, `qd` as `(N, nq)`."""
+
+def inverse(
+    model: Model,
+    duration: float,
+    dt: float,
+    prescribe: Mapping[str, str],
+    quiet: bool = False,
+    options: Optional[Mapping[str, object]] = None,
+) -> dict[str, npt.NDArray[np.float64]]:
+    """`flexdyn inverse`: the CSV's columns, `tau` `(N, nu)`, `q` `(N, nq)`."""
+
+def generate(scene: Path, out: Path, precision: str = "f64", c_header: bool = False) -> None:
+    """`flexdyn generate` of one scene into `out`."""

@@ -1,0 +1,659 @@
+//! `flexdyn` for Python: a scene file (or a URDF) generated in memory and
+//! interpreted (bitwise the numbers of its compiled module), its terms on
+//! numpy arrays, single states or batches evaluated in Rust (in parallel
+//! over the cores for large batches), and the command line's `simulate`,
+//! `inverse` and `generate` run in-process on the same code.
+
+use std::path::{Path, PathBuf};
+
+use clap::Parser;
+use nalgebra::DVector;
+use numpy::ndarray::{Array1, ArrayD, Axis, IxDyn};
+use numpy::{AllowTypeChange, IntoPyArray, PyArrayLikeDyn};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+
+use flexdyn_lib::codegen::{import_urdf, Source, UrdfOptions};
+use flexdyn_lib::compiled::COMPILED_SCENES;
+use flexdyn_lib::dynamic::DynModel;
+use flexdyn_lib::interpreted::InterpretedModel;
+use flexdyn_runtime::{accelerations, Baumgarte, DynamicsConfig};
+
+/// Batches at least this long are split over the cores.
+const PARALLEL_BATCH: usize = 256;
+
+/// A scene's equations of motion, interpreted.
+#[pyclass(name = "Model", module = "flexdyn", unsendable)]
+struct Model {
+    model: InterpretedModel,
+    /// The scene file (a temporary copy for a URDF import), which
+    /// `simulate`, `inverse` and `generate` read.
+    scene: PathBuf,
+    /// Keeps an imported scene's temporary folder alive.
+    _dir: Option<tempfile::TempDir>,
+}
+
+/// How an evaluated function maps a state to its output.
+type Eval<'a> = &'a (dyn Fn(&InterpretedModel, &[&[f64]], f64, &mut [f64]) + Sync);
+
+impl Model {
+    /// `f` at one state or a batch: `args` are arrays of `nq` entries (or
+    /// `(N, nq)`), `t` a number or `N` numbers; the output has `shape`
+    /// (then `(N, *shape)` for a batch).
+    fn apply(
+        &self,
+        py: Python<'_>,
+        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        sizes: &[usize],
+        t: &Bound<'_, PyAny>,
+        shape: &[usize],
+        f: Eval<'_>,
+    ) -> PyResult<PyObject> {
+        let arrays: Vec<ArrayD<f64>> = args.iter().map(|a| a.as_array().to_owned()).collect();
+        let batch = match arrays.first().map(|a| a.ndim()) {
+            Some(1) | None => None,
+            Some(2) => Some(arrays[0].shape()[0]),
+            Some(d) => {
+                return Err(PyValueError::new_err(format!(
+                    "expected 1 or 2 dimensions, got {d}"
+                )))
+            }
+        };
+        for (k, (a, &n)) in arrays.iter().zip(sizes).enumerate() {
+            let ok = match batch {
+                None => a.ndim() == 1 && a.len() == n,
+                Some(b) => a.ndim() == 2 && a.shape() == [b, n],
+            };
+            if !ok {
+                return Err(PyValueError::new_err(format!(
+                    "argument {} has shape {:?}; scene `{}` needs {}",
+                    k + 1,
+                    a.shape(),
+                    self.model.name(),
+                    match batch {
+                        None => format!("({n},)"),
+                        Some(b) => format!("({b}, {n})"),
+                    }
+                )));
+            }
+        }
+        let count = batch.unwrap_or(1);
+        let times: Vec<f64> = match t.extract::<f64>() {
+            Ok(t) => vec![t; count],
+            Err(_) => {
+                let v: Vec<f64> = t
+                    .extract()
+                    .map_err(|_| PyValueError::new_err("t: a number or one per state"))?;
+                if v.len() != count {
+                    return Err(PyValueError::new_err(format!(
+                        "t: {} times for {count} states",
+                        v.len()
+                    )));
+                }
+                v
+            }
+        };
+        let size: usize = shape.iter().product();
+        let mut out = vec![0.0; size * count];
+        // Each argument contiguous, state after state.
+        let flat: Vec<Vec<f64>> = arrays
+            .iter()
+            .map(|a| a.as_standard_layout().iter().copied().collect())
+            .collect();
+        let model = &self.model;
+        let one = |m: &InterpretedModel, k: usize, o: &mut [f64]| {
+            let mut at: [&[f64]; 3] = [&[]; 3];
+            for (i, (a, &n)) in flat.iter().zip(sizes).enumerate() {
+                at[i] = &a[k * n..(k + 1) * n];
+            }
+            f(m, &at[..flat.len()], times[k], o);
+        };
+        if count >= PARALLEL_BATCH {
+            // One copy of the model (its own scratch) per chunk of states.
+            let chunk = count.div_ceil(rayon::current_num_threads()).max(1);
+            let copies: Vec<InterpretedModel> =
+                (0..count.div_ceil(chunk)).map(|_| model.clone()).collect();
+            py.allow_threads(|| {
+                out.par_chunks_mut(size.max(1) * chunk)
+                    .zip(copies.into_par_iter())
+                    .enumerate()
+                    .for_each(|(c, (part, m))| {
+                        for (j, o) in part.chunks_mut(size.max(1)).enumerate() {
+                            one(&m, c * chunk + j, &mut o[..size]);
+                        }
+                    })
+            });
+        } else {
+            for (k, o) in out.chunks_mut(size.max(1)).enumerate().take(count) {
+                one(model, k, &mut o[..size]);
+            }
+        }
+        // Column-major matrices (nalgebra) to numpy's row-major layout.
+        let per_state: Vec<usize> = match shape {
+            [r, c] => vec![*c, *r],
+            other => other.to_vec(),
+        };
+        let stacked: Vec<usize> = std::iter::once(count).chain(per_state).collect();
+        let mut array = ArrayD::from_shape_vec(IxDyn(&stacked), out)
+            .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+        if shape.len() == 2 {
+            array.swap_axes(1, 2);
+            array = array.as_standard_layout().into_owned();
+        }
+        if batch.is_none() {
+            array = array.index_axis_move(Axis(0), 0);
+        }
+        Ok(array.into_pyarray(py).into_any().unbind())
+    }
+}
+
+#[pymethods]
+impl Model {
+    /// The scene's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.model.name().to_owned()
+    }
+    /// Number of coordinates.
+    #[getter]
+    fn nq(&self) -> usize {
+        self.model.nq()
+    }
+    /// Number of constraints.
+    #[getter]
+    fn nc(&self) -> usize {
+        self.model.nc()
+    }
+    /// Number of actuator inputs.
+    #[getter]
+    fn nu(&self) -> usize {
+        self.model.nu()
+    }
+    /// Coordinate names.
+    #[getter]
+    fn coordinates(&self) -> Vec<String> {
+        self.model
+            .coordinates()
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+    /// Actuator names.
+    #[getter]
+    fn actuators(&self) -> Vec<String> {
+        self.model
+            .actuators()
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    }
+    /// Marker names.
+    #[getter]
+    fn markers(&self) -> Vec<String> {
+        self.model.markers().iter().map(|s| s.to_string()).collect()
+    }
+    /// The scene file the model was generated from.
+    #[getter]
+    fn scene(&self) -> String {
+        self.scene.display().to_string()
+    }
+
+    /// Mass matrix `M(q, t)`: `(nq, nq)`, or `(N, nq, nq)` for a batch.
+    #[pyo3(signature = (q, t = None))]
+    fn mass_matrix(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let n = self.model.nq();
+        self.apply(py, &[q], &[n], &time(py, t), &[n, n], &|m, a, t, o| {
+            m.mass_matrix(a[0], t, o)
+        })
+    }
+    /// Bias forces `h(q, qd, t)`.
+    #[pyo3(signature = (q, qd, t = None))]
+    fn bias(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let n = self.model.nq();
+        self.apply(py, &[q, qd], &[n, n], &time(py, t), &[n], &|m, a, t, o| {
+            m.bias(a[0], a[1], t, o)
+        })
+    }
+    /// Inverse dynamics `M qdd + h` (no constraint forces).
+    #[pyo3(signature = (q, qd, qdd, t = None))]
+    fn inverse_dynamics(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qdd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let n = self.model.nq();
+        self.apply(
+            py,
+            &[q, qd, qdd],
+            &[n, n, n],
+            &time(py, t),
+            &[n],
+            &|m, a, t, o| m.inverse_dynamics(a[0], a[1], a[2], t, o),
+        )
+    }
+    /// Accelerations under actuator inputs `tau`: `M^-1 (B tau - h)`, or for
+    /// a constrained scene those of `M qdd - Phi_q^T lambda = B tau - h`,
+    /// `Phi_q qdd = gamma` (no Baumgarte terms). NaN where the solve fails
+    /// (a mass matrix that is not positive definite, a singular constraint
+    /// Jacobian).
+    #[pyo3(signature = (q, qd, tau, t = None))]
+    fn forward_dynamics(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        tau: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let (n, nu) = (self.model.nq(), self.model.nu());
+        let config = DynamicsConfig {
+            baumgarte: Baumgarte::NONE,
+            ..DynamicsConfig::default()
+        };
+        self.apply(
+            py,
+            &[q, qd, tau],
+            &[n, n, nu],
+            &time(py, t),
+            &[n],
+            &|m, a, t, o| {
+                let model: &dyn DynModel = m;
+                let (q, qd, tau) = (
+                    DVector::from_column_slice(a[0]),
+                    DVector::from_column_slice(a[1]),
+                    DVector::from_column_slice(a[2]),
+                );
+                match accelerations(model, &config, &q, &qd, t, &tau) {
+                    Ok(s) => o.copy_from_slice(s.qdd.as_slice()),
+                    Err(_) => o.fill(f64::NAN),
+                }
+            },
+        )
+    }
+    /// Constraint residuals `Phi(q, t)`.
+    #[pyo3(signature = (q, t = None))]
+    fn constraints(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let (n, nc) = (self.model.nq(), self.model.nc());
+        self.apply(py, &[q], &[n], &time(py, t), &[nc], &|m, a, t, o| {
+            m.constraints(a[0], t, o)
+        })
+    }
+    /// Constraint Jacobian `Phi_q(q, t)`: `(nc, nq)`.
+    #[pyo3(signature = (q, t = None))]
+    fn constraint_jacobian(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let (n, nc) = (self.model.nq(), self.model.nc());
+        self.apply(py, &[q], &[n], &time(py, t), &[nc, n], &|m, a, t, o| {
+            m.constraint_jacobian(a[0], t, o)
+        })
+    }
+    /// Acceleration right-hand side `gamma(q, qd, t)`.
+    #[pyo3(signature = (q, qd, t = None))]
+    fn constraint_rhs(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let (n, nc) = (self.model.nq(), self.model.nc());
+        self.apply(py, &[q, qd], &[n, n], &time(py, t), &[nc], &|m, a, t, o| {
+            m.constraint_rhs(a[0], a[1], t, o)
+        })
+    }
+    /// Kinetic energy `T(q, qd, t)`.
+    #[pyo3(signature = (q, qd, t = None))]
+    fn kinetic_energy(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let n = self.model.nq();
+        self.apply(py, &[q, qd], &[n, n], &time(py, t), &[], &|m, a, t, o| {
+            o[0] = m.kinetic_energy(a[0], a[1], t)
+        })
+    }
+    /// Potential energy `V(q, t)`.
+    #[pyo3(signature = (q, t = None))]
+    fn potential_energy(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<PyObject> {
+        let n = self.model.nq();
+        self.apply(py, &[q], &[n], &time(py, t), &[], &|m, a, t, o| {
+            o[0] = m.potential_energy(a[0], t)
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "flexdyn.Model({:?}: {} coordinates, {} constraints, {} actuators)",
+            self.model.name(),
+            self.model.nq(),
+            self.model.nc(),
+            self.model.nu()
+        )
+    }
+}
+
+/// `t`, default 0.
+fn time<'py>(py: Python<'py>, t: Option<&Bound<'py, PyAny>>) -> Bound<'py, PyAny> {
+    match t {
+        Some(t) => t.clone(),
+        None => 0.0f64.into_pyobject(py).expect("a float").into_any(),
+    }
+}
+
+/// Generate a scene file in memory: its model, interpreted.
+#[pyfunction]
+fn load(path: PathBuf) -> PyResult<Model> {
+    let model = InterpretedModel::load(&path).map_err(PyValueError::new_err)?;
+    Ok(Model {
+        model,
+        scene: path,
+        _dir: None,
+    })
+}
+
+/// Import a URDF robot (`flexdyn import urdf`): joints in `fix` held at
+/// zero, `outputs` the scene's optional outputs, `keep_angles` keeps every
+/// angle as written.
+#[pyfunction]
+#[pyo3(signature = (path, fix = Vec::new(), outputs = Vec::new(), keep_angles = false))]
+fn from_urdf(
+    path: PathBuf,
+    fix: Vec<String>,
+    outputs: Vec<String>,
+    keep_angles: bool,
+) -> PyResult<Model> {
+    let text = flexdyn_lib::table::read_input(&path, "URDF file").map_err(PyValueError::new_err)?;
+    let options = UrdfOptions {
+        fix,
+        outputs,
+        keep_angles,
+    };
+    let scene = import_urdf(&Source::new(&path, text), &options)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let dir = tempfile::tempdir().map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "robot".into());
+    let file = dir.path().join(format!("{stem}.toml"));
+    std::fs::write(&file, &scene).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let model = InterpretedModel::load(&file).map_err(PyValueError::new_err)?;
+    Ok(Model {
+        model,
+        scene: file,
+        _dir: Some(dir),
+    })
+}
+
+/// The command line's arguments of one command.
+#[derive(Parser)]
+#[command(name = "flexdyn")]
+enum Command {
+    Simulate(Box<flexdyn_lib::cli::simulate::Args>),
+    Inverse(flexdyn_lib::cli::inverse::Args),
+    Generate(flexdyn_lib::cli::generate::Args),
+}
+
+/// Parses `argv` (after the program name) as the command line would:
+/// `ValueError` with clap's message otherwise.
+fn command(argv: Vec<String>) -> PyResult<Command> {
+    Command::try_parse_from(std::iter::once("flexdyn".to_owned()).chain(argv))
+        .map_err(|e| PyValueError::new_err(e.render().to_string().trim().to_owned()))
+}
+
+/// `"name=value"` options of a dict.
+fn assignments(option: &str, dict: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<String>> {
+    let mut out = Vec::new();
+    for (k, v) in dict.into_iter().flat_map(|d| d.iter()) {
+        out.push(option.to_owned());
+        out.push(format!("{}={}", k.str()?, v.str()?));
+    }
+    Ok(out)
+}
+
+/// A CSV written by a command, as a dict of numpy arrays (one per column),
+/// plus `q`, `qd` (and `tau` for `inverse`) as `(N, n)` arrays.
+fn columns(py: Python<'_>, path: &Path, model: &Model, tau: bool) -> PyResult<PyObject> {
+    let table = flexdyn_lib::table::Table::read(path).map_err(PyRuntimeError::new_err)?;
+    let out = PyDict::new(py);
+    let column = |name: &str| table.column(name).map_err(PyRuntimeError::new_err);
+    for name in &table.columns {
+        out.set_item(name, Array1::from(column(name)?).into_pyarray(py))?;
+    }
+    let stack = |names: Vec<String>| -> PyResult<PyObject> {
+        let mut a = numpy::ndarray::Array2::<f64>::zeros((table.rows.len(), names.len()));
+        for (j, n) in names.iter().enumerate() {
+            for (i, v) in column(n)?.into_iter().enumerate() {
+                a[(i, j)] = v;
+            }
+        }
+        Ok(a.into_pyarray(py).into_any().unbind())
+    };
+    let coordinates = model.coordinates();
+    if table.columns.iter().any(|c| c.ends_with("_dot")) {
+        out.set_item(
+            "qd",
+            stack(coordinates.iter().map(|c| format!("{c}_dot")).collect())?,
+        )?;
+    }
+    if tau {
+        // `inverse`: the actuators come first after `t`, then the coordinates.
+        let actuators: Vec<String> = table.columns[1..=model.model.nu()].to_vec();
+        out.set_item("tau", stack(actuators)?)?;
+        let q: Vec<String> =
+            table.columns[1 + model.model.nu()..1 + model.model.nu() + coordinates.len()].to_vec();
+        out.set_item("q", stack(q)?)?;
+    } else {
+        out.set_item("q", stack(coordinates)?)?;
+    }
+    Ok(out.into_any().unbind())
+}
+
+/// Simulate the model (`flexdyn simulate`): `initial` a dict with `q`, `qd`
+/// (and `t`), `inputs` actuator name to an expression of `t`, `integrator`
+/// one of the command line's (default adaptive-rk4), any other
+/// option of the command line as `options` (e.g. `{"integrator": "rk4",
+/// "dt": 0.001}`). Returns the CSV's columns as numpy arrays, and `q`,
+/// `qd` as `(N, nq)` arrays. `ValueError` for bad arguments,
+/// `RuntimeError` when the run fails, with the command line's message.
+#[pyfunction]
+#[pyo3(signature = (model, duration, initial = None, inputs = None, integrator = None, dt = None, quiet = false, options = None))]
+#[allow(clippy::too_many_arguments)]
+fn simulate(
+    py: Python<'_>,
+    model: &Model,
+    duration: f64,
+    initial: Option<&Bound<'_, PyDict>>,
+    inputs: Option<&Bound<'_, PyDict>>,
+    integrator: Option<&str>,
+    dt: Option<f64>,
+    quiet: bool,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<PyObject> {
+    let dir = tempfile::tempdir().map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let csv = dir.path().join("simulate.csv");
+    let mut argv: Vec<String> = vec![
+        "simulate".into(),
+        "--scene".into(),
+        model.scene.display().to_string(),
+    ];
+    argv.extend(["--duration".into(), duration.to_string()]);
+    if let Some(integrator) = integrator {
+        argv.extend(["--integrator".into(), integrator.into()]);
+    }
+    argv.extend(["--csv".into(), csv.display().to_string()]);
+    if let Some(dt) = dt {
+        argv.extend(["--dt".into(), dt.to_string()]);
+    }
+    if quiet {
+        argv.push("--quiet".into());
+    }
+    if let Some(initial) = initial {
+        let get = |key: &str| -> PyResult<Vec<f64>> {
+            initial
+                .get_item(key)?
+                .ok_or_else(|| PyValueError::new_err(format!("initial: no `{key}`")))?
+                .extract()
+                .map_err(|_| PyValueError::new_err(format!("initial `{key}`: a list of numbers")))
+        };
+        let t: f64 = match initial.get_item("t")? {
+            Some(t) => t.extract()?,
+            None => 0.0,
+        };
+        let state = dir.path().join("initial.json");
+        let text = format!(
+            "{{\"q\": {:?}, \"qd\": {:?}, \"t\": {t:?}}}",
+            get("q")?,
+            get("qd")?
+        );
+        std::fs::write(&state, text).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+        argv.extend(["--initial".into(), state.display().to_string()]);
+    }
+    argv.extend(assignments("--input", inputs)?);
+    argv.extend(flags(options)?);
+    let Command::Simulate(args) = command(argv)? else {
+        unreachable!("parsed as simulate")
+    };
+    py.allow_threads(|| flexdyn_lib::cli::simulate::run(&args, &COMPILED_SCENES))
+        .map_err(run_error)?;
+    columns(py, &csv, model, false)
+}
+
+/// Inverse dynamics along prescribed coordinates or marker coordinates
+/// (`flexdyn inverse`): `prescribe` name to an expression of `t`. Returns
+/// the CSV's columns as numpy arrays, with `tau` `(N, nu)` and `q` `(N,
+/// nq)`.
+#[pyfunction]
+#[pyo3(signature = (model, duration, dt, prescribe, quiet = false, options = None))]
+fn inverse(
+    py: Python<'_>,
+    model: &Model,
+    duration: f64,
+    dt: f64,
+    prescribe: &Bound<'_, PyDict>,
+    quiet: bool,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<PyObject> {
+    let dir = tempfile::tempdir().map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let csv = dir.path().join("inverse.csv");
+    let mut argv: Vec<String> = vec![
+        "inverse".into(),
+        "--scene".into(),
+        model.scene.display().to_string(),
+    ];
+    argv.extend([
+        "--duration".into(),
+        duration.to_string(),
+        "--dt".into(),
+        dt.to_string(),
+    ]);
+    argv.extend(["--csv".into(), csv.display().to_string()]);
+    if quiet {
+        argv.push("--quiet".into());
+    }
+    argv.extend(assignments("--prescribe", Some(prescribe))?);
+    argv.extend(flags(options)?);
+    let Command::Inverse(args) = command(argv)? else {
+        unreachable!("parsed as inverse")
+    };
+    py.allow_threads(|| flexdyn_lib::cli::inverse::run(&args, &COMPILED_SCENES))
+        .map_err(run_error)?;
+    columns(py, &csv, model, true)
+}
+
+/// A command's error: `RuntimeError` when the run itself failed (a step of
+/// `simulate`, `step k (t = ...)`, or a solve at a time, `at t = ...`),
+/// `ValueError` for its arguments and input files.
+fn run_error(e: String) -> PyErr {
+    if e.starts_with("step ") || e.contains("at t = ") {
+        PyRuntimeError::new_err(e)
+    } else {
+        PyValueError::new_err(e)
+    }
+}
+
+/// Generate a scene's Rust module (`flexdyn generate`) into `out`.
+#[pyfunction]
+#[pyo3(signature = (scene, out, precision = "f64", c_header = false))]
+fn generate(scene: PathBuf, out: PathBuf, precision: &str, c_header: bool) -> PyResult<()> {
+    let mut argv = vec![
+        "generate".to_owned(),
+        "--scene".into(),
+        scene.display().to_string(),
+        "--out".into(),
+        out.display().to_string(),
+        "--precision".into(),
+        precision.into(),
+        "--quiet".into(),
+    ];
+    if c_header {
+        argv.push("--c-header".into());
+    }
+    let Command::Generate(args) = command(argv)? else {
+        unreachable!("parsed as generate")
+    };
+    flexdyn_lib::cli::generate::run(&args).map_err(PyValueError::new_err)
+}
+
+/// `{"integrator": "rk4", "max_steps": 10}` as `--integrator rk4 --max-steps
+/// 10` (`True` a bare flag).
+fn flags(options: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<String>> {
+    let mut out = Vec::new();
+    for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
+        let flag = format!("--{}", k.str()?.to_string().replace('_', "-"));
+        if let Ok(b) = v.extract::<bool>() {
+            if b {
+                out.push(flag);
+            }
+            continue;
+        }
+        out.push(flag);
+        out.push(v.str()?.to_string());
+    }
+    Ok(out)
+}
+
+/// The module.
+#[pymodule]
+fn flexdyn(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Model>()?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(from_urdf, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(inverse, m)?)?;
+    m.add_function(wrap_pyfunction!(generate, m)?)?;
+    Ok(())
+}
