@@ -17,16 +17,27 @@ fn python_package_builds_and_passes_its_tests() {
     let Some(python) = python_env::test_python(&repo, "python_package") else {
         return;
     };
-    let bin = python.parent().expect("the environment's bin folder").to_path_buf();
-    let path = std::env::join_paths(
-        std::iter::once(bin).chain(std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())),
-    )
+    let bin = python
+        .parent()
+        .expect("the environment's bin folder")
+        .to_path_buf();
+    let path = std::env::join_paths(std::iter::once(bin).chain(std::env::split_paths(
+        &std::env::var_os("PATH").unwrap_or_default(),
+    )))
     .expect("PATH");
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let install = python_env::run(
         Command::new(&python)
             .current_dir(&repo)
-            .args(["-m", "pip", "install", "--quiet", "--no-build-isolation", "--force-reinstall", "--no-deps"])
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "--no-build-isolation",
+                "--force-reinstall",
+                "--no-deps",
+            ])
             .arg(repo.join("python"))
             .env("PATH", &path)
             .env("CARGO", &cargo)
@@ -50,6 +61,12 @@ fn python_package_builds_and_passes_its_tests() {
     );
     let text = python_env::output_text(&tests);
     println!("{text}");
-    assert!(tests.status.success(), "pytest python/tests failed:\n{text}");
-    assert!(!text.contains("skipped"), "no test may be skipped here:\n{text}");
+    assert!(
+        tests.status.success(),
+        "pytest python/tests failed:\n{text}"
+    );
+    assert!(
+        !text.contains("skipped"),
+        "no test may be skipped here:\n{text}"
+    );
 }
