@@ -176,7 +176,8 @@ fn marker(model: &dyn DynModel, k: usize, q: &[f64], qd: &[f64], t: f64) -> Mark
     }
 }
 
-fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
+/// A matrix as a list of rows (JSON's layout).
+pub(crate) fn rows(m: &nalgebra::DMatrix<f64>) -> Vec<Vec<f64>> {
     m.row_iter().map(|r| r.iter().copied().collect()).collect()
 }
 
@@ -220,25 +221,14 @@ pub fn read_state(path: &std::path::Path, model: &mut dyn DynModel) -> Result<St
     let text = crate::table::read_input(path, "state file")?;
     let s: State = serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     check_state(model, &s, 0).map_err(|e| format!("{}: {e}", path.display()))?;
-    for (name, &value) in &s.params {
-        if !value.is_finite() || !model.set_parameter(name, value) {
-            return Err(format!(
-                "{}: `{name}` = {value} is not a runtime parameter value of scene `{}` \
-                 (runtime parameters: {})",
-                path.display(),
-                model.name(),
-                model.parameters().join(", ")
-            ));
-        }
-    }
+    set_parameters(model, &s.params).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(s)
 }
 
-/// Evaluate every term at one state, with the state's runtime parameters
-/// (the model is left with them set); an error naming the first term that
-/// is not finite there.
-pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
-    for (name, &value) in &s.params {
+/// Sets a state's runtime parameters on `model`; an error naming a value
+/// that is not finite or a name the scene does not have.
+fn set_parameters(model: &mut dyn DynModel, params: &BTreeMap<String, f64>) -> Result<(), String> {
+    for (name, &value) in params {
         if !value.is_finite() {
             return Err(format!("parameter `{name}` is not finite"));
         }
@@ -250,6 +240,14 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
             ));
         }
     }
+    Ok(())
+}
+
+/// Evaluate every term at one state, with the state's runtime parameters
+/// (the model is left with them set); an error naming the first term that
+/// is not finite there.
+pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
+    set_parameters(model, &s.params)?;
     let (q, qd, t) = (&s.q, &s.qd, s.t);
     let (nq, nc, nu) = (model.nq(), model.nc(), model.nu());
     let model = &*model;

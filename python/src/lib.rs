@@ -51,7 +51,7 @@ impl Model {
         shape: &[usize],
         f: Eval<'_>,
     ) -> PyResult<PyObject> {
-        let arrays: Vec<ArrayD<f64>> = args.iter().map(|a| a.as_array().to_owned()).collect();
+        let arrays: Vec<_> = args.iter().map(|a| a.as_array()).collect();
         let batch = match arrays.first().map(|a| a.ndim()) {
             Some(1) | None => None,
             Some(2) => Some(arrays[0].shape()[0]),
@@ -97,11 +97,8 @@ impl Model {
         };
         let size: usize = shape.iter().product();
         let mut out = vec![0.0; size * count];
-        // Each argument contiguous, state after state.
-        let flat: Vec<Vec<f64>> = arrays
-            .iter()
-            .map(|a| a.as_standard_layout().iter().copied().collect())
-            .collect();
+        // Each argument contiguous, state after state (`iter` is row-major).
+        let flat: Vec<Vec<f64>> = arrays.iter().map(|a| a.iter().copied().collect()).collect();
         let model = &self.model;
         let one = |m: &InterpretedModel, k: usize, o: &mut [f64]| {
             let mut at: [&[f64]; 3] = [&[]; 3];

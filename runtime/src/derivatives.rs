@@ -156,21 +156,14 @@ where
         qdd_tau.set_column(j, &x);
         lambda_tau.set_column(j, &mu);
     }
-    for (d, quantity) in [
-        (qdd_q.as_slice(), Quantity::Acceleration),
-        (qdd_qd.as_slice(), Quantity::Acceleration),
-        (qdd_tau.as_slice(), Quantity::Acceleration),
-        (lambda_q.as_slice(), Quantity::ConstraintForces),
-        (lambda_qd.as_slice(), Quantity::ConstraintForces),
-        (lambda_tau.as_slice(), Quantity::ConstraintForces),
-    ] {
-        if !d.iter().all(|x| x.is_finite()) {
-            return Err(Error::new(
-                crate::ErrorKind::NonFiniteResult { quantity },
-                t,
-            ));
-        }
+    for m in [&qdd_q, &qdd_qd] {
+        eval::check_result(m, Quantity::Acceleration, t)?;
     }
+    eval::check_result(&qdd_tau, Quantity::Acceleration, t)?;
+    for m in [&lambda_q, &lambda_qd] {
+        eval::check_result(m, Quantity::ConstraintForces, t)?;
+    }
+    eval::check_result(&lambda_tau, Quantity::ConstraintForces, t)?;
     Ok(ForwardDerivativesOf {
         qdd,
         lambda,

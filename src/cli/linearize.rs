@@ -227,9 +227,7 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
                 .map(|&i| format!("{}_dot", coordinates[i])),
         )
         .collect();
-    let rows = |m: &DMatrix<f64>| -> Vec<Vec<f64>> {
-        m.row_iter().map(|r| r.iter().copied().collect()).collect()
-    };
+    let rows = crate::eval::rows;
     let out = Linearization {
         scene: parsed.name.clone(),
         t: at.t,
