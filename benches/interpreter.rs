@@ -1,16 +1,16 @@
 //! The interpreter (`flexdyn_codegen::interpret`, a scene file evaluated at
 //! run time) against the compiled module of the same scene: `dynamics_terms`
-//! and `bias` of the pendulum, the four-bar and the five-bar, both without
+//! and `bias` of the pendulum, the four-bar, the five-bar and the UR5, both without
 //! allocation (preallocated outputs, reused scratch). Run with
 //! `cargo bench --bench interpreter`.
 
 use std::path::Path;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use flexdyn::codegen::interpret::{Function, Interpreted};
+use flexdyn::codegen::interpret::{Function, Interpreted, Scratch};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::Model;
-use flexdyn::scenes::{five_bar::FiveBar, four_bar::FourBar, pendulum::Pendulum};
+use flexdyn::scenes::{five_bar::FiveBar, four_bar::FourBar, pendulum::Pendulum, ur5::Ur5};
 
 /// A state of `nq` coordinates away from special angles.
 fn state(nq: usize) -> (Vec<f64>, Vec<f64>) {
@@ -50,7 +50,7 @@ where
             black_box(&h);
         })
     });
-    let mut scratch = Vec::new();
+    let mut scratch = Scratch::default();
     for f in [Function::DynamicsTerms, Function::Bias] {
         let tape = it.tape(f).expect("core function");
         let mut out = vec![0.0; tape.output_len()];
@@ -67,6 +67,7 @@ fn interpreter(c: &mut Criterion) {
     compare(c, &Pendulum::default());
     compare(c, &FourBar);
     compare(c, &FiveBar);
+    compare(c, &Ur5);
 }
 
 criterion_group!(benches, interpreter);

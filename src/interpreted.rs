@@ -7,7 +7,7 @@ use std::cell::RefCell;
 use std::path::Path;
 use std::sync::Arc;
 
-use flexdyn_codegen::interpret::{Function, Interpreted, Tape};
+use flexdyn_codegen::interpret::{Function, Interpreted, Scratch, Tape};
 
 use crate::dynamic::{DynModel, Fused, IdDerivatives, MarkerPose};
 
@@ -19,8 +19,8 @@ pub struct InterpretedModel {
     params: Vec<f64>,
     /// `q = 0`, where the actuator map is evaluated.
     origin: Vec<f64>,
-    /// The tapes' slots, sized on first use.
-    scratch: RefCell<Vec<f64>>,
+    /// Each tape's slots (by [`Tape::index`]), sized on first use.
+    scratch: RefCell<Vec<Scratch>>,
     /// The outputs of a function with several, before they go to the
     /// caller's storage; sized on first use.
     outputs: RefCell<Vec<f64>>,
@@ -47,9 +47,9 @@ impl InterpretedModel {
         let params = scene.parameters().iter().map(|(_, v)| *v).collect();
         InterpretedModel {
             origin: vec![0.0; scene.nq()],
+            scratch: RefCell::new(vec![Scratch::default(); scene.tape_count()]),
             scene: Arc::new(scene),
             params,
-            scratch: RefCell::new(Vec::new()),
             outputs: RefCell::new(Vec::new()),
         }
     }
@@ -90,7 +90,7 @@ impl InterpretedModel {
         (q, qd, qdd, t): (&[f64], &[f64], &[f64], f64),
         outs: &mut [&mut [f64]],
     ) -> bool {
-        let scratch = &mut self.scratch.borrow_mut();
+        let scratch = &mut self.scratch.borrow_mut()[tape.index()];
         if let [out] = outs {
             tape.eval_with_accelerations(q, qd, qdd, t, &self.params, scratch, out);
             return true;

@@ -56,6 +56,7 @@ mod expr;
 mod fem;
 mod files;
 mod geometry;
+mod hash;
 mod import;
 mod inertia;
 pub mod interpret;

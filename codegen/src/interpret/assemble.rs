@@ -4,11 +4,14 @@
 //! literals is folded (the compiler folds them in the emitted code,
 //! with the same IEEE result), program variables and stored values become
 //! the slots holding them, and the stores become writes to the output
-//! buffer (matrices column-major, nalgebra's layout).
+//! buffer (matrices column-major, nalgebra's layout). Two rewritings make
+//! the tape cheaper to run and change no result: a product used only as a
+//! term of one sum is fused into it (`fuse`), and the instructions are
+//! reordered into runs of one operation (`in_runs`).
 
 use std::collections::HashMap;
 
-use super::tape::{Instr, Instruction, Tape};
+use super::tape::{self, Instr, Instruction, Tape};
 use crate::expr::Symbol;
 use crate::schedule::{Inputs, Lowered, Op, Operand, Value};
 
@@ -21,20 +24,23 @@ enum Ref {
 }
 
 /// An instruction before slots are assigned (`b` is the cosine's
-/// destination for `SinCos`, equal to `a` for other unary operations).
+/// destination for `SinCos`, equal to `a` for other unary operations; `c`
+/// is the third operand of the fused operations, equal to `a` elsewhere).
 #[derive(Debug, Clone, Copy)]
 struct Pre {
     op: Instruction,
     dst: Ref,
     a: Ref,
     b: Ref,
+    c: Ref,
 }
 
 impl Pre {
     /// The intermediates it reads, each once.
     fn reads(&self) -> impl Iterator<Item = u32> {
         let b = (self.op != Instruction::SinCos && self.b != self.a).then_some(self.b);
-        [Some(self.a), b].into_iter().flatten().filter_map(temp)
+        let c = (self.op.fused() && self.c != self.a && self.c != self.b).then_some(self.c);
+        [Some(self.a), b, c].into_iter().flatten().filter_map(temp)
     }
 
     /// The intermediates it writes.
@@ -42,6 +48,62 @@ impl Pre {
         let b = (self.op == Instruction::SinCos).then_some(self.b);
         [Some(self.dst), b].into_iter().flatten().filter_map(temp)
     }
+}
+
+/// `code` with each product whose only use is as a term of one sum or
+/// difference (not an output) computed by that instruction: `c + a b`,
+/// `c - a b` or `a b - c`, the same two roundings in the same order (`x + y`
+/// equals `y + x`), in one instruction instead of two.
+fn fuse(code: Vec<Pre>, temps: usize, outputs: &[(Ref, usize)]) -> Vec<Pre> {
+    let mut uses = vec![0usize; temps];
+    for p in &code {
+        for t in p.reads() {
+            uses[t as usize] += 1;
+        }
+    }
+    for (r, _) in outputs {
+        if let Some(t) = temp(*r) {
+            uses[t as usize] += 1;
+        }
+    }
+    let mut product: Vec<Option<usize>> = vec![None; temps];
+    for (k, p) in code.iter().enumerate() {
+        if let (Instruction::Mul, Ref::Temp(t)) = (p.op, p.dst) {
+            product[t as usize] = Some(k);
+        }
+    }
+    let single = |r: Ref| {
+        temp(r)
+            .filter(|&t| uses[t as usize] == 1)
+            .and_then(|t| product[t as usize])
+    };
+    let mut gone = vec![false; code.len()];
+    let mut fused = code.clone();
+    for (k, p) in code.iter().enumerate() {
+        if !matches!(p.op, Instruction::Add | Instruction::Sub) || p.a == p.b {
+            continue;
+        }
+        let (op, m, c) = match (p.op, single(p.a), single(p.b)) {
+            (Instruction::Add, _, Some(m)) => (Instruction::MulAdd, m, p.a),
+            (Instruction::Add, Some(m), None) => (Instruction::MulAdd, m, p.b),
+            (Instruction::Sub, _, Some(m)) => (Instruction::SubMul, m, p.a),
+            (Instruction::Sub, Some(m), None) => (Instruction::MulSub, m, p.b),
+            _ => continue,
+        };
+        gone[m] = true;
+        fused[k] = Pre {
+            op,
+            dst: p.dst,
+            a: code[m].a,
+            b: code[m].b,
+            c,
+        };
+    }
+    fused
+        .into_iter()
+        .zip(gone)
+        .filter_map(|(p, gone)| (!gone).then_some(p))
+        .collect()
 }
 
 fn temp(r: Ref) -> Option<u32> {
@@ -210,7 +272,13 @@ impl Assembler {
     /// The instruction `op(a, b)`.
     fn push(&mut self, op: Instruction, a: Ref, b: Ref) -> Ref {
         let dst = self.temp();
-        self.code.push(Pre { op, dst, a, b });
+        self.code.push(Pre {
+            op,
+            dst,
+            a,
+            b,
+            c: a,
+        });
         dst
     }
 
@@ -222,21 +290,40 @@ impl Assembler {
             dst: s,
             a,
             b: c,
+            c: a,
         });
         self.vars.insert(sin, s);
         self.vars.insert(cos, c);
     }
 
-    /// Assign slots (intermediates reuse the slots of dead ones) and build
-    /// the tape.
-    fn finish(self, lowered: &Lowered) -> Tape {
+    /// Order the instructions in runs of one operation, assign slots
+    /// (intermediates reuse the slots of dead ones) and build the tape.
+    fn finish(mut self, lowered: &Lowered) -> Tape {
+        // Entries no store writes are zero: written from a zero literal,
+        // so a call writes every entry once and clears nothing first.
+        let len: usize = lowered.shapes.iter().map(|(r, c)| r * c).sum();
+        let mut written = vec![false; len];
+        for (_, pos) in &self.writes {
+            written[*pos] = true;
+        }
+        if written.contains(&false) {
+            let zero = self.literal(0.0);
+            let zeros = written.iter().enumerate().filter(|(_, w)| !**w);
+            let zeros: Vec<(Ref, usize)> = zeros.map(|(pos, _)| (zero, pos)).collect();
+            self.writes.extend(zeros);
+        }
         let writes = self.writes;
         const LIVE: usize = usize::MAX;
         let inputs = 3 * self.nq + 1 + self.params;
         let first_temp = inputs + self.literals.len();
+        let code = fuse(self.code, self.slots_used as usize, &writes);
+        let pre: Vec<Pre> = in_runs(&code, self.slots_used as usize)
+            .into_iter()
+            .map(|k| code[k])
+            .collect();
         // Last instruction reading each intermediate (outputs: to the end).
         let mut last: Vec<Option<usize>> = vec![None; self.slots_used as usize];
-        for (k, p) in self.code.iter().enumerate() {
+        for (k, p) in pre.iter().enumerate() {
             for t in p.reads() {
                 last[t as usize] = Some(k);
             }
@@ -254,9 +341,14 @@ impl Assembler {
             Ref::Literal(k) => (inputs as u32) + k,
             Ref::Temp(t) => slot_of[t as usize],
         };
-        let mut code = Vec::with_capacity(self.code.len());
-        for (k, p) in self.code.iter().enumerate() {
-            let (a, b) = (slot(p.a, &slot_of), slot(p.b, &slot_of));
+        let mut code: Vec<Instr> = Vec::with_capacity(pre.len());
+        let mut runs: Vec<(Instruction, u32)> = Vec::new();
+        for (k, p) in pre.iter().enumerate() {
+            let (a, b, c) = (
+                slot(p.a, &slot_of),
+                slot(p.b, &slot_of),
+                slot(p.c, &slot_of),
+            );
             // Operands are read before the result is stored: a slot dying
             // here can take the result.
             for t in p.reads() {
@@ -279,14 +371,12 @@ impl Assembler {
             } else {
                 b
             };
-            code.push(Instr {
-                op: p.op,
-                dst,
-                a,
-                b,
-            });
+            code.push(Instr { dst, a, b, c });
+            match runs.last_mut() {
+                Some((op, end)) if *op == p.op => *end += 1,
+                _ => runs.push((p.op, code.len() as u32)),
+            }
         }
-        let zero_first = lowered.ops.iter().any(|op| matches!(op, Op::Zero { .. }));
         let writes = writes
             .into_iter()
             .map(|(r, pos)| (slot(r, &slot_of), pos as u32))
@@ -298,10 +388,66 @@ impl Assembler {
             uses_qdd: lowered.inputs() == Inputs::Accelerations,
             literals: self.literals,
             code,
+            runs,
             writes,
-            zero_first,
+            id: tape::next_id(),
+            index: 0,
             shapes: lowered.shapes.clone(),
             slots,
         }
     }
+}
+
+/// An order of `code` (indices) in which every instruction comes after
+/// those computing its operands, in runs of one operation as long as the
+/// dependencies allow: repeatedly, of the instructions whose operands are
+/// computed, all those of the operation most of them share (in program
+/// order). The tape then dispatches once per run, and a run's instructions
+/// are independent of each other. Each instruction computes what it computed
+/// in program order, so results are bitwise the same.
+fn in_runs(code: &[Pre], temps: usize) -> Vec<usize> {
+    let mut producer: Vec<usize> = vec![usize::MAX; temps];
+    for (k, p) in code.iter().enumerate() {
+        for t in p.writes() {
+            producer[t as usize] = k;
+        }
+    }
+    let mut waiting: Vec<usize> = vec![0; code.len()];
+    let mut users: Vec<Vec<usize>> = vec![Vec::new(); code.len()];
+    for (k, p) in code.iter().enumerate() {
+        let mut from: Vec<usize> = p.reads().map(|t| producer[t as usize]).collect();
+        from.sort_unstable();
+        from.dedup();
+        waiting[k] = from.len();
+        for f in from {
+            users[f].push(k);
+        }
+    }
+    let mut ready: HashMap<Instruction, Vec<usize>> = HashMap::new();
+    for (k, p) in code.iter().enumerate() {
+        if waiting[k] == 0 {
+            ready.entry(p.op).or_default().push(k);
+        }
+    }
+    let mut order = Vec::with_capacity(code.len());
+    while let Some(op) = ready
+        .iter()
+        .filter(|(_, ks)| !ks.is_empty())
+        .max_by_key(|(_, ks)| (ks.len(), std::cmp::Reverse(ks.iter().min())))
+        .map(|(op, _)| *op)
+    {
+        let mut run = std::mem::take(ready.get_mut(&op).expect("a ready operation"));
+        run.sort_unstable();
+        for &k in &run {
+            for &u in &users[k] {
+                waiting[u] -= 1;
+                if waiting[u] == 0 {
+                    ready.entry(code[u].op).or_default().push(u);
+                }
+            }
+        }
+        order.extend(run);
+    }
+    debug_assert_eq!(order.len(), code.len(), "the program has no cycle");
+    order
 }

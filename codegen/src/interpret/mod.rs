@@ -21,7 +21,7 @@ use crate::model::Model;
 use crate::schedule::{functions, lower};
 
 pub use crate::schedule::Function;
-pub use tape::Tape;
+pub use tape::{Scratch, Tape};
 
 /// A scene's functions as tapes, built from its file at run time.
 #[derive(Debug, Clone)]
@@ -58,8 +58,10 @@ impl Interpreted {
         let params = model.runtime_parameters.len();
         let tapes = functions(model, eq)
             .iter()
-            .map(|f| {
-                let tape = assemble::assemble(&lower(f, true), nq, params);
+            .enumerate()
+            .map(|(index, f)| {
+                let mut tape = assemble::assemble(&lower(f, true), nq, params);
+                tape.index = index;
                 (f.function, f.marker, tape)
             })
             .collect();
@@ -131,6 +133,11 @@ impl Interpreted {
         self.find(f, Some(marker))
     }
 
+    /// Number of tapes ([`Tape::index`] is below it).
+    pub fn tape_count(&self) -> usize {
+        self.tapes.len()
+    }
+
     fn find(&self, f: Function, marker: Option<usize>) -> Option<&Tape> {
         self.tapes
             .iter()
@@ -162,7 +169,7 @@ mod tests {
             let eq = model.equations().unwrap();
             let it = Interpreted::new(&model, &eq);
             let (nq, np) = (it.nq(), it.parameters().len());
-            let mut scratch = Vec::new();
+            let mut scratch = Scratch::default();
             for k in 0..5 {
                 let x = |i: usize, s: f64| ((k * 7 + i * 3) as f64 * s).sin() * 1.3;
                 let q: Vec<f64> = (0..nq).map(|i| x(i, 0.37)).collect();
@@ -281,7 +288,7 @@ mod tests {
         };
         let tape = assemble::assemble(&lower(&f, true), 2, 0);
         let mut got = vec![f64::NAN; 5];
-        tape.eval(&[a, b], &[], 0.0, &[], &mut Vec::new(), &mut got);
+        tape.eval(&[a, b], &[], 0.0, &[], &mut Scratch::default(), &mut got);
         // What Rust computes for the printed expressions.
         let want = [
             0.3 * a * b,
@@ -296,11 +303,11 @@ mod tests {
 
     #[test]
     fn intermediate_slots_are_reused() {
-        let mut model = Model::load(&scene("slider_crank")).unwrap();
+        let mut model = Model::load(&scene("ur5")).unwrap();
         let eq = model.equations().unwrap();
         let it = Interpreted::new(&model, &eq);
         let tape = it.tape(Function::DynamicsTerms).unwrap();
-        let inputs = 2 * it.nq() + 1 + it.parameters().len() + tape.literals.len();
+        let inputs = 3 * it.nq() + 1 + it.parameters().len() + tape.literals.len();
         assert!(
             tape.slots - inputs < tape.instructions() / 2,
             "{} slots for {} instructions",

@@ -1,8 +1,11 @@
 //! One emitted function as an instruction tape over one array of `f64`
-//! slots, and its evaluation ([`Tape::eval`]) with a caller-owned scratch
-//! buffer and no allocation once that buffer has grown. `sin_cos`, `sin`,
+//! slots, and its evaluation ([`Tape::eval`]) with a caller-owned
+//! [`Scratch`] and no allocation once that has grown. The instructions come
+//! in runs of one operation, dispatched once per run. `sin_cos`, `sin`,
 //! ..., `atan2` are the functions of `flexdyn_runtime::math` that generated
 //! code calls, in the same build (so the same library, `std` or `libm`).
+
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use flexdyn_runtime::math;
 
@@ -20,10 +23,11 @@ impl From<Binary> for Instruction {
     }
 }
 
-/// Tape operations, one flat enum (one dispatch per instruction). Unary
-/// operations read `a`; `SinCos` writes the sine to `dst` and the cosine to
-/// `b`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Tape operations, one flat enum (one dispatch per run of instructions).
+/// Unary operations read `a`; `SinCos` writes the sine to `dst` and the
+/// cosine to `b`; the fused operations are the two roundings of their
+/// unfused form, in the same order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub(super) enum Instruction {
     Add,
     Sub,
@@ -33,15 +37,50 @@ pub(super) enum Instruction {
     Call(Func),
     SinCos,
     Atan2,
+    /// `c + a b`.
+    MulAdd,
+    /// `c - a b`.
+    SubMul,
+    /// `a b - c`.
+    MulSub,
 }
 
-/// One instruction: slots `a`, `b` in, slot `dst` out.
+impl Instruction {
+    /// Whether it reads a third operand `c`.
+    pub(super) fn fused(self) -> bool {
+        matches!(
+            self,
+            Instruction::MulAdd | Instruction::SubMul | Instruction::MulSub
+        )
+    }
+}
+
+/// One instruction of a run (the run says which operation): slots `a`, `b`
+/// (and `c` for the fused operations) in, slot `dst` out.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Instr {
-    pub(super) op: Instruction,
     pub(super) dst: u32,
     pub(super) a: u32,
     pub(super) b: u32,
+    pub(super) c: u32,
+}
+
+/// The slots tapes evaluate in, owned by the caller and reused from call to
+/// call: they grow to a tape's size on first use, and remember whose
+/// literals they hold, so that calls of one tape after another copy only
+/// the arguments. One scratch serves any number of tapes (switching tapes
+/// copies the literals again).
+#[derive(Debug, Clone, Default)]
+pub struct Scratch {
+    slots: Vec<f64>,
+    /// The [`Tape::id`] whose literals are in place (0: none).
+    holds: u64,
+}
+
+/// A number no other tape of this process has (never 0).
+pub(super) fn next_id() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
 /// One emitted function as an instruction tape.
@@ -58,10 +97,18 @@ pub struct Tape {
     pub(super) uses_qdd: bool,
     pub(super) literals: Vec<f64>,
     pub(super) code: Vec<Instr>,
-    /// `(slot, position in the output buffer)`.
+    /// Runs of one operation: the operation and the end of its run in
+    /// `code` (the next run starts there). The instructions of a run are
+    /// independent of each other.
+    pub(super) runs: Vec<(Instruction, u32)>,
+    /// `(slot, position in the output buffer)`, every position once
+    /// (entries the function does not compute from a zero literal).
     pub(super) writes: Vec<(u32, u32)>,
-    /// Whether some output entries are not written (they are zero).
-    pub(super) zero_first: bool,
+    /// This tape's number, which [`Scratch`] remembers to know whose
+    /// literals it holds.
+    pub(super) id: u64,
+    /// Its position among its scene's tapes.
+    pub(super) index: usize,
     /// `(rows, columns)` of each output.
     pub(super) shapes: Vec<(usize, usize)>,
     pub(super) slots: usize,
@@ -77,6 +124,13 @@ impl Tape {
     /// Length of the output buffer: all outputs together.
     pub fn output_len(&self) -> usize {
         self.shapes.iter().map(|(r, c)| r * c).sum()
+    }
+
+    /// Its position among its scene's tapes, below
+    /// [`super::Interpreted::tape_count`]: for keeping one [`Scratch`] per
+    /// tape, which then always holds that tape's literals.
+    pub fn index(&self) -> usize {
+        self.index
     }
 
     /// Whether the function reads the velocities.
@@ -98,13 +152,14 @@ impl Tape {
     ///
     /// When a slice's length differs from the scene's dimensions (callers
     /// check states first, as `flexdyn eval` does).
+    #[inline]
     pub fn eval(
         &self,
         q: &[f64],
         qd: &[f64],
         t: f64,
         params: &[f64],
-        scratch: &mut Vec<f64>,
+        scratch: &mut Scratch,
         out: &mut [f64],
     ) {
         self.eval_with_accelerations(q, qd, &[], t, params, scratch, out);
@@ -129,7 +184,7 @@ impl Tape {
         qdd: &[f64],
         t: f64,
         params: &[f64],
-        scratch: &mut Vec<f64>,
+        scratch: &mut Scratch,
         out: &mut [f64],
     ) {
         let nq = self.nq;
@@ -153,10 +208,16 @@ impl Tape {
         );
         let len = self.output_len();
         assert_eq!(out.len(), len, "expected {len} outputs, got {}", out.len());
-        if scratch.len() < self.slots {
-            scratch.resize(self.slots, 0.0);
+        if scratch.holds != self.id {
+            let size = self.slots.next_power_of_two();
+            if scratch.slots.len() < size {
+                scratch.slots.resize(size, 0.0);
+            }
+            let lit = 3 * nq + 1 + self.params;
+            scratch.slots[lit..lit + self.literals.len()].copy_from_slice(&self.literals);
+            scratch.holds = self.id;
         }
-        let s = &mut scratch[..self.slots];
+        let s = &mut scratch.slots[..self.slots.next_power_of_two()];
         s[..nq].copy_from_slice(q);
         if self.uses_qd {
             s[nq..2 * nq].copy_from_slice(qd);
@@ -165,33 +226,71 @@ impl Tape {
             s[2 * nq..3 * nq].copy_from_slice(qdd);
         }
         s[3 * nq] = t;
-        let lit = 3 * nq + 1 + self.params;
-        s[3 * nq + 1..lit].copy_from_slice(params);
-        s[lit..lit + self.literals.len()].copy_from_slice(&self.literals);
-        for i in &self.code {
-            let x = s[i.a as usize];
-            let y = s[i.b as usize];
-            let v = match i.op {
-                Instruction::Add => x + y,
-                Instruction::Sub => x - y,
-                Instruction::Mul => x * y,
-                Instruction::Div => x / y,
-                Instruction::Neg => -x,
-                Instruction::Call(f) => call(f, x),
-                Instruction::Atan2 => math::atan2(x, y),
-                Instruction::SinCos => {
-                    let (sin, cos) = math::sin_cos(x);
-                    s[i.b as usize] = cos;
-                    sin
-                }
-            };
-            s[i.dst as usize] = v;
+        if !params.is_empty() {
+            s[3 * nq + 1..3 * nq + 1 + params.len()].copy_from_slice(params);
         }
-        if self.zero_first {
-            out.fill(0.0);
+        let mut start = 0;
+        for &(op, end) in &self.runs {
+            let run = &self.code[start..end as usize];
+            start = end as usize;
+            run_op(op, run, s);
         }
         for &(slot, pos) in &self.writes {
             out[pos as usize] = s[slot as usize];
+        }
+    }
+}
+
+/// One run of operation `op` over the slots `s`: one dispatch, then a loop
+/// the processor predicts. Sines and cosines go four at a time through
+/// [`math::sin_cos_array`] (bitwise [`math::sin_cos`] lane by lane, as
+/// generated code batches them); the instructions of a run are independent,
+/// so reading four arguments before writing their results changes nothing.
+fn run_op(op: Instruction, run: &[Instr], s: &mut [f64]) {
+    // `s` is a power of two long and every index below its length, so
+    // masking changes no index and lets the compiler drop the bounds checks.
+    let m = s.len() - 1;
+    let s = &mut s[..=m];
+    macro_rules! each {
+        (|$x:ident, $y:ident| $v:expr) => {
+            for i in run {
+                let ($x, $y) = (s[i.a as usize & m], s[i.b as usize & m]);
+                s[i.dst as usize & m] = $v;
+            }
+        };
+        (|$x:ident, $y:ident, $z:ident| $v:expr) => {
+            for i in run {
+                let ($x, $y) = (s[i.a as usize & m], s[i.b as usize & m]);
+                let $z = s[i.c as usize & m];
+                s[i.dst as usize & m] = $v;
+            }
+        };
+    }
+    match op {
+        Instruction::Add => each!(|x, y| x + y),
+        Instruction::Sub => each!(|x, y| x - y),
+        Instruction::Mul => each!(|x, y| x * y),
+        Instruction::Div => each!(|x, y| x / y),
+        Instruction::Neg => each!(|x, _y| -x),
+        Instruction::Call(f) => each!(|x, _y| call(f, x)),
+        Instruction::Atan2 => each!(|x, y| math::atan2(x, y)),
+        Instruction::MulAdd => each!(|x, y, z| z + x * y),
+        Instruction::SubMul => each!(|x, y, z| z - x * y),
+        Instruction::MulSub => each!(|x, y, z| x * y - z),
+        Instruction::SinCos => {
+            let mut fours = run.chunks_exact(4);
+            for four in &mut fours {
+                let sc = math::sin_cos_array([0, 1, 2, 3].map(|k| s[four[k].a as usize & m]));
+                for (i, (sin, cos)) in four.iter().zip(sc) {
+                    s[i.dst as usize & m] = sin;
+                    s[i.b as usize & m] = cos;
+                }
+            }
+            for i in fours.remainder() {
+                let (sin, cos) = math::sin_cos(s[i.a as usize & m]);
+                s[i.dst as usize & m] = sin;
+                s[i.b as usize & m] = cos;
+            }
         }
     }
 }

@@ -16,10 +16,9 @@
 //! Reassociation changes rounding in the last bits only; the CasADi
 //! validation bounds the emitted terms at 1e-10 relative.
 
-use std::collections::HashMap;
-
 use super::code::{Code, Stmt};
 use crate::expr::Symbol;
+use crate::hash::{FastMap, FastSet};
 
 /// Passes over the program (each can pair the results of the previous one).
 const PASSES: usize = 4;
@@ -199,8 +198,8 @@ fn stmt_code_mut(s: &mut Stmt) -> &mut Code {
 /// The pairs that an existing `let` computes by itself (`let v = a b;`,
 /// `let v = cx x + cy y;`), with the variable and, for sums, the
 /// coefficient of the pair's first leaf in it.
-fn existing_pairs(stmts: &[Stmt]) -> HashMap<Pair, (u32, f64)> {
-    let mut found = HashMap::new();
+fn existing_pairs(stmts: &[Stmt]) -> FastMap<Pair, (u32, f64)> {
+    let mut found = FastMap::default();
     for s in stmts {
         let Stmt::Let { var, value } = s else {
             continue;
@@ -231,12 +230,12 @@ fn existing_pairs(stmts: &[Stmt]) -> HashMap<Pair, (u32, f64)> {
 /// `lets` (placed before the statement using it).
 struct Rewriter<'a> {
     /// Rank of the pairs to share (as when they were counted).
-    rank: &'a HashMap<Pair, usize>,
-    existing: &'a HashMap<Pair, (u32, f64)>,
+    rank: &'a FastMap<Pair, usize>,
+    existing: &'a FastMap<Pair, (u32, f64)>,
     /// Variables defined so far, in program order.
-    defined: std::collections::HashSet<u32>,
+    defined: FastSet<u32>,
     /// Variables bound by this pass, with their pair's coefficient 1.
-    vars: HashMap<Pair, u32>,
+    vars: FastMap<Pair, u32>,
     next: &'a mut u32,
 }
 
@@ -327,7 +326,7 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
         let existing = existing_pairs(stmts);
         // How many products and sums contain each pair (an existing `let`
         // computing it counts as one).
-        let mut contained: HashMap<Pair, usize> = existing.keys().map(|&p| (p, 1)).collect();
+        let mut contained: FastMap<Pair, usize> = existing.keys().map(|&p| (p, 1)).collect();
         let mut count = |c: &Code| {
             let mut seen: Vec<Pair> = pairs_of(c).into_iter().map(|p| p.0).collect();
             seen.sort();
@@ -344,7 +343,7 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
         }
         // How many would take each pair, choosing greedily by that count;
         // only pairs computed at least twice are worth sharing.
-        let mut taken: HashMap<Pair, usize> = existing.keys().map(|&p| (p, 1)).collect();
+        let mut taken: FastMap<Pair, usize> = existing.keys().map(|&p| (p, 1)).collect();
         let mut tally = |c: &Code| {
             for p in choose(c, &|p| contained.get(p).copied().unwrap_or(0)) {
                 *taken.entry(p.0).or_default() += 1;
@@ -356,7 +355,7 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
         for o in outputs.iter() {
             visit(o, &mut tally);
         }
-        let rank: HashMap<Pair, usize> = taken
+        let rank: FastMap<Pair, usize> = taken
             .into_iter()
             .filter(|&(_, n)| n >= 2)
             .map(|(p, _)| (p, contained[&p]))
@@ -368,7 +367,7 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
             rank: &rank,
             existing: &existing,
             defined: Default::default(),
-            vars: HashMap::new(),
+            vars: FastMap::default(),
             next,
         };
         let mut out = Vec::with_capacity(stmts.len());

@@ -2,7 +2,10 @@
 //! between the generated terms and the linear solves.
 //! Run with `cargo bench -p flexdyn-parallel-robot --bench robot`.
 
+use std::path::Path;
+
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use flexdyn::codegen::interpret::{Function, Interpreted, Scratch};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::{
     accelerations, DynamicsConfig, IntegratorOf, InverseConfig, InverseDynamics, InverseReport,
@@ -162,6 +165,30 @@ fn robot(c: &mut Criterion) {
                 &mut j,
                 &mut g,
             )
+        })
+    });
+    // The same function from the scene file by the interpreter (what
+    // `flexdyn` runs for a scene it has not compiled in), bitwise equal.
+    group.bench_function("dynamics_terms_interpreted", |b| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/parallel_robot_rigid.toml");
+        let it = Interpreted::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let tape = it
+            .tape(Function::DynamicsTerms)
+            .expect("every scene has it");
+        let params: Vec<f64> = it.parameters().iter().map(|(_, v)| *v).collect();
+        let (q, qd) = (q.as_slice().to_vec(), qd.as_slice().to_vec());
+        let mut scratch = Scratch::default();
+        let mut out = vec![0.0; tape.output_len()];
+        b.iter(|| {
+            tape.eval(
+                black_box(&q),
+                black_box(&qd),
+                0.0,
+                &params,
+                &mut scratch,
+                &mut out,
+            );
+            black_box(&out);
         })
     });
     group.finish();
