@@ -402,9 +402,12 @@ impl Assembler {
 /// those computing its operands, in runs of one operation as long as the
 /// dependencies allow: repeatedly, of the instructions whose operands are
 /// computed, all those of the operation most of them share (in program
-/// order). The tape then dispatches once per run, and a run's instructions
-/// are independent of each other. Each instruction computes what it computed
-/// in program order, so results are bitwise the same.
+/// order), followed by those of that operation which they make ready, and
+/// so on (a chain of products is one run). The tape then dispatches once
+/// per run. A run of sines and cosines takes only instructions that are
+/// ready together, which are independent of each other (the tape computes
+/// them four at a time). Each instruction computes what it computed in
+/// program order, so results are bitwise the same.
 fn in_runs(code: &[Pre], temps: usize) -> Vec<usize> {
     let mut producer: Vec<usize> = vec![usize::MAX; temps];
     for (k, p) in code.iter().enumerate() {
@@ -438,11 +441,17 @@ fn in_runs(code: &[Pre], temps: usize) -> Vec<usize> {
     {
         let mut run = std::mem::take(ready.get_mut(&op).expect("a ready operation"));
         run.sort_unstable();
-        for &k in &run {
+        let mut next = 0;
+        while let Some(&k) = run.get(next) {
+            next += 1;
             for &u in &users[k] {
                 waiting[u] -= 1;
                 if waiting[u] == 0 {
-                    ready.entry(code[u].op).or_default().push(u);
+                    if code[u].op == op && op != Instruction::SinCos {
+                        run.push(u);
+                    } else {
+                        ready.entry(code[u].op).or_default().push(u);
+                    }
                 }
             }
         }

@@ -98,8 +98,8 @@ pub struct Tape {
     pub(super) literals: Vec<f64>,
     pub(super) code: Vec<Instr>,
     /// Runs of one operation: the operation and the end of its run in
-    /// `code` (the next run starts there). The instructions of a run are
-    /// independent of each other.
+    /// `code` (the next run starts there). An instruction may read what an
+    /// earlier one of its run computed, except in runs of `SinCos`.
     pub(super) runs: Vec<(Instruction, u32)>,
     /// `(slot, position in the output buffer)`, every position once
     /// (entries the function does not compute from a zero literal).
@@ -244,8 +244,9 @@ impl Tape {
 /// One run of operation `op` over the slots `s`: one dispatch, then a loop
 /// the processor predicts. Sines and cosines go four at a time through
 /// [`math::sin_cos_array`] (bitwise [`math::sin_cos`] lane by lane, as
-/// generated code batches them); the instructions of a run are independent,
-/// so reading four arguments before writing their results changes nothing.
+/// generated code batches them); the instructions of a `SinCos` run are
+/// independent, so reading four arguments before writing their results
+/// changes nothing.
 fn run_op(op: Instruction, run: &[Instr], s: &mut [f64]) {
     // `s` is a power of two long and every index below its length, so
     // masking changes no index and lets the compiler drop the bounds checks.
