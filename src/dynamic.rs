@@ -11,10 +11,52 @@
 //! padding; real-time code uses the generated types and
 //! [`flexdyn_runtime::Model`] directly.
 
+pub use flexdyn_codegen::interpret::Function;
 use flexdyn_runtime::{Equations, Model};
 use nalgebra::{DMatrix, DVector, Dyn, SMatrix, SVector};
 
+/// The arguments of a function of the table: positions, velocities,
+/// accelerations (each empty where the function does not read it) and time.
+#[derive(Debug, Clone, Copy)]
+pub struct At<'a> {
+    /// Positions (`nq`).
+    pub q: &'a [f64],
+    /// Velocities (`nq`, or empty).
+    pub qd: &'a [f64],
+    /// Accelerations (`nq`, or empty).
+    pub qdd: &'a [f64],
+    /// Time.
+    pub t: f64,
+}
+
+impl<'a> At<'a> {
+    /// At positions `q` and time `t`.
+    pub fn q(q: &'a [f64], t: f64) -> At<'a> {
+        At {
+            q,
+            qd: &[],
+            qdd: &[],
+            t,
+        }
+    }
+
+    /// At positions `q`, velocities `qd` and time `t`.
+    pub fn qd(q: &'a [f64], qd: &'a [f64], t: f64) -> At<'a> {
+        At { q, qd, qdd: &[], t }
+    }
+
+    /// At positions, velocities, accelerations and time.
+    pub fn qdd(q: &'a [f64], qd: &'a [f64], qdd: &'a [f64], t: f64) -> At<'a> {
+        At { q, qd, qdd, t }
+    }
+}
+
 /// A generated model with its dimensions erased.
+///
+/// An implementation gives the scene's names and sizes and one evaluation,
+/// [`DynModel::call`], of any function of the generator's table
+/// ([`Function`]); the typed methods (`mass_matrix`, `bias`, ...) are that
+/// call with the function's arguments and outputs named, written once here.
 pub trait DynModel {
     /// Scene name.
     fn name(&self) -> &str;
@@ -32,42 +74,112 @@ pub trait DynModel {
     fn nu(&self) -> usize {
         self.actuators().len()
     }
-    /// Mass matrix (`nq x nq`).
-    fn mass_matrix(&self, q: &[f64], t: f64, m: &mut [f64]);
-    /// Bias forces (`nq`).
-    fn bias(&self, q: &[f64], qd: &[f64], t: f64, h: &mut [f64]);
-    /// Constraint residuals (`nc`).
-    fn constraints(&self, q: &[f64], t: f64, phi: &mut [f64]);
-    /// Constraint Jacobian (`nc x nq`).
-    fn constraint_jacobian(&self, q: &[f64], t: f64, phi_q: &mut [f64]);
-    /// Explicit time derivative of the constraints (`nc`).
-    fn constraint_time_derivative(&self, q: &[f64], t: f64, phi_t: &mut [f64]);
-    /// Acceleration right-hand side (`nc`).
-    fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64, gamma: &mut [f64]);
-    /// `Phi` and `Phi_q` from the fused `constraints_and_jacobian` program.
-    fn constraints_and_jacobian(&self, q: &[f64], t: f64, phi: &mut [f64], phi_q: &mut [f64]);
-    /// `M`, `h`, `Phi_q` and `gamma` from the fused `dynamics_terms` program.
-    fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64, out: Fused<'_>);
-    /// Inverse dynamics `M qdd + h` (`nq`).
-    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64, tau: &mut [f64]);
-    /// Actuator map (`nq x nu`).
-    fn actuator_map(&self, b: &mut [f64]);
-    /// Kinetic energy.
-    fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64;
-    /// Potential energy.
-    fn potential_energy(&self, q: &[f64], t: f64) -> f64;
     /// Names of the runtime parameters.
     fn parameters(&self) -> Vec<&str>;
     /// Set a runtime parameter; `false` if there is none of that name.
     fn set_parameter(&mut self, name: &str, value: f64) -> bool;
+    /// Marker names, in index order.
+    fn markers(&self) -> Vec<&str>;
+
+    /// Evaluates function `f` of the table (for marker `marker` when it is
+    /// a per-marker function, else `None`) at `at`, writing its outputs, in
+    /// the table's order, to `outs` (each column-major and as long as its
+    /// output; a scalar is one entry). `false`, nothing written, when the
+    /// scene does not generate `f` or has no such marker.
+    ///
+    /// # Panics
+    ///
+    /// When `outs` or the arguments do not have the function's shapes.
+    fn call(&self, f: Function, marker: Option<usize>, at: At<'_>, outs: &mut [&mut [f64]])
+        -> bool;
+
+    /// Mass matrix (`nq x nq`).
+    fn mass_matrix(&self, q: &[f64], t: f64, m: &mut [f64]) {
+        core(self, Function::MassMatrix, At::q(q, t), &mut [m])
+    }
+    /// Bias forces (`nq`).
+    fn bias(&self, q: &[f64], qd: &[f64], t: f64, h: &mut [f64]) {
+        core(self, Function::Bias, At::qd(q, qd, t), &mut [h])
+    }
+    /// Constraint residuals (`nc`).
+    fn constraints(&self, q: &[f64], t: f64, phi: &mut [f64]) {
+        core(self, Function::Constraints, At::q(q, t), &mut [phi])
+    }
+    /// Constraint Jacobian (`nc x nq`).
+    fn constraint_jacobian(&self, q: &[f64], t: f64, phi_q: &mut [f64]) {
+        core(
+            self,
+            Function::ConstraintJacobian,
+            At::q(q, t),
+            &mut [phi_q],
+        )
+    }
+    /// Explicit time derivative of the constraints (`nc`).
+    fn constraint_time_derivative(&self, q: &[f64], t: f64, phi_t: &mut [f64]) {
+        let f = Function::ConstraintTimeDerivative;
+        core(self, f, At::q(q, t), &mut [phi_t])
+    }
+    /// Acceleration right-hand side (`nc`).
+    fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64, gamma: &mut [f64]) {
+        core(
+            self,
+            Function::ConstraintRhs,
+            At::qd(q, qd, t),
+            &mut [gamma],
+        )
+    }
+    /// `Phi` and `Phi_q` from the fused `constraints_and_jacobian` program.
+    fn constraints_and_jacobian(&self, q: &[f64], t: f64, phi: &mut [f64], phi_q: &mut [f64]) {
+        let f = Function::ConstraintsAndJacobian;
+        core(self, f, At::q(q, t), &mut [phi, phi_q])
+    }
+    /// `M`, `h`, `Phi_q` and `gamma` from the fused `dynamics_terms` program.
+    fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64, out: Fused<'_>) {
+        let outs: &mut [&mut [f64]] = &mut [out.m, out.h, out.phi_q, out.gamma];
+        core(self, Function::DynamicsTerms, At::qd(q, qd, t), outs)
+    }
+    /// Inverse dynamics `M qdd + h` (`nq`).
+    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64, tau: &mut [f64]) {
+        let at = At::qdd(q, qd, qdd, t);
+        core(self, Function::InverseDynamics, at, &mut [tau])
+    }
+    /// Actuator map (`nq x nu`).
+    fn actuator_map(&self, b: &mut [f64]) {
+        core(self, Function::ActuatorMap, At::q(&[], 0.0), &mut [b])
+    }
+    /// Kinetic energy.
+    fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64 {
+        let mut v = [0.0];
+        core(
+            self,
+            Function::KineticEnergy,
+            At::qd(q, qd, t),
+            &mut [&mut v],
+        );
+        v[0]
+    }
+    /// Potential energy.
+    fn potential_energy(&self, q: &[f64], t: f64) -> f64 {
+        let mut v = [0.0];
+        core(self, Function::PotentialEnergy, At::q(q, t), &mut [&mut v]);
+        v[0]
+    }
     /// Coriolis forces (`nq`); `false` (nothing written) when not generated.
-    fn coriolis_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool;
+    fn coriolis_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.call(Function::CoriolisForces, None, At::qd(q, qd, t), &mut [out])
+    }
     /// Gravity and elastic forces (`nq`), when generated.
-    fn potential_forces(&self, q: &[f64], t: f64, out: &mut [f64]) -> bool;
+    fn potential_forces(&self, q: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.call(Function::PotentialForces, None, At::q(q, t), &mut [out])
+    }
     /// Damping forces (`nq`), when generated.
-    fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool;
+    fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.call(Function::DampingForces, None, At::qd(q, qd, t), &mut [out])
+    }
     /// Coriolis matrix (`nq x nq`), when generated.
-    fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool;
+    fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
+        self.call(Function::CoriolisMatrix, None, At::qd(q, qd, t), &mut [out])
+    }
     /// Bias-force Jacobians `dh/dq`, `dh/dqd` (each `nq x nq`), when generated.
     fn bias_jacobians(
         &self,
@@ -76,7 +188,10 @@ pub trait DynModel {
         t: f64,
         h_q: &mut [f64],
         h_qd: &mut [f64],
-    ) -> bool;
+    ) -> bool {
+        let f = Function::BiasJacobians;
+        self.call(f, None, At::qd(q, qd, t), &mut [h_q, h_qd])
+    }
     /// Inverse dynamics and its derivatives `d tau/dq`, `d tau/dqd` at
     /// `qdd` (each `nq x nq`), when generated.
     fn inverse_dynamics_derivatives(
@@ -86,7 +201,11 @@ pub trait DynModel {
         qdd: &[f64],
         t: f64,
         out: IdDerivatives<'_>,
-    ) -> bool;
+    ) -> bool {
+        let f = Function::InverseDynamicsDerivatives;
+        let outs: &mut [&mut [f64]] = &mut [out.tau, out.tau_q, out.tau_qd];
+        self.call(f, None, At::qdd(q, qd, qdd, t), outs)
+    }
     /// Derivatives `da/dq`, `da/dqd` (each `nc x nq`) of the acceleration
     /// constraint `a = Phi_q qdd - gamma`, when generated.
     fn constraint_acceleration_derivatives(
@@ -97,9 +216,10 @@ pub trait DynModel {
         t: f64,
         a_q: &mut [f64],
         a_qd: &mut [f64],
-    ) -> bool;
-    /// Marker names, in index order.
-    fn markers(&self) -> Vec<&str>;
+    ) -> bool {
+        let f = Function::ConstraintAccelerationDerivatives;
+        self.call(f, None, At::qdd(q, qd, qdd, t), &mut [a_q, a_qd])
+    }
     /// Position (3) and rotation (3 x 3) of marker `marker`; `false`
     /// (nothing written) when there is no such marker.
     fn marker_pose(
@@ -109,9 +229,15 @@ pub trait DynModel {
         t: f64,
         position: &mut [f64],
         rotation: &mut [f64],
-    ) -> bool;
+    ) -> bool {
+        let outs: &mut [&mut [f64]] = &mut [position, rotation];
+        self.call(Function::MarkerPose, Some(marker), At::q(q, t), outs)
+    }
     /// Position, rotation and Jacobian (6 x nq) of marker `marker`.
-    fn marker_jacobian(&self, marker: usize, q: &[f64], t: f64, out: MarkerPose<'_>) -> bool;
+    fn marker_jacobian(&self, marker: usize, q: &[f64], t: f64, out: MarkerPose<'_>) -> bool {
+        let outs: &mut [&mut [f64]] = &mut [out.position, out.rotation, out.jacobian];
+        self.call(Function::MarkerJacobian, Some(marker), At::q(q, t), outs)
+    }
     /// Velocity (6) and acceleration bias (6) of marker `marker`.
     fn marker_motion(
         &self,
@@ -121,7 +247,16 @@ pub trait DynModel {
         t: f64,
         velocity: &mut [f64],
         acceleration_bias: &mut [f64],
-    ) -> bool;
+    ) -> bool {
+        let outs: &mut [&mut [f64]] = &mut [velocity, acceleration_bias];
+        self.call(Function::MarkerMotion, Some(marker), At::qd(q, qd, t), outs)
+    }
+}
+
+/// [`DynModel::call`] of a function every scene generates.
+fn core<M: DynModel + ?Sized>(model: &M, f: Function, at: At<'_>, outs: &mut [&mut [f64]]) {
+    let done = model.call(f, None, at, outs);
+    assert!(done, "`{}` is generated for every scene", f.name());
 }
 
 /// Where `marker_jacobian` writes `(position, rotation, jacobian)`.
@@ -188,9 +323,13 @@ fn fixed<const N: usize>(x: &[f64]) -> SVector<f64, N> {
     SVector::from_column_slice(x)
 }
 
-/// `out` from a fixed-size result of the same length.
-fn store<const R: usize, const C: usize>(from: &SMatrix<f64, R, C>, out: &mut [f64]) {
-    out.copy_from_slice(from.as_slice());
+/// Copies `from` (each output's values) to `outs`; `true`.
+fn put(outs: &mut [&mut [f64]], from: &[&[f64]]) -> bool {
+    assert_eq!(outs.len(), from.len(), "one storage per output");
+    for (out, from) in outs.iter_mut().zip(from) {
+        out.copy_from_slice(from);
+    }
+    true
 }
 
 impl<M, const NQ: usize, const NC: usize, const NU: usize> DynModel for Erased<M, NQ, NC, NU>
@@ -209,217 +348,139 @@ where
     fn nc(&self) -> usize {
         NC
     }
-    fn mass_matrix(&self, q: &[f64], t: f64, out: &mut [f64]) {
-        let mut m = SMatrix::<f64, NQ, NQ>::zeros();
-        self.0.mass_matrix(&fixed(q), t, &mut m);
-        store(&m, out);
-    }
-    fn bias(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) {
-        let mut h = SVector::<f64, NQ>::zeros();
-        self.0.bias(&fixed(q), &fixed(qd), t, &mut h);
-        store(&h, out);
-    }
-    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], t: f64, out: &mut [f64]) {
-        let mut tau = SVector::<f64, NQ>::zeros();
-        self.0
-            .inverse_dynamics(&fixed(q), &fixed(qd), &fixed(qdd), t, &mut tau);
-        store(&tau, out);
-    }
-    fn constraints(&self, q: &[f64], t: f64, out: &mut [f64]) {
-        let mut p = SVector::<f64, NC>::zeros();
-        self.0.constraints(&fixed(q), t, &mut p);
-        store(&p, out);
-    }
-    fn constraint_jacobian(&self, q: &[f64], t: f64, out: &mut [f64]) {
-        let mut j = SMatrix::<f64, NC, NQ>::zeros();
-        self.0.constraint_jacobian(&fixed(q), t, &mut j);
-        store(&j, out);
-    }
-    fn constraint_time_derivative(&self, q: &[f64], t: f64, out: &mut [f64]) {
-        let mut p = SVector::<f64, NC>::zeros();
-        self.0.constraint_time_derivative(&fixed(q), t, &mut p);
-        store(&p, out);
-    }
-    fn constraint_rhs(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) {
-        let mut g = SVector::<f64, NC>::zeros();
-        self.0.constraint_rhs(&fixed(q), &fixed(qd), t, &mut g);
-        store(&g, out);
-    }
-    fn constraints_and_jacobian(&self, q: &[f64], t: f64, phi: &mut [f64], phi_q: &mut [f64]) {
-        let mut p = SVector::<f64, NC>::zeros();
-        let mut j = SMatrix::<f64, NC, NQ>::zeros();
-        self.0
-            .constraints_and_jacobian(&fixed(q), t, &mut p, &mut j);
-        store(&p, phi);
-        store(&j, phi_q);
-    }
-    fn dynamics_terms(&self, q: &[f64], qd: &[f64], t: f64, out: Fused<'_>) {
-        let mut m = SMatrix::<f64, NQ, NQ>::zeros();
-        let mut h = SVector::<f64, NQ>::zeros();
-        let mut j = SMatrix::<f64, NC, NQ>::zeros();
-        let mut g = SVector::<f64, NC>::zeros();
-        self.0
-            .dynamics_terms(&fixed(q), &fixed(qd), t, &mut m, &mut h, &mut j, &mut g);
-        store(&m, out.m);
-        store(&h, out.h);
-        store(&j, out.phi_q);
-        store(&g, out.gamma);
-    }
-    fn actuator_map(&self, out: &mut [f64]) {
-        let mut b = SMatrix::<f64, NQ, NU>::zeros();
-        self.0.actuator_map(&mut b);
-        store(&b, out);
-    }
-    fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64 {
-        self.0.kinetic_energy(&fixed(q), &fixed(qd), t)
-    }
-    fn potential_energy(&self, q: &[f64], t: f64) -> f64 {
-        self.0.potential_energy(&fixed(q), t)
-    }
     fn parameters(&self) -> Vec<&str> {
         M::PARAMETERS.to_vec()
     }
     fn set_parameter(&mut self, name: &str, value: f64) -> bool {
         self.0.set_parameter(name, value)
     }
-    fn coriolis_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
-        let mut f = SVector::<f64, NQ>::zeros();
-        let given = self.0.coriolis_forces(&fixed(q), &fixed(qd), t, &mut f);
-        given.then(|| store(&f, out)).is_some()
-    }
-    fn potential_forces(&self, q: &[f64], t: f64, out: &mut [f64]) -> bool {
-        let mut f = SVector::<f64, NQ>::zeros();
-        let given = self.0.potential_forces(&fixed(q), t, &mut f);
-        given.then(|| store(&f, out)).is_some()
-    }
-    fn damping_forces(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
-        let mut f = SVector::<f64, NQ>::zeros();
-        let given = self.0.damping_forces(&fixed(q), &fixed(qd), t, &mut f);
-        given.then(|| store(&f, out)).is_some()
-    }
-    fn coriolis_matrix(&self, q: &[f64], qd: &[f64], t: f64, out: &mut [f64]) -> bool {
-        let mut c = SMatrix::<f64, NQ, NQ>::zeros();
-        let given = self.0.coriolis_matrix(&fixed(q), &fixed(qd), t, &mut c);
-        given.then(|| store(&c, out)).is_some()
-    }
-    fn bias_jacobians(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        t: f64,
-        h_q: &mut [f64],
-        h_qd: &mut [f64],
-    ) -> bool {
-        let mut a = SMatrix::<f64, NQ, NQ>::zeros();
-        let mut b = SMatrix::<f64, NQ, NQ>::zeros();
-        let given = self
-            .0
-            .bias_jacobians(&fixed(q), &fixed(qd), t, &mut a, &mut b);
-        given
-            .then(|| {
-                store(&a, h_q);
-                store(&b, h_qd);
-            })
-            .is_some()
-    }
-    fn inverse_dynamics_derivatives(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &[f64],
-        t: f64,
-        out: IdDerivatives<'_>,
-    ) -> bool {
-        let mut tau = SVector::<f64, NQ>::zeros();
-        let mut a = SMatrix::<f64, NQ, NQ>::zeros();
-        let mut b = SMatrix::<f64, NQ, NQ>::zeros();
-        let (q, qd, qdd) = (fixed(q), fixed(qd), fixed(qdd));
-        let given = self
-            .0
-            .inverse_dynamics_derivatives(&q, &qd, &qdd, t, &mut tau, &mut a, &mut b);
-        given
-            .then(|| {
-                store(&tau, out.tau);
-                store(&a, out.tau_q);
-                store(&b, out.tau_qd);
-            })
-            .is_some()
-    }
-    fn constraint_acceleration_derivatives(
-        &self,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &[f64],
-        t: f64,
-        a_q: &mut [f64],
-        a_qd: &mut [f64],
-    ) -> bool {
-        let mut a = SMatrix::<f64, NC, NQ>::zeros();
-        let mut b = SMatrix::<f64, NC, NQ>::zeros();
-        let (q, qd, qdd) = (fixed(q), fixed(qd), fixed(qdd));
-        let given = self
-            .0
-            .constraint_acceleration_derivatives(&q, &qd, &qdd, t, &mut a, &mut b);
-        given
-            .then(|| {
-                store(&a, a_q);
-                store(&b, a_qd);
-            })
-            .is_some()
-    }
     fn markers(&self) -> Vec<&str> {
         M::MARKERS.to_vec()
     }
-    fn marker_pose(
+
+    /// The compiled module's method of each function: one arm each (a new
+    /// function of the table does not compile until it has one).
+    fn call(
         &self,
-        marker: usize,
-        q: &[f64],
-        t: f64,
-        position: &mut [f64],
-        rotation: &mut [f64],
+        f: Function,
+        marker: Option<usize>,
+        at: At<'_>,
+        outs: &mut [&mut [f64]],
     ) -> bool {
-        let (mut p, mut r) = (SVector::<f64, 3>::zeros(), SMatrix::<f64, 3, 3>::zeros());
-        let given = self.0.marker_pose(marker, &fixed(q), t, &mut p, &mut r);
-        given
-            .then(|| {
-                store(&p, position);
-                store(&r, rotation);
-            })
-            .is_some()
-    }
-    fn marker_jacobian(&self, marker: usize, q: &[f64], t: f64, out: MarkerPose<'_>) -> bool {
-        let (mut p, mut r) = (SVector::<f64, 3>::zeros(), SMatrix::<f64, 3, 3>::zeros());
-        let mut j = SMatrix::<f64, 6, NQ>::zeros();
-        let given = self
-            .0
-            .marker_jacobian(marker, &fixed(q), t, &mut p, &mut r, &mut j);
-        given
-            .then(|| {
-                store(&p, out.position);
-                store(&r, out.rotation);
-                store(&j, out.jacobian);
-            })
-            .is_some()
-    }
-    fn marker_motion(
-        &self,
-        marker: usize,
-        q: &[f64],
-        qd: &[f64],
-        t: f64,
-        velocity: &mut [f64],
-        acceleration_bias: &mut [f64],
-    ) -> bool {
-        let (mut v, mut a) = (SVector::<f64, 6>::zeros(), SVector::<f64, 6>::zeros());
-        let given = self
-            .0
-            .marker_motion(marker, &fixed(q), &fixed(qd), t, &mut v, &mut a);
-        given
-            .then(|| {
-                store(&v, velocity);
-                store(&a, acceleration_bias);
-            })
-            .is_some()
+        let m = &self.0;
+        let t = at.t;
+        let q = || fixed::<NQ>(at.q);
+        let qd = || fixed::<NQ>(at.qd);
+        let qdd = || fixed::<NQ>(at.qdd);
+        let vector = SVector::<f64, NQ>::zeros;
+        let square = SMatrix::<f64, NQ, NQ>::zeros;
+        let rows = SVector::<f64, NC>::zeros;
+        let jacobian = SMatrix::<f64, NC, NQ>::zeros;
+        let (point, rotation) = (SVector::<f64, 3>::zeros, SMatrix::<f64, 3, 3>::zeros);
+        match f {
+            Function::MassMatrix => {
+                let mut a = square();
+                m.mass_matrix(&q(), t, &mut a);
+                put(outs, &[a.as_slice()])
+            }
+            Function::Bias => {
+                let mut h = vector();
+                m.bias(&q(), &qd(), t, &mut h);
+                put(outs, &[h.as_slice()])
+            }
+            Function::Constraints => {
+                let mut c = rows();
+                m.constraints(&q(), t, &mut c);
+                put(outs, &[c.as_slice()])
+            }
+            Function::ConstraintJacobian => {
+                let mut j = jacobian();
+                m.constraint_jacobian(&q(), t, &mut j);
+                put(outs, &[j.as_slice()])
+            }
+            Function::ConstraintsAndJacobian => {
+                let (mut c, mut j) = (rows(), jacobian());
+                m.constraints_and_jacobian(&q(), t, &mut c, &mut j);
+                put(outs, &[c.as_slice(), j.as_slice()])
+            }
+            Function::ConstraintTimeDerivative => {
+                let mut c = rows();
+                m.constraint_time_derivative(&q(), t, &mut c);
+                put(outs, &[c.as_slice()])
+            }
+            Function::ConstraintRhs => {
+                let mut c = rows();
+                m.constraint_rhs(&q(), &qd(), t, &mut c);
+                put(outs, &[c.as_slice()])
+            }
+            Function::DynamicsTerms => {
+                let (mut a, mut h, mut j, mut g) = (square(), vector(), jacobian(), rows());
+                m.dynamics_terms(&q(), &qd(), t, &mut a, &mut h, &mut j, &mut g);
+                put(
+                    outs,
+                    &[a.as_slice(), h.as_slice(), j.as_slice(), g.as_slice()],
+                )
+            }
+            Function::InverseDynamics => {
+                let mut tau = vector();
+                m.inverse_dynamics(&q(), &qd(), &qdd(), t, &mut tau);
+                put(outs, &[tau.as_slice()])
+            }
+            Function::ActuatorMap => {
+                let mut b = SMatrix::<f64, NQ, NU>::zeros();
+                m.actuator_map(&mut b);
+                put(outs, &[b.as_slice()])
+            }
+            Function::KineticEnergy => put(outs, &[&[m.kinetic_energy(&q(), &qd(), t)]]),
+            Function::PotentialEnergy => put(outs, &[&[m.potential_energy(&q(), t)]]),
+            Function::CoriolisForces => {
+                let mut v = vector();
+                m.coriolis_forces(&q(), &qd(), t, &mut v) && put(outs, &[v.as_slice()])
+            }
+            Function::PotentialForces => {
+                let mut v = vector();
+                m.potential_forces(&q(), t, &mut v) && put(outs, &[v.as_slice()])
+            }
+            Function::DampingForces => {
+                let mut v = vector();
+                m.damping_forces(&q(), &qd(), t, &mut v) && put(outs, &[v.as_slice()])
+            }
+            Function::CoriolisMatrix => {
+                let mut a = square();
+                m.coriolis_matrix(&q(), &qd(), t, &mut a) && put(outs, &[a.as_slice()])
+            }
+            Function::BiasJacobians => {
+                let (mut a, mut b) = (square(), square());
+                m.bias_jacobians(&q(), &qd(), t, &mut a, &mut b)
+                    && put(outs, &[a.as_slice(), b.as_slice()])
+            }
+            Function::InverseDynamicsDerivatives => {
+                let (mut tau, mut a, mut b) = (vector(), square(), square());
+                m.inverse_dynamics_derivatives(&q(), &qd(), &qdd(), t, &mut tau, &mut a, &mut b)
+                    && put(outs, &[tau.as_slice(), a.as_slice(), b.as_slice()])
+            }
+            Function::ConstraintAccelerationDerivatives => {
+                let (mut a, mut b) = (jacobian(), jacobian());
+                m.constraint_acceleration_derivatives(&q(), &qd(), &qdd(), t, &mut a, &mut b)
+                    && put(outs, &[a.as_slice(), b.as_slice()])
+            }
+            Function::MarkerPose => marker.is_some_and(|k| {
+                let (mut p, mut r) = (point(), rotation());
+                m.marker_pose(k, &q(), t, &mut p, &mut r)
+                    && put(outs, &[p.as_slice(), r.as_slice()])
+            }),
+            Function::MarkerJacobian => marker.is_some_and(|k| {
+                let (mut p, mut r) = (point(), rotation());
+                let mut j = SMatrix::<f64, 6, NQ>::zeros();
+                m.marker_jacobian(k, &q(), t, &mut p, &mut r, &mut j)
+                    && put(outs, &[p.as_slice(), r.as_slice(), j.as_slice()])
+            }),
+            Function::MarkerMotion => marker.is_some_and(|k| {
+                let (mut v, mut a) = (SVector::<f64, 6>::zeros(), SVector::<f64, 6>::zeros());
+                m.marker_motion(k, &q(), &qd(), t, &mut v, &mut a)
+                    && put(outs, &[v.as_slice(), a.as_slice()])
+            }),
+        }
     }
 }
 
