@@ -42,6 +42,16 @@ class Model:
     def constraint_rhs(self, q: ArrayLike, qd: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
     def kinetic_energy(self, q: ArrayLike, qd: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
     def potential_energy(self, q: ArrayLike, t: Optional[Time] = None) -> npt.NDArray[np.float64]: ...
+    def marker_pose(self, marker: Union[str, int], q: ArrayLike, t: Optional[Time] = None) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """`(position (3,), rotation (3, 3))` in world axes."""
+    def marker_jacobian(self, marker: Union[str, int], q: ArrayLike, t: Optional[Time] = None) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """`(position, rotation, jacobian (6, nq))`: rows 0-2 the point's velocity, 3-5 the angular velocity, world axes."""
+    def marker_motion(self, marker: Union[str, int], q: ArrayLike, qd: ArrayLike, t: Optional[Time] = None) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """`(velocity (6,), acceleration_bias (6,))`: `J qd` and the acceleration at `qdd = 0`."""
+    def inverse_dynamics_derivatives(self, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, t: Optional[Time] = None) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """`(tau, d tau/d q, d tau/d qd)`; scenes with `outputs = ["dynamics_derivatives"]`."""
+    def forward_dynamics_derivatives(self, q: ArrayLike, qd: ArrayLike, tau: ArrayLike, t: Optional[Time] = None) -> dict[str, npt.NDArray[np.float64]]:
+        """`qdd`, `lambda` and their derivatives `qdd_q`, `qdd_qd`, `qdd_tau`, `lambda_q`, `lambda_qd`, `lambda_tau`."""
 
 def load(path: Path) -> Model:
     """A scene file; `ValueError` with file and line for a bad one."""

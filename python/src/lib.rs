@@ -5,6 +5,7 @@
 //! `inverse` and `generate` run in-process on the same code.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::Parser;
 use nalgebra::DVector;
@@ -12,14 +13,14 @@ use numpy::ndarray::{Array1, ArrayD, Axis, IxDyn};
 use numpy::{AllowTypeChange, IntoPyArray, PyArrayLikeDyn};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple};
 use rayon::prelude::*;
 
 use flexdyn_lib::codegen::{import_urdf, Source, UrdfOptions};
 use flexdyn_lib::compiled::COMPILED_SCENES;
-use flexdyn_lib::dynamic::DynModel;
+use flexdyn_lib::dynamic::{At, DynModel, Function};
 use flexdyn_lib::interpreted::InterpretedModel;
-use flexdyn_runtime::{accelerations, Baumgarte, DynamicsConfig};
+use flexdyn_runtime::{accelerations, forward_dynamics_derivatives, Baumgarte, DynamicsConfig};
 
 /// Batches at least this long are split over the cores.
 const PARALLEL_BATCH: usize = 256;
@@ -38,6 +39,11 @@ struct Model {
 /// How an evaluated function maps a state to its output.
 type Eval<'a> = &'a (dyn Fn(&InterpretedModel, &[&[f64]], f64, &mut [f64]) + Sync);
 
+/// How an evaluated function maps a state to its outputs; `false` when the
+/// scene does not generate it.
+type EvalMany<'a> =
+    &'a (dyn Fn(&InterpretedModel, &[&[f64]], f64, &mut [&mut [f64]]) -> bool + Sync);
+
 impl Model {
     /// `f` at one state or a batch: `args` are arrays of `nq` entries (or
     /// `(N, nq)`), `t` a number or `N` numbers; the output has `shape`
@@ -51,6 +57,28 @@ impl Model {
         shape: &[usize],
         f: Eval<'_>,
     ) -> PyResult<PyObject> {
+        let many = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            f(m, a, t, o[0]);
+            true
+        };
+        let mut arrays = self.apply_many(py, args, sizes, t, &[shape], &many, "")?;
+        Ok(arrays.remove(0))
+    }
+
+    /// [`Model::apply`] of a function with several outputs, of `shapes`:
+    /// one array each. `function` names it in the error when the scene does
+    /// not generate it.
+    #[allow(clippy::too_many_arguments)]
+    fn apply_many(
+        &self,
+        py: Python<'_>,
+        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        sizes: &[usize],
+        t: &Bound<'_, PyAny>,
+        shapes: &[&[usize]],
+        f: EvalMany<'_>,
+        function: &str,
+    ) -> PyResult<Vec<PyObject>> {
         let arrays: Vec<_> = args.iter().map(|a| a.as_array()).collect();
         let batch = match arrays.first().map(|a| a.ndim()) {
             Some(1) | None => None,
@@ -95,17 +123,27 @@ impl Model {
                 v
             }
         };
-        let size: usize = shape.iter().product();
+        let lens: Vec<usize> = shapes.iter().map(|s| s.iter().product()).collect();
+        let size: usize = lens.iter().sum();
         let mut out = vec![0.0; size * count];
         // Each argument contiguous, state after state (`iter` is row-major).
         let flat: Vec<Vec<f64>> = arrays.iter().map(|a| a.iter().copied().collect()).collect();
         let model = &self.model;
-        let one = |m: &InterpretedModel, k: usize, o: &mut [f64]| {
+        let missing = AtomicBool::new(false);
+        let one = |m: &InterpretedModel, k: usize, mut o: &mut [f64]| {
             let mut at: [&[f64]; 3] = [&[]; 3];
             for (i, (a, &n)) in flat.iter().zip(sizes).enumerate() {
                 at[i] = &a[k * n..(k + 1) * n];
             }
-            f(m, &at[..flat.len()], times[k], o);
+            let mut outs: Vec<&mut [f64]> = Vec::with_capacity(lens.len());
+            for &n in &lens {
+                let (this, rest) = std::mem::take(&mut o).split_at_mut(n);
+                outs.push(this);
+                o = rest;
+            }
+            if !f(m, &at[..flat.len()], times[k], &mut outs) {
+                missing.store(true, Ordering::Relaxed);
+            }
         };
         if count >= PARALLEL_BATCH {
             // One copy of the model (its own scratch) per chunk of states.
@@ -127,23 +165,74 @@ impl Model {
                 one(model, k, &mut o[..size]);
             }
         }
-        // Column-major matrices (nalgebra) to numpy's row-major layout.
-        let per_state: Vec<usize> = match shape {
-            [r, c] => vec![*c, *r],
-            other => other.to_vec(),
-        };
-        let stacked: Vec<usize> = std::iter::once(count).chain(per_state).collect();
-        let mut array = ArrayD::from_shape_vec(IxDyn(&stacked), out)
-            .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
-        if shape.len() == 2 {
-            array.swap_axes(1, 2);
-            array = array.as_standard_layout().into_owned();
+        if missing.into_inner() {
+            return Err(PyValueError::new_err(format!(
+                "scene `{}` does not generate `{function}` (for derivatives: \
+                 `outputs = [\"dynamics_derivatives\"]` in the scene, or \
+                 `from_urdf(..., outputs=[\"dynamics_derivatives\"])`)",
+                self.model.name()
+            )));
         }
-        if batch.is_none() {
-            array = array.index_axis_move(Axis(0), 0);
+        let mut results = Vec::with_capacity(shapes.len());
+        let mut offset = 0;
+        for (shape, &len) in shapes.iter().zip(&lens) {
+            let values: Vec<f64> = (0..count)
+                .flat_map(|k| &out[k * size + offset..k * size + offset + len])
+                .copied()
+                .collect();
+            offset += len;
+            results.push(numpy_array(py, values, count, shape, batch.is_some())?);
         }
-        Ok(array.into_pyarray(py).into_any().unbind())
+        Ok(results)
     }
+
+    /// The index of a marker given by name or index.
+    fn marker_index(&self, marker: &Bound<'_, PyAny>) -> PyResult<usize> {
+        let names = self.model.markers();
+        let found = match marker.extract::<usize>() {
+            Ok(k) => (k < names.len()).then_some(k),
+            Err(_) => {
+                let name: String = marker
+                    .extract()
+                    .map_err(|_| PyValueError::new_err("marker: a name or an index"))?;
+                names.iter().position(|n| *n == name)
+            }
+        };
+        found.ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "scene `{}` has no marker {marker}; its markers: [{}]",
+                self.model.name(),
+                names.join(", ")
+            ))
+        })
+    }
+}
+
+/// `count` outputs of `shape` (column-major matrices, nalgebra's layout,
+/// one after the other) as a numpy array `shape` (row-major), stacked as
+/// `(count, *shape)` for a batch.
+fn numpy_array(
+    py: Python<'_>,
+    values: Vec<f64>,
+    count: usize,
+    shape: &[usize],
+    batch: bool,
+) -> PyResult<PyObject> {
+    let per_state: Vec<usize> = match shape {
+        [r, c] => vec![*c, *r],
+        other => other.to_vec(),
+    };
+    let stacked: Vec<usize> = std::iter::once(count).chain(per_state).collect();
+    let mut array = ArrayD::from_shape_vec(IxDyn(&stacked), values)
+        .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    if shape.len() == 2 {
+        array.swap_axes(1, 2);
+        array = array.as_standard_layout().into_owned();
+    }
+    if !batch {
+        array = array.index_axis_move(Axis(0), 0);
+    }
+    Ok(array.into_pyarray(py).into_any().unbind())
 }
 
 #[pymethods]
@@ -349,6 +438,187 @@ impl Model {
         self.apply(py, &[q], &[n], &time(py, t), &[], &|m, a, t, o| {
             o[0] = m.potential_energy(a[0], t)
         })
+    }
+
+    /// Position `(3,)` and rotation `(3, 3)` (marker axes in world
+    /// axes) of a marker, by name or index.
+    #[pyo3(signature = (marker, q, t = None))]
+    fn marker_pose(
+        &self,
+        py: Python<'_>,
+        marker: &Bound<'_, PyAny>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Py<PyTuple>> {
+        let k = self.marker_index(marker)?;
+        let n = self.model.nq();
+        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            m.call(Function::MarkerPose, Some(k), At::q(a[0], t), o)
+        };
+        let shapes: &[&[usize]] = &[&[3], &[3, 3]];
+        let arrays = self.apply_many(py, &[q], &[n], &time(py, t), shapes, &f, "marker_pose")?;
+        Ok(PyTuple::new(py, arrays)?.unbind())
+    }
+    /// Position `(3,)`, rotation `(3, 3)` and Jacobian `(6, nq)` of a
+    /// marker: rows 0-2 the velocity of its point, rows 3-5 its angular
+    /// velocity, in world axes (Pinocchio's `LOCAL_WORLD_ALIGNED`).
+    #[pyo3(signature = (marker, q, t = None))]
+    fn marker_jacobian(
+        &self,
+        py: Python<'_>,
+        marker: &Bound<'_, PyAny>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Py<PyTuple>> {
+        let k = self.marker_index(marker)?;
+        let n = self.model.nq();
+        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            m.call(Function::MarkerJacobian, Some(k), At::q(a[0], t), o)
+        };
+        let shapes: &[&[usize]] = &[&[3], &[3, 3], &[6, n]];
+        let name = "marker_jacobian";
+        let arrays = self.apply_many(py, &[q], &[n], &time(py, t), shapes, &f, name)?;
+        Ok(PyTuple::new(py, arrays)?.unbind())
+    }
+    /// Velocity `(6,)` (linear, angular; world axes) and acceleration bias
+    /// `(6,)` (the marker's acceleration at `qdd = 0`: `J' qd` and the
+    /// explicit time terms) of a marker.
+    #[pyo3(signature = (marker, q, qd, t = None))]
+    fn marker_motion(
+        &self,
+        py: Python<'_>,
+        marker: &Bound<'_, PyAny>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Py<PyTuple>> {
+        let k = self.marker_index(marker)?;
+        let n = self.model.nq();
+        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            m.call(Function::MarkerMotion, Some(k), At::qd(a[0], a[1], t), o)
+        };
+        let shapes: &[&[usize]] = &[&[6], &[6]];
+        let name = "marker_motion";
+        let arrays = self.apply_many(py, &[q, qd], &[n, n], &time(py, t), shapes, &f, name)?;
+        Ok(PyTuple::new(py, arrays)?.unbind())
+    }
+    /// Inverse dynamics with its exact derivatives: `(tau, d tau/d q,
+    /// d tau/d qd)`, shapes `(nq,)`, `(nq, nq)`, `(nq, nq)`; for scenes
+    /// generated with `outputs = ["dynamics_derivatives"]`.
+    #[pyo3(signature = (q, qd, qdd, t = None))]
+    fn inverse_dynamics_derivatives(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qdd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Py<PyTuple>> {
+        let n = self.model.nq();
+        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            let at = At::qdd(a[0], a[1], a[2], t);
+            m.call(Function::InverseDynamicsDerivatives, None, at, o)
+        };
+        let shapes: &[&[usize]] = &[&[n], &[n, n], &[n, n]];
+        let name = "inverse_dynamics_derivatives";
+        let arrays = self.apply_many(
+            py,
+            &[q, qd, qdd],
+            &[n, n, n],
+            &time(py, t),
+            shapes,
+            &f,
+            name,
+        )?;
+        Ok(PyTuple::new(py, arrays)?.unbind())
+    }
+    /// Forward dynamics with its exact derivatives (the runtime's
+    /// `forward_dynamics_derivatives`; constrained scenes: the ideal
+    /// equations, no Baumgarte terms, at a consistent state): a dict of
+    /// `qdd`, `lambda`, `qdd_q`, `qdd_qd`, `qdd_tau`, `lambda_q`,
+    /// `lambda_qd`, `lambda_tau`. NaN where the solve fails.
+    #[pyo3(signature = (q, qd, tau, t = None))]
+    fn forward_dynamics_derivatives(
+        &self,
+        py: Python<'_>,
+        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        tau: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        t: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Py<PyDict>> {
+        let (n, nc, nu) = (self.model.nq(), self.model.nc(), self.model.nu());
+        let name = "inverse_dynamics_derivatives";
+        let generated = self
+            .model
+            .scene()
+            .tape(Function::InverseDynamicsDerivatives);
+        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            if generated.is_none() {
+                return false;
+            }
+            let model: &dyn DynModel = m;
+            let (q, qd, tau) = (
+                DVector::from_column_slice(a[0]),
+                DVector::from_column_slice(a[1]),
+                DVector::from_column_slice(a[2]),
+            );
+            match forward_dynamics_derivatives(model, &q, &qd, t, &tau) {
+                Ok(d) => {
+                    let parts = [
+                        d.qdd.as_slice(),
+                        d.lambda.as_slice(),
+                        d.qdd_q.as_slice(),
+                        d.qdd_qd.as_slice(),
+                        d.qdd_tau.as_slice(),
+                        d.lambda_q.as_slice(),
+                        d.lambda_qd.as_slice(),
+                        d.lambda_tau.as_slice(),
+                    ];
+                    for (out, part) in o.iter_mut().zip(parts) {
+                        out.copy_from_slice(part);
+                    }
+                    true
+                }
+                Err(_) => {
+                    o.iter_mut().for_each(|out| out.fill(f64::NAN));
+                    true
+                }
+            }
+        };
+        let shapes: &[&[usize]] = &[
+            &[n],
+            &[nc],
+            &[n, n],
+            &[n, n],
+            &[n, nu],
+            &[nc, n],
+            &[nc, n],
+            &[nc, nu],
+        ];
+        let arrays = self.apply_many(
+            py,
+            &[q, qd, tau],
+            &[n, n, nu],
+            &time(py, t),
+            shapes,
+            &f,
+            name,
+        )?;
+        let dict = PyDict::new(py);
+        let keys = [
+            "qdd",
+            "lambda",
+            "qdd_q",
+            "qdd_qd",
+            "qdd_tau",
+            "lambda_q",
+            "lambda_qd",
+            "lambda_tau",
+        ];
+        for (key, array) in keys.into_iter().zip(arrays) {
+            dict.set_item(key, array)?;
+        }
+        Ok(dict.unbind())
     }
 
     fn __repr__(&self) -> String {

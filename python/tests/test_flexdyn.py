@@ -200,3 +200,94 @@ def test_bad_input_raises_with_the_command_lines_message(tmp_path):
     with pytest.raises(ValueError, match="robot.urdf"):
         (tmp_path / "robot.urdf").write_text("<robot name='r'><link name='a'/>")
         flexdyn.from_urdf(tmp_path / "robot.urdf")
+
+
+def test_markers_and_derivatives_equal_flexdyn_eval_bitwise(tmp_path):
+    binary = os.environ.get("FLEXDYN_BIN")
+    if not binary:
+        pytest.skip("FLEXDYN_BIN is not set")
+    for scene in ["four_bar", "cart_pole"]:
+        m = flexdyn.load(SCENES / f"{scene}.toml")
+        q, qd, qdd = states(m, 4)
+        tau = RNG.uniform(-1, 1, (4, m.nu))
+        t = RNG.uniform(0, 1, 4)
+        path = tmp_path / "states.json"
+        path.write_text(json.dumps({"states": [
+            {"q": q[k].tolist(), "qd": qd[k].tolist(), "qdd": qdd[k].tolist(),
+             "tau": tau[k].tolist(), "t": float(t[k])} for k in range(4)]}))
+        out = subprocess.run([binary, "eval", "--scene", str(SCENES / f"{scene}.toml"),
+                              "--states", str(path)], check=True, capture_output=True, text=True).stdout
+        results = json.loads(out)["results"]
+        for name in m.markers:
+            position, rotation, jacobian = m.marker_jacobian(name, q, t)
+            velocity, bias = m.marker_motion(name, q, qd, t)
+            for key, ours in [("position", position), ("rotation", rotation), ("jacobian", jacobian),
+                              ("velocity", velocity), ("acceleration_bias", bias)]:
+                theirs = np.array([r["markers"][name][key] for r in results], dtype=float)
+                assert np.array_equal(ours, theirs.reshape(ours.shape)), f"{scene} {name} {key}"
+        if scene == "cart_pole":
+            tau_id, tau_q, tau_qd = m.inverse_dynamics_derivatives(q, qd, qdd, t)
+            fd = m.forward_dynamics_derivatives(q, qd, tau, t)
+            for key, ours in [("inverse_dynamics", tau_id), ("inverse_dynamics_q", tau_q),
+                              ("inverse_dynamics_qd", tau_qd), ("forward_dynamics", fd["qdd"]),
+                              ("forward_dynamics_q", fd["qdd_q"]), ("forward_dynamics_qd", fd["qdd_qd"]),
+                              ("forward_dynamics_tau", fd["qdd_tau"])]:
+                theirs = np.array([r[key] for r in results], dtype=float)
+                assert np.array_equal(ours, theirs.reshape(ours.shape)), f"{scene} {key}"
+
+
+def test_marker_jacobian_is_the_derivative_of_the_marker_position():
+    m = flexdyn.load(SCENES / "ur5.toml")
+    q, qd, _ = states(m, 3)
+    h = 1e-6
+    for name in m.markers:
+        _, _, jacobian = m.marker_jacobian(name, q)
+        velocity, _ = m.marker_motion(name, q, qd)
+        ahead, _ = m.marker_pose(name, q + h * qd)
+        behind, _ = m.marker_pose(name, q - h * qd)
+        central = (ahead - behind) / (2 * h)
+        linear = np.einsum("kij,kj->ki", jacobian, qd)[:, :3]
+        scale = max(1.0, np.abs(linear).max())
+        assert np.abs(central - linear).max() <= 1e-7 * scale, name
+        assert np.array_equal(velocity, np.einsum("kij,kj->ki", jacobian, qd)) or \
+            np.abs(velocity - np.einsum("kij,kj->ki", jacobian, qd)).max() <= 1e-13 * scale
+
+
+def test_forward_dynamics_derivatives_match_central_differences():
+    m = flexdyn.load(SCENES / "cart_pole.toml")
+    q, qd, _ = states(m, 1)
+    q, qd = q[0], qd[0]
+    tau = np.array([0.3] * m.nu)
+    d = m.forward_dynamics_derivatives(q, qd, tau)
+    assert np.array_equal(d["qdd"], m.forward_dynamics(q, qd, tau))
+    h = 1e-6
+    for j in range(m.nq):
+        e = np.zeros(m.nq)
+        e[j] = h
+        dq = (m.forward_dynamics(q + e, qd, tau) - m.forward_dynamics(q - e, qd, tau)) / (2 * h)
+        dqd = (m.forward_dynamics(q, qd + e, tau) - m.forward_dynamics(q, qd - e, tau)) / (2 * h)
+        scale = max(1.0, np.abs(d["qdd_q"]).max(), np.abs(d["qdd_qd"]).max())
+        assert np.abs(d["qdd_q"][:, j] - dq).max() <= 1e-6 * scale
+        assert np.abs(d["qdd_qd"][:, j] - dqd).max() <= 1e-6 * scale
+
+
+def test_a_batch_of_marker_poses_equals_a_loop():
+    m = flexdyn.load(SCENES / "ur5.toml")
+    q, _, _ = states(m, 600)
+    position, rotation = m.marker_pose("wrist_1_link", q)
+    for k in range(600):
+        p, r = m.marker_pose("wrist_1_link", q[k])
+        assert np.array_equal(p, position[k]) and np.array_equal(r, rotation[k])
+
+
+def test_unknown_markers_and_missing_derivatives_raise():
+    m = flexdyn.load(SCENES / "ur5.toml")
+    q = np.zeros(m.nq)
+    with pytest.raises(ValueError, match="no marker tcp; its markers: \\[base_link"):
+        m.marker_pose("tcp", q)
+    with pytest.raises(ValueError, match="no marker 99"):
+        m.marker_pose(99, q)
+    with pytest.raises(ValueError, match="does not generate `inverse_dynamics_derivatives`"):
+        m.inverse_dynamics_derivatives(q, q, q)
+    with pytest.raises(ValueError, match="does not generate `inverse_dynamics_derivatives`"):
+        m.forward_dynamics_derivatives(q, q, np.zeros(m.nu))
