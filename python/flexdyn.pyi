@@ -81,5 +81,15 @@ def inverse(
 ) -> dict[str, npt.NDArray[np.float64]]:
     """`flexdyn inverse`: the CSV's columns, `tau` `(N, nu)`, `q` `(N, nq)`."""
 
+def linearize(
+    model: Model,
+    q: Sequence[float],
+    qd: Sequence[float],
+    t: float = 0.0,
+    inputs: Optional[Mapping[str, float]] = None,
+    independent: Optional[Sequence[str]] = None,
+) -> dict[str, object]:
+    """`flexdyn linearize`: `A`, `B`, `x0`, `u0`, `f0` (numpy), `eigenvalues_A` (complex), `states`, `inputs`, `reduction`."""
+
 def generate(scene: Path, out: Path, precision: str = "f64", c_header: bool = False) -> None:
     """`flexdyn generate` of one scene into `out`."""

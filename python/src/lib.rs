@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use clap::Parser;
 use nalgebra::DVector;
 use numpy::ndarray::{Array1, ArrayD, Axis, IxDyn};
-use numpy::{AllowTypeChange, IntoPyArray, PyArrayLikeDyn};
+use numpy::{AllowTypeChange, Complex64, IntoPyArray, PyArrayLikeDyn};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
@@ -692,6 +692,7 @@ enum Command {
     Simulate(Box<flexdyn_lib::cli::simulate::Args>),
     Inverse(flexdyn_lib::cli::inverse::Args),
     Generate(flexdyn_lib::cli::generate::Args),
+    Linearize(flexdyn_lib::cli::linearize::Args),
 }
 
 /// Parses `argv` (after the program name) as the command line would:
@@ -895,6 +896,69 @@ fn generate(scene: PathBuf, out: PathBuf, precision: &str, c_header: bool) -> Py
     flexdyn_lib::cli::generate::run(&args).map_err(PyValueError::new_err)
 }
 
+/// Linearize the model at `(q, qd, t)` (`flexdyn linearize`): `x' = f(x,
+/// u)` with `x = (q, qd)` (independent coordinates of a constrained scene:
+/// named by `independent`, else chosen by a pivoted factorisation),
+/// `inputs` actuator name to value (zero otherwise). Returns the command's
+/// JSON as a dict: `A`, `B`, `x0`, `u0`, `f0` as numpy arrays,
+/// `eigenvalues_A` complex, `states`, `inputs` and (constrained scenes)
+/// `reduction` as written.
+#[pyfunction]
+#[pyo3(signature = (model, q, qd, t = 0.0, inputs = None, independent = None))]
+fn linearize(
+    py: Python<'_>,
+    model: &Model,
+    q: Vec<f64>,
+    qd: Vec<f64>,
+    t: f64,
+    inputs: Option<&Bound<'_, PyDict>>,
+    independent: Option<Vec<String>>,
+) -> PyResult<PyObject> {
+    let dir = tempfile::tempdir().map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let (state, out) = (
+        dir.path().join("state.json"),
+        dir.path().join("linear.json"),
+    );
+    let text = format!("{{\"q\": {q:?}, \"qd\": {qd:?}, \"t\": {t:?}}}");
+    std::fs::write(&state, text).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let mut argv: Vec<String> = vec![
+        "linearize".into(),
+        "--scene".into(),
+        model.scene.display().to_string(),
+        "--state".into(),
+        state.display().to_string(),
+        "--out".into(),
+        out.display().to_string(),
+    ];
+    argv.extend(assignments("--input", inputs)?);
+    if let Some(names) = independent {
+        argv.extend(["--independent".into(), names.join(",")]);
+    }
+    let Command::Linearize(args) = command(argv)? else {
+        unreachable!("parsed as linearize")
+    };
+    py.allow_threads(|| flexdyn_lib::cli::linearize::run(&args, &COMPILED_SCENES))
+        .map_err(run_error)?;
+    let text = std::fs::read_to_string(&out).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    let json = py.import("json")?.call_method1("loads", (text,))?;
+    let np = py.import("numpy")?;
+    let dict = json.downcast::<PyDict>()?;
+    for key in ["A", "B", "x0", "u0", "f0"] {
+        if let Some(v) = dict.get_item(key)? {
+            dict.set_item(key, np.call_method1("array", (v, "float64"))?)?;
+        }
+    }
+    if let Some(v) = dict.get_item("eigenvalues_A")? {
+        let pairs: Vec<[f64; 2]> = v.extract()?;
+        let values: Vec<Complex64> = pairs
+            .iter()
+            .map(|[re, im]| Complex64::new(*re, *im))
+            .collect();
+        dict.set_item("eigenvalues_A", Array1::from(values).into_pyarray(py))?;
+    }
+    Ok(dict.clone().into_any().unbind())
+}
+
 /// `{"integrator": "rk4", "max_steps": 10}` as `--integrator rk4 --max-steps
 /// 10` (`True` a bare flag).
 fn flags(options: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<String>> {
@@ -922,5 +986,6 @@ fn flexdyn(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(inverse, m)?)?;
     m.add_function(wrap_pyfunction!(generate, m)?)?;
+    m.add_function(wrap_pyfunction!(linearize, m)?)?;
     Ok(())
 }

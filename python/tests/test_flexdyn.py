@@ -291,3 +291,21 @@ def test_unknown_markers_and_missing_derivatives_raise():
         m.inverse_dynamics_derivatives(q, q, q)
     with pytest.raises(ValueError, match="does not generate `inverse_dynamics_derivatives`"):
         m.forward_dynamics_derivatives(q, q, np.zeros(m.nu))
+
+
+def test_linearize_is_the_forward_dynamics_derivatives_in_state_space():
+    m = flexdyn.load(SCENES / "cart_pole.toml")
+    q, qd = np.array([0.1, 2.9]), np.array([0.2, -0.3])
+    lin = flexdyn.linearize(m, q, qd, t=0.0, inputs={m.actuators[0]: 0.4})
+    d = m.forward_dynamics_derivatives(q, qd, np.array([0.4]))
+    n = m.nq
+    assert lin["states"] == m.coordinates + [f"{c}_dot" for c in m.coordinates]
+    assert np.array_equal(lin["A"][:n], np.hstack([np.zeros((n, n)), np.eye(n)]))
+    assert np.array_equal(lin["A"][n:], np.hstack([d["qdd_q"], d["qdd_qd"]]))
+    assert np.array_equal(lin["B"][n:], d["qdd_tau"]) and not lin["B"][:n].any()
+    assert np.array_equal(lin["f0"], np.concatenate([qd, d["qdd"]]))
+    ours = np.sort_complex(lin["eigenvalues_A"])
+    theirs = np.sort_complex(np.linalg.eigvals(lin["A"]))
+    assert np.abs(ours - theirs).max() <= 1e-9 * np.abs(theirs).max()
+    with pytest.raises(ValueError, match="does not generate the derivatives"):
+        flexdyn.linearize(flexdyn.load(SCENES / "pendulum.toml"), [0.1], [0.0])
