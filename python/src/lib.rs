@@ -186,6 +186,32 @@ impl Model {
         Ok(results)
     }
 
+    /// The table's function `f` (of marker `marker` for a per-marker one)
+    /// at `args` (`q`, then `qd`, then `qdd`): one array per output, of
+    /// `shapes`, as a tuple.
+    fn table_call(
+        &self,
+        py: Python<'_>,
+        f: Function,
+        marker: Option<usize>,
+        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        t: Option<&Bound<'_, PyAny>>,
+        shapes: &[&[usize]],
+    ) -> PyResult<Py<PyTuple>> {
+        let sizes = vec![self.model.nq(); args.len()];
+        let run = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            let at = At {
+                q: a[0],
+                qd: a.get(1).copied().unwrap_or_default(),
+                qdd: a.get(2).copied().unwrap_or_default(),
+                t,
+            };
+            m.call(f, marker, at, o)
+        };
+        let arrays = self.apply_many(py, args, &sizes, &time(py, t), shapes, &run, f.name())?;
+        Ok(PyTuple::new(py, arrays)?.unbind())
+    }
+
     /// The index of a marker given by name or index.
     fn marker_index(&self, marker: &Bound<'_, PyAny>) -> PyResult<usize> {
         let names = self.model.markers();
@@ -451,13 +477,7 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
-        let n = self.model.nq();
-        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
-            m.call(Function::MarkerPose, Some(k), At::q(a[0], t), o)
-        };
-        let shapes: &[&[usize]] = &[&[3], &[3, 3]];
-        let arrays = self.apply_many(py, &[q], &[n], &time(py, t), shapes, &f, "marker_pose")?;
-        Ok(PyTuple::new(py, arrays)?.unbind())
+        self.table_call(py, Function::MarkerPose, Some(k), &[q], t, &[&[3], &[3, 3]])
     }
     /// Position `(3,)`, rotation `(3, 3)` and Jacobian `(6, nq)` of a
     /// marker: rows 0-2 the velocity of its point, rows 3-5 its angular
@@ -471,14 +491,8 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
-        let n = self.model.nq();
-        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
-            m.call(Function::MarkerJacobian, Some(k), At::q(a[0], t), o)
-        };
-        let shapes: &[&[usize]] = &[&[3], &[3, 3], &[6, n]];
-        let name = "marker_jacobian";
-        let arrays = self.apply_many(py, &[q], &[n], &time(py, t), shapes, &f, name)?;
-        Ok(PyTuple::new(py, arrays)?.unbind())
+        let shapes: &[&[usize]] = &[&[3], &[3, 3], &[6, self.model.nq()]];
+        self.table_call(py, Function::MarkerJacobian, Some(k), &[q], t, shapes)
     }
     /// Velocity `(6,)` (linear, angular; world axes) and acceleration bias
     /// `(6,)` (the marker's acceleration at `qdd = 0`: `J' qd` and the
@@ -493,14 +507,14 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
-        let n = self.model.nq();
-        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
-            m.call(Function::MarkerMotion, Some(k), At::qd(a[0], a[1], t), o)
-        };
-        let shapes: &[&[usize]] = &[&[6], &[6]];
-        let name = "marker_motion";
-        let arrays = self.apply_many(py, &[q, qd], &[n, n], &time(py, t), shapes, &f, name)?;
-        Ok(PyTuple::new(py, arrays)?.unbind())
+        self.table_call(
+            py,
+            Function::MarkerMotion,
+            Some(k),
+            &[q, qd],
+            t,
+            &[&[6], &[6]],
+        )
     }
     /// Inverse dynamics with its exact derivatives: `(tau, d tau/d q,
     /// d tau/d qd)`, shapes `(nq,)`, `(nq, nq)`, `(nq, nq)`; for scenes
@@ -515,22 +529,8 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let n = self.model.nq();
-        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
-            let at = At::qdd(a[0], a[1], a[2], t);
-            m.call(Function::InverseDynamicsDerivatives, None, at, o)
-        };
-        let shapes: &[&[usize]] = &[&[n], &[n, n], &[n, n]];
-        let name = "inverse_dynamics_derivatives";
-        let arrays = self.apply_many(
-            py,
-            &[q, qd, qdd],
-            &[n, n, n],
-            &time(py, t),
-            shapes,
-            &f,
-            name,
-        )?;
-        Ok(PyTuple::new(py, arrays)?.unbind())
+        let f = Function::InverseDynamicsDerivatives;
+        self.table_call(py, f, None, &[q, qd, qdd], t, &[&[n], &[n, n], &[n, n]])
     }
     /// Forward dynamics with its exact derivatives (the runtime's
     /// `forward_dynamics_derivatives`; constrained scenes: the ideal
