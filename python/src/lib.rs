@@ -36,38 +36,16 @@ struct Model {
     _dir: Option<tempfile::TempDir>,
 }
 
-/// How an evaluated function maps a state to its output.
-type Eval<'a> = &'a (dyn Fn(&InterpretedModel, &[&[f64]], f64, &mut [f64]) + Sync);
-
 /// How an evaluated function maps a state to its outputs; `false` when the
 /// scene does not generate it.
 type EvalMany<'a> =
     &'a (dyn Fn(&InterpretedModel, &[&[f64]], f64, &mut [&mut [f64]]) -> bool + Sync);
 
 impl Model {
-    /// `f` at one state or a batch: `args` are arrays of `nq` entries (or
-    /// `(N, nq)`), `t` a number or `N` numbers; the output has `shape`
-    /// (then `(N, *shape)` for a batch).
-    fn apply(
-        &self,
-        py: Python<'_>,
-        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
-        sizes: &[usize],
-        t: &Bound<'_, PyAny>,
-        shape: &[usize],
-        f: Eval<'_>,
-    ) -> PyResult<PyObject> {
-        let many = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
-            f(m, a, t, o[0]);
-            true
-        };
-        let mut arrays = self.apply_many(py, args, sizes, t, &[shape], &many, "")?;
-        Ok(arrays.remove(0))
-    }
-
-    /// [`Model::apply`] of a function with several outputs, of `shapes`:
-    /// one array each. `function` names it in the error when the scene does
-    /// not generate it.
+    /// `f` at one state or a batch: `args` are arrays of `sizes` entries (or
+    /// `(N, size)`), `t` a number or `N` numbers; one array per output of
+    /// `shapes` (then `(N, *shape)` for a batch). `function` names `f` in the
+    /// error when the scene does not generate it.
     #[allow(clippy::too_many_arguments)]
     fn apply_many(
         &self,
@@ -173,6 +151,9 @@ impl Model {
                 self.model.name()
             )));
         }
+        if let [shape] = shapes {
+            return Ok(vec![numpy_array(py, out, count, shape, batch.is_some())?]);
+        }
         let mut results = Vec::with_capacity(shapes.len());
         let mut offset = 0;
         for (shape, &len) in shapes.iter().zip(&lens) {
@@ -188,8 +169,8 @@ impl Model {
 
     /// The table's function `f` (of marker `marker` for a per-marker one)
     /// at `args` (`q`, then `qd`, then `qdd`): one array per output, of
-    /// `shapes`, as a tuple.
-    fn table_call(
+    /// `shapes`.
+    fn table(
         &self,
         py: Python<'_>,
         f: Function,
@@ -197,7 +178,7 @@ impl Model {
         args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
         t: Option<&Bound<'_, PyAny>>,
         shapes: &[&[usize]],
-    ) -> PyResult<Py<PyTuple>> {
+    ) -> PyResult<Vec<PyObject>> {
         let sizes = vec![self.model.nq(); args.len()];
         let run = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
             let at = At {
@@ -208,7 +189,33 @@ impl Model {
             };
             m.call(f, marker, at, o)
         };
-        let arrays = self.apply_many(py, args, &sizes, &time(py, t), shapes, &run, f.name())?;
+        self.apply_many(py, args, &sizes, &time(py, t), shapes, &run, f.name())
+    }
+
+    /// [`Model::table`] of a function with one output.
+    fn table_one(
+        &self,
+        py: Python<'_>,
+        f: Function,
+        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        t: Option<&Bound<'_, PyAny>>,
+        shape: &[usize],
+    ) -> PyResult<PyObject> {
+        let mut arrays = self.table(py, f, None, args, t, &[shape])?;
+        Ok(arrays.remove(0))
+    }
+
+    /// [`Model::table`] of a function with several outputs, as a tuple.
+    fn table_tuple(
+        &self,
+        py: Python<'_>,
+        f: Function,
+        marker: Option<usize>,
+        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        t: Option<&Bound<'_, PyAny>>,
+        shapes: &[&[usize]],
+    ) -> PyResult<Py<PyTuple>> {
+        let arrays = self.table(py, f, marker, args, t, shapes)?;
         Ok(PyTuple::new(py, arrays)?.unbind())
     }
 
@@ -321,9 +328,7 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let n = self.model.nq();
-        self.apply(py, &[q], &[n], &time(py, t), &[n, n], &|m, a, t, o| {
-            m.mass_matrix(a[0], t, o)
-        })
+        self.table_one(py, Function::MassMatrix, &[q], t, &[n, n])
     }
     /// Bias forces `h(q, qd, t)`.
     #[pyo3(signature = (q, qd, t = None))]
@@ -335,9 +340,7 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let n = self.model.nq();
-        self.apply(py, &[q, qd], &[n, n], &time(py, t), &[n], &|m, a, t, o| {
-            m.bias(a[0], a[1], t, o)
-        })
+        self.table_one(py, Function::Bias, &[q, qd], t, &[n])
     }
     /// Inverse dynamics `M qdd + h` (no constraint forces).
     #[pyo3(signature = (q, qd, qdd, t = None))]
@@ -350,14 +353,7 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let n = self.model.nq();
-        self.apply(
-            py,
-            &[q, qd, qdd],
-            &[n, n, n],
-            &time(py, t),
-            &[n],
-            &|m, a, t, o| m.inverse_dynamics(a[0], a[1], a[2], t, o),
-        )
+        self.table_one(py, Function::InverseDynamics, &[q, qd, qdd], t, &[n])
     }
     /// Accelerations under actuator inputs `tau`: `M^-1 (B tau - h)`, or for
     /// a constrained scene those of `M qdd - Phi_q^T lambda = B tau - h`,
@@ -378,25 +374,24 @@ impl Model {
             baumgarte: Baumgarte::NONE,
             ..DynamicsConfig::default()
         };
-        self.apply(
-            py,
-            &[q, qd, tau],
-            &[n, n, nu],
-            &time(py, t),
-            &[n],
-            &|m, a, t, o| {
-                let model: &dyn DynModel = m;
-                let (q, qd, tau) = (
-                    DVector::from_column_slice(a[0]),
-                    DVector::from_column_slice(a[1]),
-                    DVector::from_column_slice(a[2]),
-                );
-                match accelerations(model, &config, &q, &qd, t, &tau) {
-                    Ok(s) => o.copy_from_slice(s.qdd.as_slice()),
-                    Err(_) => o.fill(f64::NAN),
-                }
-            },
-        )
+        let f = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
+            let model: &dyn DynModel = m;
+            let (q, qd, tau) = (
+                DVector::from_column_slice(a[0]),
+                DVector::from_column_slice(a[1]),
+                DVector::from_column_slice(a[2]),
+            );
+            match accelerations(model, &config, &q, &qd, t, &tau) {
+                Ok(s) => o[0].copy_from_slice(s.qdd.as_slice()),
+                Err(_) => o[0].fill(f64::NAN),
+            }
+            true
+        };
+        let args = [q, qd, tau];
+        let name = "forward_dynamics";
+        let mut arrays =
+            self.apply_many(py, &args, &[n, n, nu], &time(py, t), &[&[n]], &f, name)?;
+        Ok(arrays.remove(0))
     }
     /// Constraint residuals `Phi(q, t)`.
     #[pyo3(signature = (q, t = None))]
@@ -406,10 +401,8 @@ impl Model {
         q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
-        let (n, nc) = (self.model.nq(), self.model.nc());
-        self.apply(py, &[q], &[n], &time(py, t), &[nc], &|m, a, t, o| {
-            m.constraints(a[0], t, o)
-        })
+        let nc = self.model.nc();
+        self.table_one(py, Function::Constraints, &[q], t, &[nc])
     }
     /// Constraint Jacobian `Phi_q(q, t)`: `(nc, nq)`.
     #[pyo3(signature = (q, t = None))]
@@ -420,9 +413,7 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let (n, nc) = (self.model.nq(), self.model.nc());
-        self.apply(py, &[q], &[n], &time(py, t), &[nc, n], &|m, a, t, o| {
-            m.constraint_jacobian(a[0], t, o)
-        })
+        self.table_one(py, Function::ConstraintJacobian, &[q], t, &[nc, n])
     }
     /// Acceleration right-hand side `gamma(q, qd, t)`.
     #[pyo3(signature = (q, qd, t = None))]
@@ -433,10 +424,8 @@ impl Model {
         qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
-        let (n, nc) = (self.model.nq(), self.model.nc());
-        self.apply(py, &[q, qd], &[n, n], &time(py, t), &[nc], &|m, a, t, o| {
-            m.constraint_rhs(a[0], a[1], t, o)
-        })
+        let nc = self.model.nc();
+        self.table_one(py, Function::ConstraintRhs, &[q, qd], t, &[nc])
     }
     /// Kinetic energy `T(q, qd, t)`.
     #[pyo3(signature = (q, qd, t = None))]
@@ -447,10 +436,7 @@ impl Model {
         qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
-        let n = self.model.nq();
-        self.apply(py, &[q, qd], &[n, n], &time(py, t), &[], &|m, a, t, o| {
-            o[0] = m.kinetic_energy(a[0], a[1], t)
-        })
+        self.table_one(py, Function::KineticEnergy, &[q, qd], t, &[])
     }
     /// Potential energy `V(q, t)`.
     #[pyo3(signature = (q, t = None))]
@@ -460,10 +446,7 @@ impl Model {
         q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
-        let n = self.model.nq();
-        self.apply(py, &[q], &[n], &time(py, t), &[], &|m, a, t, o| {
-            o[0] = m.potential_energy(a[0], t)
-        })
+        self.table_one(py, Function::PotentialEnergy, &[q], t, &[])
     }
 
     /// Position `(3,)` and rotation `(3, 3)` (marker axes in world
@@ -477,7 +460,7 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
-        self.table_call(py, Function::MarkerPose, Some(k), &[q], t, &[&[3], &[3, 3]])
+        self.table_tuple(py, Function::MarkerPose, Some(k), &[q], t, &[&[3], &[3, 3]])
     }
     /// Position `(3,)`, rotation `(3, 3)` and Jacobian `(6, nq)` of a
     /// marker: rows 0-2 the velocity of its point, rows 3-5 its angular
@@ -492,7 +475,7 @@ impl Model {
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
         let shapes: &[&[usize]] = &[&[3], &[3, 3], &[6, self.model.nq()]];
-        self.table_call(py, Function::MarkerJacobian, Some(k), &[q], t, shapes)
+        self.table_tuple(py, Function::MarkerJacobian, Some(k), &[q], t, shapes)
     }
     /// Velocity `(6,)` (linear, angular; world axes) and acceleration bias
     /// `(6,)` (the marker's acceleration at `qdd = 0`: `J' qd` and the
@@ -507,7 +490,7 @@ impl Model {
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
-        self.table_call(
+        self.table_tuple(
             py,
             Function::MarkerMotion,
             Some(k),
@@ -530,7 +513,7 @@ impl Model {
     ) -> PyResult<Py<PyTuple>> {
         let n = self.model.nq();
         let f = Function::InverseDynamicsDerivatives;
-        self.table_call(py, f, None, &[q, qd, qdd], t, &[&[n], &[n, n], &[n, n]])
+        self.table_tuple(py, f, None, &[q, qd, qdd], t, &[&[n], &[n, n], &[n, n]])
     }
     /// Forward dynamics with its exact derivatives (the runtime's
     /// `forward_dynamics_derivatives`; constrained scenes: the ideal
