@@ -220,6 +220,25 @@ pub trait DynModel {
         let f = Function::ConstraintAccelerationDerivatives;
         self.call(f, None, At::qdd(q, qd, qdd, t), &mut [a_q, a_qd])
     }
+    /// Forward dynamics `qdd = M^-1 (f - h)` of an unconstrained scene for
+    /// the generalized forces `f`, with the pivots `d` of `M = L^T D L`
+    /// (valid where all are positive), when generated.
+    fn forward_dynamics(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        f: &[f64],
+        t: f64,
+        qdd: &mut [f64],
+        d: &mut [f64],
+    ) -> bool {
+        self.call(
+            Function::ForwardDynamics,
+            None,
+            At::qdd(q, qd, f, t),
+            &mut [qdd, d],
+        )
+    }
     /// Position (3) and rotation (3 x 3) of marker `marker`; `false`
     /// (nothing written) when there is no such marker.
     fn marker_pose(
@@ -464,6 +483,11 @@ where
                 m.constraint_acceleration_derivatives(&q(), &qd(), &qdd(), t, &mut a, &mut b)
                     && put(outs, &[a.as_slice(), b.as_slice()])
             }
+            Function::ForwardDynamics => {
+                let (mut a, mut d) = (vector(), vector());
+                m.forward_dynamics(&q(), &qd(), &qdd(), t, &mut a, &mut d)
+                    && put(outs, &[a.as_slice(), d.as_slice()])
+            }
             Function::MarkerPose => marker.is_some_and(|k| {
                 let (mut p, mut r) = (point(), rotation());
                 m.marker_pose(k, &q(), t, &mut p, &mut r)
@@ -571,6 +595,18 @@ impl Equations<Dyn, Dyn, Dyn> for dyn DynModel + '_ {
         let (q, qd, qdd) = (q.as_slice(), qd.as_slice(), qdd.as_slice());
         let (a_q, a_qd) = (a_q.as_mut_slice(), a_qd.as_mut_slice());
         DynModel::constraint_acceleration_derivatives(self, q, qd, qdd, t, a_q, a_qd)
+    }
+    fn forward_dynamics(
+        &self,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        f: &DVector<f64>,
+        t: f64,
+        qdd: &mut DVector<f64>,
+        d: &mut DVector<f64>,
+    ) -> bool {
+        let (q, qd, f) = (q.as_slice(), qd.as_slice(), f.as_slice());
+        DynModel::forward_dynamics(self, q, qd, f, t, qdd.as_mut_slice(), d.as_mut_slice())
     }
     fn constraints_and_jacobian(
         &self,

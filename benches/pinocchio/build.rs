@@ -2,25 +2,82 @@
 //! Pinocchio virtual environment) with flexdyn's importer into
 //! `$OUT_DIR/<name>.toml` and generates its module into `$OUT_DIR/flexdyn/`;
 //! loads the same URDF with Pinocchio's own parser (`dump_model.py`, in
-//! Python) and writes its joints as numbers into `$OUT_DIR/robots.rs`; and
+//! Python) and writes its joints as numbers into `$OUT_DIR/robots.rs`;
 //! compiles `src/shim.cpp`, which rebuilds that Pinocchio model joint by
-//! joint, against Pinocchio's headers at -O3. Pinocchio's algorithms are
-//! compiled here from its templates and nothing of its prebuilt libraries is
-//! linked, so `FLEXDYN_NATIVE=1` gives both sides native code (the prebuilt
-//! parser, compiled for SSE2, cannot fill a `-march=native` Model).
+//! joint, against Pinocchio's headers at -O3; and generates Pinocchio's
+//! algorithms to C (`src/generate_c.cpp`, over `casadi::SX`, exported by
+//! CasADi's `CodeGenerator`), compiled at -O3 with their table in
+//! `$OUT_DIR/pinocchio_c.rs`. Pinocchio's algorithms are compiled here from
+//! its templates and nothing of its prebuilt libraries is linked, so
+//! `FLEXDYN_NATIVE=1` gives every side native code (the prebuilt parser,
+//! compiled for SSE2, cannot fill a `-march=native` Model).
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Robots compared: module name, URDF relative to example-robot-data's
-/// `robots/` folder, joints held fixed (the Panda's fingers: arm only).
-const ROBOTS: &[(&str, &str, &[&str])] = &[
-    ("ur5", "ur_description/urdf/ur5_robot.urdf", &[]),
-    (
-        "panda",
-        "panda_description/urdf/panda.urdf",
-        &["panda_finger_joint1", "panda_finger_joint2"],
-    ),
+/// A robot compared.
+struct Robot {
+    /// Module name.
+    name: &'static str,
+    /// URDF relative to example-robot-data's `robots/` folder.
+    urdf: &'static str,
+    /// Joints held fixed, as `dump_model.py` takes them: comma-separated, or
+    /// `only:` and the joints that keep moving.
+    locked: &'static str,
+    /// Link whose frame Jacobian is compared (a marker of the import).
+    link: Option<&'static str>,
+    /// Whether the derivatives are compared (generated with
+    /// `outputs = ["dynamics_derivatives"]`).
+    derivatives: bool,
+}
+
+const ROBOTS: &[Robot] = &[
+    Robot {
+        name: "ur5",
+        urdf: "ur_description/urdf/ur5_robot.urdf",
+        locked: "",
+        link: Some("tool0"),
+        derivatives: true,
+    },
+    Robot {
+        name: "panda",
+        urdf: "panda_description/urdf/panda.urdf",
+        locked: "panda_finger_joint1,panda_finger_joint2",
+        link: Some("panda_hand"),
+        derivatives: true,
+    },
+    // Torso, arm and head; as published (quarter turns written as
+    // `1.57079632679`, 1e-6 kg antennas with inertias that are not positive
+    // semi-definite).
+    Robot {
+        name: "tiago",
+        urdf: "tiago_description/robots/tiago.urdf",
+        locked: "only:torso_lift_joint,arm_1_joint,arm_2_joint,arm_3_joint,arm_4_joint,\
+                 arm_5_joint,arm_6_joint,arm_7_joint,head_1_joint,head_2_joint",
+        link: None,
+        derivatives: false,
+    },
+    // Legs on a fixed base.
+    Robot {
+        name: "solo",
+        urdf: "solo_description/robots/solo12.urdf",
+        locked: "",
+        link: None,
+        derivatives: false,
+    },
+    // Fixed base, grippers held: 30 joints.
+    Robot {
+        name: "talos",
+        urdf: "talos_data/robots/talos_reduced.urdf",
+        locked: "gripper_left_joint,gripper_right_joint",
+        link: None,
+        derivatives: false,
+    },
 ];
+
+/// Pinocchio's functions generated to C per robot, in the order of the
+/// table's fields (`benches/compare.rs`), the frame last and optional.
+const C_FUNCTIONS: [&str; 6] = ["rnea", "crba_nle", "crba", "nle", "aba", "frame"];
 
 fn main() {
     let here = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap());
@@ -28,36 +85,53 @@ fn main() {
     let out = PathBuf::from(std::env::var("OUT_DIR").unwrap());
     println!("cargo:rerun-if-env-changed=FLEXDYN_PINOCCHIO_PYTHON");
     println!("cargo:rerun-if-env-changed=FLEXDYN_NATIVE");
-    println!("cargo:rerun-if-changed=src/shim.cpp");
-    println!("cargo:rerun-if-changed=dump_model.py");
+    for file in [
+        "src/shim.cpp",
+        "src/model.hpp",
+        "src/generate_c.cpp",
+        "dump_model.py",
+    ] {
+        println!("cargo:rerun-if-changed={file}");
+    }
     let python = std::env::var_os("FLEXDYN_PINOCCHIO_PYTHON")
         .map(PathBuf::from)
         .unwrap_or_else(|| repo.join("target/pinocchio-venv/bin/python"));
-    let prefix = cmeel_prefix(&python);
+    let site = site_packages(&python);
+    let prefix = site.join("cmeel.prefix");
+    let casadi = site.join("casadi");
     let robots_dir = prefix.join("share/example-robot-data/robots");
+    let models = out.join("pinocchio_c");
+    std::fs::create_dir_all(&models).unwrap_or_else(|e| fail(&e.to_string()));
 
     let mut builder = flexdyn_codegen::Builder::new()
         .out_dir(out.join("flexdyn"))
         .emit_rerun_if_changed(true);
     let mut list = String::from("pub const ROBOTS: &[(&str, &[Joint])] = &[\n");
-    for (name, urdf, fixed) in ROBOTS {
-        let urdf = robots_dir.join(urdf);
+    for robot in ROBOTS {
+        let urdf = robots_dir.join(robot.urdf);
         let text = std::fs::read_to_string(&urdf)
             .unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", urdf.display())));
+        let dump = dump_model(&python, &here.join("dump_model.py"), &urdf, robot);
+        std::fs::write(models.join(format!("{}.model", robot.name)), &dump.text)
+            .unwrap_or_else(|e| fail(&e.to_string()));
         let options = flexdyn_codegen::UrdfOptions {
-            fix: fixed.iter().map(|s| s.to_string()).collect(),
-            outputs: vec!["dynamics_derivatives".into()],
+            fix: dump.locked.clone(),
+            outputs: if robot.derivatives {
+                vec!["dynamics_derivatives".into()]
+            } else {
+                Vec::new()
+            },
             ..Default::default()
         };
         let scene =
             flexdyn_codegen::import_urdf(&flexdyn_codegen::Source::new(&urdf, text), &options)
                 .unwrap_or_else(|e| fail(&e.to_string()));
-        let file = out.join(format!("{name}.toml"));
+        let file = out.join(format!("{}.toml", robot.name));
         std::fs::write(&file, scene)
             .unwrap_or_else(|e| fail(&format!("cannot write {}: {e}", file.display())));
         builder = builder.scene(file);
-        list.push_str(&format!("    ({name:?}, &[\n"));
-        for joint in pinocchio_joints(&python, &here.join("dump_model.py"), &urdf, fixed) {
+        list.push_str(&format!("    ({:?}, &[\n", robot.name));
+        for joint in &dump.joints {
             list.push_str(&format!("        {joint},\n"));
         }
         list.push_str("    ]),\n");
@@ -66,7 +140,66 @@ fn main() {
     std::fs::write(out.join("robots.rs"), list).unwrap_or_else(|e| fail(&e.to_string()));
     builder.generate().unwrap_or_else(|e| fail(&e.to_string()));
 
+    let native = std::env::var_os("FLEXDYN_NATIVE").is_some();
     let include = prefix.join("include");
+    let shim = here.join("src/shim.cpp");
+    unless_built(&out, "shim", &[shim.as_path()], &[&include], native, || {
+        let mut build = pinocchio_build(&include);
+        if native {
+            build.flag("-march=native");
+        }
+        build
+            .cargo_metadata(false)
+            .file("src/shim.cpp")
+            .compile("pinocchio_shim");
+    });
+    println!("cargo:rustc-link-search=native={}", out.display());
+    println!("cargo:rustc-link-lib=static=pinocchio_shim");
+    println!("cargo:rustc-link-lib=stdc++");
+    generate_c(
+        &include,
+        &casadi,
+        &models,
+        native,
+        &out.join("pinocchio_c.rs"),
+    );
+}
+
+/// Runs `build` unless the stamp `<name>.stamp` in `out` says it ran on
+/// the same `sources` (and `src/model.hpp`), include folders and `native`
+/// flag. The two C++ builds take minutes each and do not depend on
+/// flexdyn's generator, whose every change reruns this script.
+fn unless_built(
+    out: &Path,
+    name: &str,
+    sources: &[&Path],
+    includes: &[&Path],
+    native: bool,
+    build: impl FnOnce(),
+) {
+    use std::hash::{Hash, Hasher};
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    let here = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap());
+    let model = here.join("src/model.hpp");
+    for source in sources.iter().copied().chain([model.as_path()]) {
+        std::fs::read(source)
+            .unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", source.display())))
+            .hash(&mut hasher);
+    }
+    includes.hash(&mut hasher);
+    native.hash(&mut hasher);
+    let key = format!("{:016x}\n", hasher.finish());
+    let stamp = out.join(format!("{name}.stamp"));
+    if std::fs::read_to_string(&stamp).ok().as_deref() == Some(key.as_str()) {
+        return;
+    }
+    build();
+    std::fs::write(&stamp, key).unwrap_or_else(|e| fail(&e.to_string()));
+}
+
+/// A C++ build against Pinocchio's headers (and Eigen's) at -O3 with
+/// Pinocchio's own compile definitions (from its CMake targets).
+fn pinocchio_build(include: &Path) -> cc::Build {
     let mut build = cc::Build::new();
     build
         .cpp(true)
@@ -74,9 +207,8 @@ fn main() {
         .opt_level(3)
         .warnings(false)
         .define("NDEBUG", None)
-        .include(&include)
+        .include(include)
         .include(include.join("eigen3"));
-    // Pinocchio's own compile definitions (from its CMake targets).
     for (key, value) in [
         ("BOOST_MPL_LIMIT_LIST_SIZE", Some("30")),
         ("BOOST_MPL_LIMIT_VECTOR_SIZE", Some("30")),
@@ -85,82 +217,209 @@ fn main() {
     ] {
         build.define(key, value);
     }
-    if std::env::var_os("FLEXDYN_NATIVE").is_some() {
-        build.flag("-march=native");
-    }
-    build.file("src/shim.cpp").compile("pinocchio_shim");
+    build
 }
 
-/// Pinocchio's model of `urdf` with the `fixed` joints locked, one
-/// `Joint { .. }` literal (see `benches/compare.rs`) per joint, from
-/// `dump_model.py` run by `python`.
-fn pinocchio_joints(python: &Path, script: &Path, urdf: &Path, fixed: &[&str]) -> Vec<String> {
-    let run = Command::new(python)
-        .arg(script)
-        .arg(urdf)
-        .arg(fixed.join(","))
-        .output()
-        .unwrap_or_else(|e| fail(&format!("cannot run {}: {e}", python.display())));
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    if !run.status.success() {
-        fail(&format!(
-            "{} {} failed: {}",
-            script.display(),
-            urdf.display(),
-            stderr.trim()
-        ));
+/// Builds `src/generate_c.cpp` (linked with CasADi's library from its
+/// wheel), runs it on every robot's model in `models`, compiles the C it
+/// writes at -O3 (`-march=native` too when `native`) and writes the Rust
+/// table of the functions (`pinocchio_c.rs`: declarations, operation
+/// counts, work sizes) to `table`.
+fn generate_c(include: &Path, casadi: &Path, models: &Path, native: bool, table: &Path) {
+    let generator = models.join("generate_c");
+    let source = PathBuf::from("src/generate_c.cpp");
+    unless_built(
+        models,
+        "generate_c",
+        &[source.as_path()],
+        &[include, casadi],
+        false,
+        || {
+            // The generator runs at build time: compiled without optimisation
+            // to save minutes (the code it writes is what is timed).
+            let compiler = pinocchio_build(include).opt_level(0).get_compiler();
+            let mut command = compiler.to_command();
+            command
+                .arg("-I")
+                .arg(casadi.join("include"))
+                .arg(&source)
+                .arg("-o")
+                .arg(&generator)
+                .arg("-L")
+                .arg(casadi)
+                .arg("-lcasadi")
+                .arg(format!("-Wl,-rpath,{}", casadi.display()));
+            run(&mut command, "compiling src/generate_c.cpp");
+        },
+    );
+
+    let mut build = cc::Build::new();
+    build.opt_level(3).warnings(false);
+    if native {
+        build.flag("-march=native");
     }
-    let where_ = |line: usize| format!("{} on {}, line {line}", script.display(), urdf.display());
-    String::from_utf8_lossy(&run.stdout)
-        .lines()
-        .enumerate()
-        .map(|(i, line)| {
-            let fields: Vec<&str> = line.split('\t').collect();
-            if fields.len() != 3 + JOINT_NUMBERS {
-                fail(&format!(
-                    "{}: {} fields, expected {}",
-                    where_(i + 1),
-                    fields.len(),
-                    3 + JOINT_NUMBERS
-                ));
-            }
-            let parent: usize = fields[2].parse().unwrap_or_else(|_| {
-                fail(&format!(
-                    "{}: parent {:?} is not an index",
-                    where_(i + 1),
-                    fields[2]
-                ))
-            });
-            let numbers: Vec<f64> = fields[3..]
-                .iter()
+    let mut declarations = String::new();
+    let mut entries = String::new();
+    for robot in ROBOTS {
+        let c_file = models.join(format!("{}.c", robot.name));
+        let stdout = run(
+            Command::new(&generator)
+                .arg(models.join(format!("{}.model", robot.name)))
+                .arg(format!("pin_{}", robot.name))
+                .arg(&c_file),
+            &format!("generating Pinocchio's C for {}", robot.name),
+        );
+        build.file(&c_file);
+        let mut fields = Vec::new();
+        for function in C_FUNCTIONS {
+            let symbol = format!("pin_{}_{function}", robot.name);
+            let line = stdout
+                .lines()
+                .find(|l| l.split('\t').next() == Some(&symbol));
+            let Some(line) = line else {
+                fields.push(format!("{function}: None"));
+                continue;
+            };
+            let numbers: Vec<usize> = line
+                .split('\t')
+                .skip(1)
                 .map(|x| {
-                    x.parse().unwrap_or_else(|_| {
-                        fail(&format!("{}: {x:?} is not a number", where_(i + 1)))
-                    })
+                    x.parse()
+                        .unwrap_or_else(|_| fail(&format!("generate_c: {line:?}")))
                 })
                 .collect();
-            format!(
-                "Joint {{ name: {:?}, kind: {:?}, parent: {parent}, axis: {:?}, placement: {:?}, \
-                 inertia: {:?}, damping: {:?} }}",
-                fields[0],
-                fields[1],
-                &numbers[0..3],
-                &numbers[3..15],
-                &numbers[15..28],
-                numbers[28]
+            let [operations, sz_arg, sz_res, sz_iw, sz_w] = numbers[..] else {
+                fail(&format!("generate_c: {line:?}: expected 6 fields"));
+            };
+            writeln!(
+                declarations,
+                "    pub fn {symbol}(arg: *const *const f64, res: *const *mut f64, \
+                 iw: *mut i64, w: *mut f64, mem: i32) -> i32;"
             )
+            .unwrap();
+            fields.push(format!(
+                "{function}: Some(CFunction {{ call: {symbol}, operations: {operations}, \
+                 sz_arg: {sz_arg}, sz_res: {sz_res}, sz_iw: {sz_iw}, sz_w: {sz_w} }})"
+            ));
+        }
+        writeln!(
+            entries,
+            "    ({:?}, Generated {{ {} }}),",
+            robot.name,
+            fields.join(", ")
+        )
+        .unwrap();
+    }
+    build.compile("pinocchio_c");
+    let text = format!(
+        "extern \"C\" {{\n{declarations}}}\n\
+         pub const GENERATED: &[(&str, Generated)] = &[\n{entries}];\n"
+    );
+    std::fs::write(table, text).unwrap_or_else(|e| fail(&e.to_string()));
+}
+
+/// Runs `command`, failing the build with its standard error when it
+/// fails; its standard output.
+fn run(command: &mut Command, what: &str) -> String {
+    let output = command
+        .output()
+        .unwrap_or_else(|e| fail(&format!("{what}: {e}")));
+    if !output.status.success() {
+        fail(&format!(
+            "{what} failed: {}",
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
+    }
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+/// What `dump_model.py` wrote for a robot: its text, the joints it locked
+/// and one `Joint { .. }` literal (see `benches/compare.rs`) per joint.
+struct Dump {
+    text: String,
+    locked: Vec<String>,
+    joints: Vec<String>,
+}
+
+/// Pinocchio's model of `robot` (its URDF at `urdf`) from `dump_model.py`
+/// run by `python`.
+fn dump_model(python: &Path, script: &Path, urdf: &Path, robot: &Robot) -> Dump {
+    let mut command = Command::new(python);
+    command.arg(script).arg(urdf).arg(robot.locked);
+    if let Some(link) = robot.link {
+        command.arg(link);
+    }
+    let text = run(
+        &mut command,
+        &format!("{} {}", script.display(), urdf.display()),
+    );
+    let where_ = |line: usize| format!("{} on {}, line {line}", script.display(), urdf.display());
+    let mut dump = Dump {
+        text: text.clone(),
+        locked: Vec::new(),
+        joints: Vec::new(),
+    };
+    for (i, line) in text.lines().enumerate() {
+        let fields: Vec<&str> = line.split('\t').collect();
+        match fields[0] {
+            "locked" => {
+                dump.locked = fields[1..]
+                    .join("")
+                    .split(',')
+                    .filter(|s| !s.is_empty())
+                    .map(String::from)
+                    .collect()
+            }
+            "joint" => dump
+                .joints
+                .push(joint_literal(&fields[1..], &where_(i + 1))),
+            "frame" => {}
+            other => fail(&format!("{}: unknown record {other:?}", where_(i + 1))),
+        }
+    }
+    dump
+}
+
+/// A `Joint { .. }` literal of the fields of a `joint` record.
+fn joint_literal(fields: &[&str], where_: &str) -> String {
+    if fields.len() != 3 + JOINT_NUMBERS {
+        fail(&format!(
+            "{where_}: {} fields, expected {}",
+            fields.len(),
+            3 + JOINT_NUMBERS
+        ));
+    }
+    let parent: usize = fields[2]
+        .parse()
+        .unwrap_or_else(|_| fail(&format!("{where_}: parent {:?} is not an index", fields[2])));
+    let numbers: Vec<f64> = fields[3..]
+        .iter()
+        .map(|x| {
+            x.parse()
+                .unwrap_or_else(|_| fail(&format!("{where_}: {x:?} is not a number")))
         })
-        .collect()
+        .collect();
+    format!(
+        "Joint {{ name: {:?}, kind: {:?}, parent: {parent}, axis: {:?}, placement: {:?}, \
+         inertia: {:?}, damping: {:?} }}",
+        fields[0],
+        fields[1],
+        &numbers[0..3],
+        &numbers[3..15],
+        &numbers[15..28],
+        numbers[28]
+    )
 }
 
 /// Numbers per joint line of `dump_model.py`: axis 3, placement 12,
 /// inertia 13, damping 1.
 const JOINT_NUMBERS: usize = 29;
 
-/// `cmeel.prefix` of the Python environment that has Pinocchio's wheel.
-fn cmeel_prefix(python: &Path) -> PathBuf {
+/// `site-packages` of the Python environment that has Pinocchio's wheel,
+/// Eigen's headers (`cmeel-eigen`) and CasADi's wheel.
+fn site_packages(python: &Path) -> PathBuf {
     let hint = "python3 -m venv target/pinocchio-venv && \
-                target/pinocchio-venv/bin/pip install pin example-robot-data cmeel-eigen \
+                target/pinocchio-venv/bin/pip install pin example-robot-data cmeel-eigen casadi \
                 (or set FLEXDYN_PINOCCHIO_PYTHON)";
     let run = Command::new(python)
         .args([
@@ -169,17 +428,20 @@ fn cmeel_prefix(python: &Path) -> PathBuf {
         ])
         .output()
         .unwrap_or_else(|e| fail(&format!("cannot run {}: {e}; {hint}", python.display())));
-    let site = String::from_utf8_lossy(&run.stdout).trim().to_string();
-    let prefix = PathBuf::from(site).join("cmeel.prefix");
-    for needed in ["include/pinocchio", "include/eigen3"] {
-        if !prefix.join(needed).exists() {
+    let site = PathBuf::from(String::from_utf8_lossy(&run.stdout).trim());
+    for needed in [
+        "cmeel.prefix/include/pinocchio",
+        "cmeel.prefix/include/eigen3",
+        "casadi/include/casadi",
+    ] {
+        if !site.join(needed).exists() {
             fail(&format!(
                 "{} is missing: {hint}",
-                prefix.join(needed).display()
+                site.join(needed).display()
             ));
         }
     }
-    prefix
+    site
 }
 
 fn fail(message: &str) -> ! {

@@ -1,20 +1,27 @@
 #!/usr/bin/env python3
 """Runs the Pinocchio comparison (``benches/compare.rs``) in its two builds,
 one after the other, and prints their criterion medians as one Markdown
-table, a row per robot and build:
+table, a row per robot and build: flexdyn, Pinocchio's templated library
+and Pinocchio's algorithms generated to C by CasADi, with flexdyn's speed-up
+over each (above 1: flexdyn is faster).
 
-* ``default``: release build for the baseline target on both sides;
+* ``default``: release build for the baseline target on every side;
 * ``native``: ``RUSTFLAGS="-C target-cpu=native"`` for flexdyn and
-  ``FLEXDYN_NATIVE=1`` (``-march=native``) for the Pinocchio shim.
+  ``FLEXDYN_NATIVE=1`` (``-march=native``) for the Pinocchio shim and the
+  generated C.
 
 Each build has its own target directory (``target/pinbench``,
 ``target/pinbench-native``), so neither replaces the other; the first run
-of each compiles Pinocchio's templates (minutes, about 3 GB). The load
-average before and after each run is printed with it. Stdlib only.
+of each compiles Pinocchio's templates twice (over double for the shim,
+over ``casadi::SX`` for the generator of C: minutes, about 3 GB). The load
+average before and after each run is printed with it, and the lines of the
+run that give agreement and operation counts. Stdlib only.
 
 Usage (from the repository root):
 
-    python3 benches/pinocchio/side_by_side.py
+    python3 benches/pinocchio/side_by_side.py [default|native] [CRITERION ARGS...]
+
+e.g. ``side_by_side.py default --warm-up-time 1 --measurement-time 3``.
 """
 
 from __future__ import annotations
@@ -32,10 +39,14 @@ BUILDS = [
     ("native", REPO / "target/pinbench-native",
      {"FLEXDYN_NATIVE": "1", "RUSTFLAGS": "-C target-cpu=native"}),
 ]
-ROBOTS = [("ur5", "UR5 (6 joints)"), ("panda", "Panda (7 joints, arm)")]
-PAIRS = [("flexdyn dynamics_terms", "pinocchio crba + nonLinearEffects"),
-         ("flexdyn inverse_dynamics", "pinocchio rnea"),
-         ("flexdyn forward dynamics", "pinocchio aba")]
+ROBOTS = [("ur5", "UR5 (6)"), ("panda", "Panda (7, arm)"),
+          ("tiago", "TIAGo (10, torso, arm, head; as published)"),
+          ("solo", "Solo12 (12, fixed base)"), ("talos", "TALOS (30, fixed base)")]
+# flexdyn's function, Pinocchio's templated one, Pinocchio's generated C.
+TERMS = [("flexdyn inverse_dynamics", "pinocchio rnea", "pinocchio C rnea"),
+         ("flexdyn dynamics_terms", "pinocchio crba + nonLinearEffects",
+          "pinocchio C crba + nle"),
+         ("flexdyn forward dynamics", "pinocchio aba", "pinocchio C aba")]
 
 
 def load() -> str:
@@ -57,39 +68,49 @@ def duration(ns: float) -> str:
     return f"{ns:.0f} ns" if ns < 1000 else f"{ns / 1000:.2f} us"
 
 
+def ratio(x: float) -> str:
+    return f"{x:.2f}x" if x < 3 else f"{x:.1f}x"
+
+
 def main() -> int:
+    builds = [b for b in BUILDS if len(sys.argv) < 2 or b[0] == sys.argv[1]]
+    if not builds:
+        print(f"error: no build named {sys.argv[1]!r} (default, native)", file=sys.stderr)
+        return 2
+    extra = sys.argv[2:]
     results = {}
-    for build, target, env in BUILDS:
+    for build, target, env in builds:
         print(f"{build}: load average before {load()}", flush=True)
         run = subprocess.run(
-            ["cargo", "bench", "--manifest-path", str(MANIFEST)],
+            ["cargo", "bench", "--manifest-path", str(MANIFEST), "--", *extra],
             env={**os.environ, **env, "CARGO_TARGET_DIR": str(target)},
             capture_output=True, text=True)
         for line in run.stdout.splitlines():
-            if "largest relative difference" in line:
+            if "largest relative difference" in line or "operations" in line:
                 print(f"{build}: {line}")
         if run.returncode != 0:
             print(f"error: the {build} run failed:\n{run.stderr[-4000:]}", file=sys.stderr)
             return 1
         print(f"{build}: load average after {load()}", flush=True)
         results[build] = medians(target / "criterion")
-    print("| robot | build | flexdyn `dynamics_terms` | Pinocchio `crba` + `nonLinearEffects` "
-          "| ratio | flexdyn `inverse_dynamics` | Pinocchio `rnea` | ratio "
-          "| flexdyn forward dynamics | Pinocchio `aba` | ratio |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    header = ["robot", "build"]
+    for term in ("inverse dynamics", "M + h", "forward dynamics"):
+        header += [f"{term}: flexdyn", "Pinocchio templated", "Pinocchio C", "vs templated",
+                   "vs C"]
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
     for robot, label in ROBOTS:
-        for build, _, _ in BUILDS:
+        for build, _, _ in builds:
             cells = []
-            for ours, theirs in PAIRS:
+            for names in TERMS:
                 try:
-                    a, b = results[build][(robot, ours)], results[build][(robot, theirs)]
+                    ours, templated, generated = (results[build][(robot, n)] for n in names)
                 except KeyError as missing:
                     print(f"error: no criterion result for {missing} in the {build} run",
                           file=sys.stderr)
                     return 1
-                ratio = b / a
-                cells += [duration(a), duration(b),
-                          f"{ratio:.2f}x" if ratio < 3 else f"{ratio:.1f}x"]
+                cells += [duration(ours), duration(templated), duration(generated),
+                          ratio(templated / ours), f"**{ratio(generated / ours)}**"]
             print(f"| {label} | {build} | " + " | ".join(cells) + " |")
     return 0
 

@@ -32,6 +32,7 @@ use crate::reduce;
 use crate::redundancy::drop_redundant;
 use crate::resolution::{stiffness_spread, F32_MAX_STIFFNESS_SPREAD};
 use crate::schedule::{functions, OpCount};
+use crate::solve::forward_dynamics;
 
 /// The runtime crate's path in emitted code, unless the builder says
 /// otherwise.
@@ -64,7 +65,8 @@ impl Model {
     }
 
     /// Stages 4 and 5: the equations of motion, derived and, when the scene
-    /// asks for it, pruned. Adds the derived terms to [`Model::graph`].
+    /// asks for it, pruned, with the forward dynamics of an unconstrained
+    /// scene solved on them. Adds the derived terms to [`Model::graph`].
     ///
     /// Refuses a derivation whose constants overflow `f64` (naming the
     /// component with the largest constant) and `energy` components whose
@@ -86,6 +88,13 @@ impl Model {
             return Err(error("the equations of motion", overflow_message(&what)));
         }
         energy_signs(self).map_err(|f| error(&f.context, f.message))?;
+        // A mass matrix singular by construction (a coordinate that moves
+        // no mass: a zero pivot, `1 / 0`) has no forward dynamics to
+        // generate; the runtime's factorisation reports it.
+        forward_dynamics(&mut self.graph, &mut eq);
+        if self.graph.take_overflow() {
+            eq.forward_dynamics = None;
+        }
         Ok(eq)
     }
 }

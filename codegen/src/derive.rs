@@ -74,6 +74,11 @@ pub struct Equations {
     /// motion) at the accelerations `Symbol::Qdd`, for a constrained scene
     /// that asks for `dynamics_derivatives`.
     pub constraint_acceleration_derivatives: Option<(Matrix, Matrix)>,
+    /// Forward dynamics of an unconstrained scene, `(qdd, pivots)`: `qdd =
+    /// M^-1 (f - h)` in the generalized forces `f` (read from the symbols
+    /// `Symbol::Qdd`) and the pivots `D` of `M = L^T D L`; set after the
+    /// prune stage by [`crate::solve::forward_dynamics`].
+    pub forward_dynamics: Option<(Vec<Id>, Vec<Id>)>,
     /// Total kinetic energy.
     pub kinetic_energy: Id,
     /// Total potential energy.
@@ -270,7 +275,16 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         .markers
         .iter()
         .map(|m| {
-            let jacobian = g.jacobian(&m.velocity, &qd_vars);
+            let l = m.linear_about_point;
+            let velocity = [
+                l[0],
+                l[1],
+                l[2],
+                m.velocity[3],
+                m.velocity[4],
+                m.velocity[5],
+            ];
+            let jacobian = g.jacobian(&velocity, &qd_vars);
             let rates = g.time_derivative_at_zero_acceleration(&m.velocity);
             MarkerTerms {
                 position: m.position,
@@ -298,6 +312,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         bias_jacobians,
         inverse_dynamics_derivatives,
         constraint_acceleration_derivatives,
+        forward_dynamics: None,
         kinetic_energy,
         potential_energy,
         phi,

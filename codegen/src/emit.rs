@@ -159,6 +159,8 @@ struct Printer<'e, 'a> {
     emitter: &'e Emitter<'a>,
     /// The function's outputs.
     outputs: &'static [OutputSpec],
+    /// What it reads.
+    inputs: Inputs,
     /// Output names.
     names: Vec<proc_macro2::Ident>,
     /// The text of each intermediate (taken by its one reader) and its
@@ -177,7 +179,7 @@ impl Printer<'_, '_> {
                 let v = var(v);
                 (quote!(#v), ATOM)
             }
-            Value::Input(s) => (self.emitter.input(s), ATOM),
+            Value::Input(s) => (self.emitter.input(s, self.inputs), ATOM),
             Value::Literal(x) => {
                 let strength = if x < 0.0 { UNARY } else { ATOM };
                 (self.emitter.lit(x), strength)
@@ -284,8 +286,9 @@ impl Emitter<'_> {
         format_ident!("{}", self.model.precision.rust_type())
     }
 
-    /// An input as the function reads it.
-    fn input(&self, s: Symbol) -> TokenStream {
+    /// An input as a function reading `inputs` reads it (`Symbol::Qdd` is
+    /// the forces `f` of a function of [`Inputs::Forces`]).
+    fn input(&self, s: Symbol, inputs: Inputs) -> TokenStream {
         match s {
             Symbol::Q(i) => {
                 let i = usize_lit(i as usize);
@@ -297,7 +300,11 @@ impl Emitter<'_> {
             }
             Symbol::Qdd(i) => {
                 let i = usize_lit(i as usize);
-                quote!(qdd[#i])
+                if inputs == Inputs::Forces {
+                    quote!(f[#i])
+                } else {
+                    quote!(qdd[#i])
+                }
             }
             Symbol::Time => quote!(t),
             Symbol::Param(i) => {
@@ -397,7 +404,9 @@ impl Emitter<'_> {
             Inputs::Positions => quote!(#q: #vector, #t: #real,),
             Inputs::Velocities => quote!(#q: #vector, #qd: #vector, #t: #real,),
             Inputs::Accelerations => quote!(#q: #vector, #qd: #vector, #qdd: #vector, #t: #real,),
+            Inputs::Forces => quote!(#q: #vector, #qd: #vector, f: #vector, #t: #real,),
         };
+
         let fname = format_ident!("{}", spec.name);
         let doc = spec.doc;
         quote! {
@@ -456,6 +465,7 @@ impl Emitter<'_> {
         let mut printer = Printer {
             emitter: self,
             outputs: lowered.function.spec().outputs,
+            inputs: lowered.function.spec().inputs,
             names: names.to_vec(),
             texts: vec![None; lowered.temps as usize],
             bind: if flat { quote!(let) } else { quote!() },

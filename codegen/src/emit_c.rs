@@ -93,6 +93,7 @@ impl Wrapped {
             Inputs::Positions => &["q"],
             Inputs::Velocities => &["q", "qd"],
             Inputs::Accelerations => &["q", "qd", "qdd"],
+            Inputs::Forces => &["q", "qd", "f"],
         }
     }
 

@@ -68,6 +68,7 @@ mod redundancy;
 mod resolution;
 mod samples;
 mod schedule;
+mod solve;
 #[cfg(test)]
 mod tests;
 mod time_function;

@@ -20,7 +20,7 @@
 //! `qdd = 0` is row `i` of every constraint's Hessian, which gives it from
 //! the generated `da/dq` without another generated function.
 
-use crate::dynamics::Kkt;
+use crate::dynamics::{generated_forward_dynamics, Kkt};
 use crate::error::{invalid_configuration, Error, Quantity};
 use crate::eval;
 use crate::model::{Equations, Sizes};
@@ -92,7 +92,11 @@ where
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
     let b = eval::actuator_map(model, t)?;
     let kkt = Kkt::new(m, &phi_q, T::KKT_MAX_CONDITION, t)?;
-    let (qdd, lambda) = kkt.solve(&(b.clone() * tau - h), &gamma);
+    let (mut qdd, lambda) = kkt.solve(&(b.clone() * tau - h), &gamma);
+    // The accelerations of `accelerations`, bit for bit, where generated.
+    if let Some(generated) = generated_forward_dynamics::<M, T, Q, C, U>(model, q, qd, t, tau)? {
+        qdd = generated.qdd;
+    }
     eval::check_result(&qdd, Quantity::Acceleration, t)?;
     eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
 

@@ -12,7 +12,7 @@
 
 use crate::error::{Error, ErrorKind, Quantity};
 use crate::eval;
-use crate::linalg::{cholesky, solve_lower, solve_lower_transpose, SpdSolver};
+use crate::linalg::{all_finite, cholesky, solve_lower, solve_lower_transpose, SpdSolver};
 use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
 use nalgebra::allocator::Allocator;
@@ -190,6 +190,9 @@ where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
+    if let Some(generated) = generated_forward_dynamics(model, q, qd, t, tau)? {
+        return Ok(generated);
+    }
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
     let b = eval::actuator_map(model, t)?;
     let f = b * tau - h;
@@ -203,6 +206,40 @@ where
         lambda,
         condition: kkt.condition,
     })
+}
+
+/// The accelerations of an unconstrained model by its generated
+/// [`Equations::forward_dynamics`] (one program, `M` factored on the graph),
+/// where it has one and every pivot and acceleration is finite and every
+/// pivot positive; `None` sends the caller to the factorisation of `M`,
+/// which reports what is wrong (a mass matrix that is not positive
+/// definite, a non-finite output).
+pub(crate) fn generated_forward_dynamics<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
+    model: &M,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
+    t: T,
+    tau: &OVector<T, U>,
+) -> Result<Option<AccelerationsOf<T, Q, C>>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, nc, _) = model.sizes();
+    if nc.value() != 0 {
+        return Ok(None);
+    }
+    let f = eval::actuator_map(model, t)? * tau;
+    let mut qdd = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
+    let mut d = qdd.clone();
+    let valid = model.forward_dynamics(q, qd, &f, t, &mut qdd, &mut d)
+        && d.iter().all(|&p| p.is_finite() && p > T::zero())
+        && all_finite(&qdd);
+    Ok(valid.then(|| AccelerationsOf {
+        qdd,
+        lambda: OVector::<T, C>::zeros_generic(nc, Const::<1>),
+        condition: T::one(),
+    }))
 }
 
 /// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` from the given `Phi_q`

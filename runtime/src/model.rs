@@ -125,6 +125,26 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
         false
     }
 
+    /// Optional forward dynamics of an unconstrained scene as one program:
+    /// writes `qdd = M^-1 (f - h)` for the generalized forces `f` (`B tau`
+    /// plus any others) and the pivots `d` of `M = L^T D L`, and returns
+    /// `true`. The result is valid only where every pivot is positive and
+    /// finite ([`crate::accelerations`] checks them and otherwise factors
+    /// `M` itself). Generated for unconstrained scenes of at most 40
+    /// coordinates; the default returns `false`.
+    fn forward_dynamics(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        f: &SVector<T, NQ>,
+        t: T,
+        qdd: &mut SVector<T, NQ>,
+        d: &mut SVector<T, NQ>,
+    ) -> bool {
+        let _ = (q, qd, f, t, qdd, d);
+        false
+    }
+
     /// Names of the runtime parameters (fields of the model struct), in order.
     const PARAMETERS: &'static [&'static str] = &[];
 
@@ -664,6 +684,20 @@ where
         let _ = (q, qd, qdd, t, a_q, a_qd);
         false
     }
+    /// [`Model::forward_dynamics`] (`false`, not provided, by default: a
+    /// wrapper that changes the forces does not forward it).
+    fn forward_dynamics(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        f: &OVector<T, Q>,
+        t: T,
+        qdd: &mut OVector<T, Q>,
+        d: &mut OVector<T, Q>,
+    ) -> bool {
+        let _ = (q, qd, f, t, qdd, d);
+        false
+    }
     /// [`Model::constraints_and_jacobian`].
     fn constraints_and_jacobian(
         &self,
@@ -782,6 +816,18 @@ where
         a_qd: &mut SMatrix<T, NC, NQ>,
     ) -> bool {
         Model::constraint_acceleration_derivatives(self, q, qd, qdd, t, a_q, a_qd)
+    }
+    #[inline]
+    fn forward_dynamics(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        f: &SVector<T, NQ>,
+        t: T,
+        qdd: &mut SVector<T, NQ>,
+        d: &mut SVector<T, NQ>,
+    ) -> bool {
+        Model::forward_dynamics(self, q, qd, f, t, qdd, d)
     }
     #[inline]
     fn constraints_and_jacobian(

@@ -1,9 +1,14 @@
-//! flexdyn's generated Rust for robots imported from URDF, against Pinocchio
-//! (C++ at -O3) on the same URDFs, side by side in one criterion run, on the
-//! same 300 seeded random states:
+//! flexdyn's generated Rust for robots imported from URDF (UR5, Panda,
+//! TIAGo as published, Solo12 and TALOS on fixed bases), against Pinocchio
+//! on the same URDFs, side by side in one criterion run, on the same 300
+//! seeded random states. Pinocchio runs twice: its templated library (C++ at
+//! -O3, `src/shim.cpp`) and its algorithms generated to C (instantiated over
+//! `casadi::SX` and exported by CasADi's `CodeGenerator` with `cse` on,
+//! `src/generate_c.cpp`, compiled at -O3: "pinocchio C"), the anchor of a
+//! user of Pinocchio's code generation:
 //!
 //! * `dynamics_terms` (M and h in one program) against `crba` +
-//!   `nonLinearEffects`;
+//!   `nonLinearEffects` (templated; generated as one program and as two);
 //! * the generated `inverse_dynamics` (`M qdd + h` as one program) against
 //!   `rnea`;
 //! * forward dynamics (generated terms + the runtime's Cholesky solve,
@@ -16,7 +21,12 @@
 //! * the end effector's pose and Jacobian in `LOCAL_WORLD_ALIGNED` (the
 //!   generated `marker_jacobian` of the marker the import puts at the link)
 //!   against `computeFrameJacobian` of a frame at the same place (fixed to
-//!   the last joint at the placement the two agree on at `q = 0`).
+//!   the last joint at the placement the two agree on at `q = 0`; the
+//!   generated C's frame is the link's frame in Pinocchio's own model).
+//!
+//! Each robot's operation counts are printed: flexdyn's from its module's
+//! header (a `sin_cos` counts once), the C's from CasADi (instructions less
+//! inputs, outputs and constants: a sine and a cosine count twice).
 //!
 //! Pinocchio's model is its own URDF parser's (run in Python by the build
 //! script), rebuilt joint by joint in the shim so that all of Pinocchio's
@@ -65,13 +75,54 @@ mod robots {
     }
     include!(concat!(env!("OUT_DIR"), "/robots.rs"));
 }
-#[allow(dead_code)]
-mod ur5 {
-    include!(concat!(env!("OUT_DIR"), "/flexdyn/ur5.rs"));
+/// The flexdyn module of every robot, and its source (for the operation
+/// counts in its header).
+macro_rules! flexdyn_modules {
+    ($($robot:ident),*) => {
+        $(
+            #[allow(dead_code)]
+            mod $robot {
+                include!(concat!(env!("OUT_DIR"), "/flexdyn/", stringify!($robot), ".rs"));
+            }
+        )*
+        const SOURCES: &[(&str, &str)] = &[$((
+            stringify!($robot),
+            include_str!(concat!(env!("OUT_DIR"), "/flexdyn/", stringify!($robot), ".rs")),
+        )),*];
+    };
 }
-#[allow(dead_code)]
-mod panda {
-    include!(concat!(env!("OUT_DIR"), "/flexdyn/panda.rs"));
+flexdyn_modules!(ur5, panda, tiago, solo, talos);
+
+/// Pinocchio's algorithms generated to C by CasADi (`src/generate_c.cpp`),
+/// per robot.
+mod pinocchio_c {
+    /// CasADi's calling convention: inputs, outputs, integer and real work.
+    pub type CasadiFn =
+        unsafe extern "C" fn(*const *const f64, *const *mut f64, *mut i64, *mut f64, i32) -> i32;
+    /// One generated function: its entry point, operation count (CasADi's
+    /// instructions less inputs, outputs and constants) and work sizes.
+    pub struct CFunction {
+        pub call: CasadiFn,
+        pub operations: usize,
+        pub sz_arg: usize,
+        pub sz_res: usize,
+        pub sz_iw: usize,
+        pub sz_w: usize,
+    }
+    /// A robot's functions: `tau = rnea(q, v, a)`, `(M, nle) = crba_nle(q,
+    /// v)` (one program), `M = crba(q)`, `nle(q, v)`, `ddq = aba(q, v, tau)`
+    /// and, where the robot has a compared link, `(position, rotation,
+    /// jacobian) = frame(q)`; all in Pinocchio's coordinate order, damping
+    /// included as in the shim.
+    pub struct Generated {
+        pub rnea: Option<CFunction>,
+        pub crba_nle: Option<CFunction>,
+        pub crba: Option<CFunction>,
+        pub nle: Option<CFunction>,
+        pub aba: Option<CFunction>,
+        pub frame: Option<CFunction>,
+    }
+    include!(concat!(env!("OUT_DIR"), "/pinocchio_c.rs"));
 }
 
 extern "C" {
@@ -253,6 +304,86 @@ impl Drop for Pinocchio {
     }
 }
 
+/// A generated C function with its work arrays, called on slices.
+struct CCall {
+    f: &'static pinocchio_c::CFunction,
+    arg: Vec<*const f64>,
+    res: Vec<*mut f64>,
+    iw: Vec<i64>,
+    w: Vec<f64>,
+}
+
+impl CCall {
+    fn new(f: &'static Option<pinocchio_c::CFunction>, what: &str) -> CCall {
+        let f = f
+            .as_ref()
+            .unwrap_or_else(|| panic!("no generated C for {what}"));
+        CCall {
+            f,
+            arg: vec![std::ptr::null(); f.sz_arg],
+            res: vec![std::ptr::null_mut(); f.sz_res],
+            iw: vec![0; f.sz_iw],
+            w: vec![0.0; f.sz_w],
+        }
+    }
+
+    /// Evaluates the function of `inputs` into `outputs`, each as long as
+    /// the function's input or output (dense, column-major).
+    fn call(&mut self, inputs: &[&[f64]], outputs: &mut [&mut [f64]]) {
+        for (k, x) in inputs.iter().enumerate() {
+            self.arg[k] = x.as_ptr();
+        }
+        for (k, y) in outputs.iter_mut().enumerate() {
+            self.res[k] = y.as_mut_ptr();
+        }
+        // SAFETY: the argument and result arrays are as long as the
+        // generated code's `sz_arg` and `sz_res`, their first entries point
+        // at arrays of the function's input and output sizes, and the work
+        // arrays are `sz_iw` and `sz_w` long, as CasADi's convention asks.
+        let status = unsafe {
+            (self.f.call)(
+                self.arg.as_ptr(),
+                self.res.as_ptr(),
+                self.iw.as_mut_ptr(),
+                self.w.as_mut_ptr(),
+                0,
+            )
+        };
+        debug_assert_eq!(status, 0);
+    }
+}
+
+/// The generated C functions of robot `name`.
+fn generated_c(name: &str) -> &'static pinocchio_c::Generated {
+    &pinocchio_c::GENERATED
+        .iter()
+        .find(|r| r.0 == name)
+        .expect("robot generated by build.rs")
+        .1
+}
+
+/// Operations (add + mul + div + call) of `function` in flexdyn's module of
+/// robot `name`, from the counts in its header (a marker's function is
+/// named with its marker: `marker_jacobian (tool0)`).
+fn flexdyn_operations(name: &str, function: &str) -> usize {
+    let source = SOURCES.iter().find(|s| s.0 == name).expect("module").1;
+    source
+        .lines()
+        .take_while(|l| l.starts_with("//"))
+        .find_map(|l| {
+            let counts = l
+                .trim_start_matches("//")
+                .trim_start()
+                .strip_prefix(function)?;
+            let counts: Vec<usize> = counts
+                .split_whitespace()
+                .map(|w| w.parse().ok())
+                .collect::<Option<_>>()?;
+            (counts.len() == 4).then(|| counts.iter().sum())
+        })
+        .unwrap_or_else(|| panic!("{name}: no operation count of {function}"))
+}
+
 /// One random state: `q`, `qd`, `qdd` and `tau`, each in Pinocchio's order
 /// too.
 struct State<const N: usize> {
@@ -321,7 +452,16 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
     let pin = Pinocchio::load(name, &R::COORDINATES);
     let states = states::<N>(&pin, 300);
     let config = DynamicsConfig::default();
+    let generated = generated_c(name);
+    let mut c_rnea = CCall::new(&generated.rnea, "rnea");
+    let mut c_crba_nle = CCall::new(&generated.crba_nle, "crba_nle");
+    let mut c_crba = CCall::new(&generated.crba, "crba");
+    let mut c_nle = CCall::new(&generated.nle, "nle");
+    let mut c_aba = CCall::new(&generated.aba, "aba");
     let mut worst = [0.0f64; 4];
+    // Pinocchio's generated C against flexdyn: M (fused), h (fused), tau,
+    // ddq, M (crba alone), h (nle alone).
+    let mut worst_c = [0.0f64; 6];
     for s in &states {
         let mut m = SMatrix::<f64, N, N>::zeros();
         let mut h = SVector::<f64, N>::zeros();
@@ -366,6 +506,35 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
         worst[1] = worst[1].max(relative_error(h.as_slice(), &pick(&ph)));
         worst[2] = worst[2].max(relative_error(tau.as_slice(), &pick(&pt)));
         worst[3] = worst[3].max(relative_error(qdd.as_slice(), &pick(&pa)));
+        let (q, v, a, t) = (&s.pin[0][..], &s.pin[1][..], &s.pin[2][..], &s.pin[3][..]);
+        let (mut cm, mut ch, mut ct, mut ca, mut cm2, mut ch2) = (
+            vec![0.0; N * N],
+            vec![0.0; N],
+            vec![0.0; N],
+            vec![0.0; N],
+            vec![0.0; N * N],
+            vec![0.0; N],
+        );
+        c_crba_nle.call(&[q, v], &mut [&mut cm, &mut ch]);
+        c_rnea.call(&[q, v, a], &mut [&mut ct]);
+        c_aba.call(&[q, v, t], &mut [&mut ca]);
+        c_crba.call(&[q], &mut [&mut cm2]);
+        c_nle.call(&[q, v], &mut [&mut ch2]);
+        let reorder =
+            |m: &[f64]| -> Vec<f64> { (0..N * N).map(|k| m[p[k % N] + N * p[k / N]]).collect() };
+        for (k, (ours, theirs)) in [
+            (&ours_m[..], reorder(&cm)),
+            (h.as_slice(), pick(&ch)),
+            (tau.as_slice(), pick(&ct)),
+            (qdd.as_slice(), pick(&ca)),
+            (&ours_m[..], reorder(&cm2)),
+            (h.as_slice(), pick(&ch2)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            worst_c[k] = worst_c[k].max(relative_error(ours, &theirs));
+        }
     }
     println!(
         "{name}: {N} joints; largest relative difference to Pinocchio over {} states: \
@@ -380,9 +549,32 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
     // import snaps angles written to 11 digits (UR5's `1.57079632679`) to
     // exact multiples of pi/12, which Pinocchio keeps as written: about
     // 5e-12 of the scale.
+    println!(
+        "{name}: largest relative difference to Pinocchio's generated C: M {:.1e} (crba alone \
+         {:.1e}), h {:.1e} (nle alone {:.1e}), rnea {:.1e}, aba {:.1e}",
+        worst_c[0], worst_c[4], worst_c[1], worst_c[5], worst_c[2], worst_c[3]
+    );
     assert!(
         worst[..3].iter().all(|&e| e < AGREEMENT) && worst[3] < 1e-9,
         "{name}: flexdyn and Pinocchio disagree"
+    );
+    assert!(
+        worst_c.iter().all(|&e| e < AGREEMENT),
+        "{name}: flexdyn and Pinocchio's generated C disagree"
+    );
+    let ops = |f: &Option<pinocchio_c::CFunction>| f.as_ref().map_or(0, |f| f.operations);
+    println!(
+        "{name}: operations, flexdyn / Pinocchio's generated C: inverse dynamics {} / {} (rnea); \
+         M + h {} / {} (crba + nle in one program; {} + {} separately); forward dynamics {} \
+         and a Cholesky solve / {} (aba)",
+        flexdyn_operations(name, "inverse_dynamics"),
+        ops(&generated.rnea),
+        flexdyn_operations(name, "dynamics_terms"),
+        ops(&generated.crba_nle),
+        ops(&generated.crba),
+        ops(&generated.nle),
+        flexdyn_operations(name, "dynamics_terms"),
+        ops(&generated.aba),
     );
 
     let mut g = c.benchmark_group(name);
@@ -403,6 +595,23 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
             unsafe { pin_bench_crba_nle(pin.handle, s.pin[0].as_ptr(), s.pin[1].as_ptr()) }
         })
     });
+    g.bench_function("pinocchio C crba + nle", |b| {
+        let (mut m, mut h) = (vec![0.0; N * N], vec![0.0; N]);
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            c_crba_nle.call(&[&s.pin[0], &s.pin[1]], &mut [&mut m, &mut h]);
+            black_box((&m, &h));
+        })
+    });
+    g.bench_function("pinocchio C crba, nle", |b| {
+        let (mut m, mut h) = (vec![0.0; N * N], vec![0.0; N]);
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            c_crba.call(&[&s.pin[0]], &mut [&mut m]);
+            c_nle.call(&[&s.pin[0], &s.pin[1]], &mut [&mut h]);
+            black_box((&m, &h));
+        })
+    });
     g.bench_function("flexdyn inverse_dynamics", |b| {
         b.iter(|| black_box(inverse_dynamics(&robot, next(&states, &mut i))))
     });
@@ -418,6 +627,14 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
                     s.pin[2].as_ptr(),
                 )
             }
+        })
+    });
+    g.bench_function("pinocchio C rnea", |b| {
+        let mut tau = vec![0.0; N];
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            c_rnea.call(&[&s.pin[0], &s.pin[1], &s.pin[2]], &mut [&mut tau]);
+            black_box(&tau);
         })
     });
     g.bench_function("flexdyn forward dynamics", |b| {
@@ -438,6 +655,14 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
                     s.pin[3].as_ptr(),
                 )
             }
+        })
+    });
+    g.bench_function("pinocchio C aba", |b| {
+        let mut ddq = vec![0.0; N];
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            c_aba.call(&[&s.pin[0], &s.pin[1], &s.pin[3]], &mut [&mut ddq]);
+            black_box(&ddq);
         })
     });
     g.finish();
@@ -609,7 +834,9 @@ fn compare_marker<R: Model<N, 0, N> + Default, const N: usize>(
     }
     // SAFETY: 12 numbers; the joint exists.
     let frame = unsafe { pin_bench_add_frame(pin.handle, N as i32, placement.as_ptr()) };
+    let mut c_frame = CCall::new(&generated_c(name).frame, "frame");
     let mut worst = 0.0f64;
+    let mut worst_c = 0.0f64;
     for s in &states {
         assert!(robot.marker_jacobian(k, &s.q, 0.0, &mut p, &mut r, &mut j));
         let (mut pp, mut pr, mut pjac) = ([0.0; 3], [0.0; 9], vec![0.0; 6 * N]);
@@ -638,13 +865,33 @@ fn compare_marker<R: Model<N, 0, N> + Default, const N: usize>(
             .chain((0..6 * N).map(|e| pjac[e % 6 + 6 * to_pin[e / 6]]))
             .collect();
         worst = worst.max(relative_error(&ours, &theirs));
+        let (mut cp, mut cr, mut cj) = ([0.0; 3], [0.0; 9], vec![0.0; 6 * N]);
+        c_frame.call(&[&s.pin[0]], &mut [&mut cp, &mut cr, &mut cj]);
+        // The generated rotation is column-major: transposed to rows.
+        let theirs_c: Vec<f64> = cp
+            .iter()
+            .copied()
+            .chain((0..9).map(|e| cr[3 * (e % 3) + e / 3]))
+            .chain((0..6 * N).map(|e| cj[e % 6 + 6 * to_pin[e / 6]]))
+            .collect();
+        worst_c = worst_c.max(relative_error(&ours, &theirs_c));
     }
     println!(
         "{name}: marker {marker}: largest relative difference of position, rotation and \
          Jacobian to Pinocchio's computeFrameJacobian over {} states: {worst:.1e}",
         states.len()
     );
+    println!(
+        "{name}: marker {marker}: largest relative difference to Pinocchio's generated C: \
+         {worst_c:.1e}; operations, flexdyn / C: {} / {}",
+        flexdyn_operations(name, &format!("marker_jacobian ({marker})")),
+        c_frame.f.operations
+    );
     assert!(worst < AGREEMENT, "{name}: flexdyn and Pinocchio disagree");
+    assert!(
+        worst_c < AGREEMENT,
+        "{name}: flexdyn and Pinocchio's generated C disagree"
+    );
     let mut g = c.benchmark_group(format!("{name} {marker}"));
     let mut i = 0;
     g.bench_function("flexdyn marker_jacobian", |b| {
@@ -661,6 +908,14 @@ fn compare_marker<R: Model<N, 0, N> + Default, const N: usize>(
             unsafe { pin_bench_frame_jacobian(pin.handle, frame, s.pin[0].as_ptr()) }
         })
     });
+    g.bench_function("pinocchio C frame Jacobian", |b| {
+        let (mut cp, mut cr, mut cj) = ([0.0; 3], [0.0; 9], vec![0.0; 6 * N]);
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            c_frame.call(&[&s.pin[0]], &mut [&mut cp, &mut cr, &mut cj]);
+            black_box((&cp, &cr, &cj));
+        })
+    });
     g.finish();
 }
 
@@ -673,6 +928,9 @@ fn next<'a, T>(states: &'a [T], i: &mut usize) -> &'a T {
 fn robots(c: &mut Criterion<ThreadCpuTime>) {
     compare::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
     compare::<panda::Panda, { panda::NQ }>(c, "panda");
+    compare::<tiago::Tiago, { tiago::NQ }>(c, "tiago");
+    compare::<solo::Solo, { solo::NQ }>(c, "solo");
+    compare::<talos::Talos, { talos::NQ }>(c, "talos");
     compare_derivatives::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
     compare_derivatives::<panda::Panda, { panda::NQ }>(c, "panda");
     compare_marker::<ur5::Ur5, { ur5::NQ }>(c, "ur5", "tool0");

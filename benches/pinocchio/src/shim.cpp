@@ -24,8 +24,9 @@
 #include <pinocchio/algorithm/rnea.hpp>
 #include <pinocchio/multibody.hpp>
 
+#include "model.hpp"
+
 #include <cstring>
-#include <exception>
 #include <string>
 
 namespace {
@@ -44,30 +45,6 @@ void write_error(char *err, std::size_t len, const std::string &msg) {
 
 using VecMap = Eigen::Map<const Eigen::VectorXd>;
 
-// Adds `joint` if `kind` is its type's Pinocchio short name.
-template <class Joint>
-bool add_if(pinocchio::Model &model, pinocchio::JointIndex parent, const std::string &kind,
-            const Joint &joint, const pinocchio::SE3 &placement, const std::string &name) {
-  if (kind != Joint::classname()) return false;
-  model.addJoint(parent, joint, placement, name);
-  return true;
-}
-
-// Pinocchio's one-dof joint of type `kind` (its short name) about or along
-// `axis` (used by the unaligned types only); false for any other type.
-bool add_joint(pinocchio::Model &m, pinocchio::JointIndex parent, const std::string &kind,
-               const Eigen::Vector3d &axis, const pinocchio::SE3 &placement,
-               const std::string &name) {
-  using namespace pinocchio;
-  return add_if(m, parent, kind, JointModelRX(), placement, name) ||
-         add_if(m, parent, kind, JointModelRY(), placement, name) ||
-         add_if(m, parent, kind, JointModelRZ(), placement, name) ||
-         add_if(m, parent, kind, JointModelRevoluteUnaligned(axis), placement, name) ||
-         add_if(m, parent, kind, JointModelPX(), placement, name) ||
-         add_if(m, parent, kind, JointModelPY(), placement, name) ||
-         add_if(m, parent, kind, JointModelPZ(), placement, name) ||
-         add_if(m, parent, kind, JointModelPrismaticUnaligned(axis), placement, name);
-}
 }  // namespace
 
 extern "C" {
@@ -86,33 +63,11 @@ void *pin_bench_new() { return new Bench(); }
 int pin_bench_add_joint(void *p, const char *name, const char *kind, int parent,
                         const double *axis, const double *placement, const double *inertia,
                         double damping, char *err, std::size_t errlen) {
-  auto &model = static_cast<Bench *>(p)->model;
-  if (parent < 0 || parent >= model.njoints) {
-    write_error(err, errlen,
-                std::string("joint ") + name + ": no parent joint " + std::to_string(parent));
-    return -1;
-  }
-  try {
-    const Eigen::Matrix3d rotation = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(placement);
-    const pinocchio::SE3 frame(rotation, Eigen::Map<const Eigen::Vector3d>(placement + 9));
-    const auto before = model.njoints;
-    if (!add_joint(model, pinocchio::JointIndex(parent), kind, Eigen::Map<const Eigen::Vector3d>(axis),
-                   frame, name)) {
-      write_error(err, errlen,
-                  std::string("joint ") + name + ": type " + kind + " is not a one-dof joint the shim builds");
-      return -1;
-    }
-    const pinocchio::JointIndex id = pinocchio::JointIndex(before);
-    const Eigen::Matrix3d rotational = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(inertia + 4);
-    model.appendBodyToJoint(
-        id, pinocchio::Inertia(inertia[0], Eigen::Map<const Eigen::Vector3d>(inertia + 1), rotational),
-        pinocchio::SE3::Identity());
-    model.damping[model.joints[id].idx_v()] = damping;
-    return 0;
-  } catch (const std::exception &e) {
-    write_error(err, errlen, std::string("joint ") + name + ": " + e.what());
-    return -1;
-  }
+  const std::string error = bench_model::append_joint(static_cast<Bench *>(p)->model, name, kind,
+                                                      parent, axis, placement, inertia, damping);
+  if (error.empty()) return 0;
+  write_error(err, errlen, error);
+  return -1;
 }
 
 // Allocates the algorithms' workspace for the finished model.
@@ -139,8 +94,7 @@ void pin_bench_joint_placement(void *p, const double *q, int joint, double *out)
 // in the joint's frame and rebuilds the workspace; returns its index.
 int pin_bench_add_frame(void *p, int joint, const double *placement) {
   auto *b = static_cast<Bench *>(p);
-  const Eigen::Matrix3d rotation = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(placement);
-  const pinocchio::SE3 frame(rotation, Eigen::Map<const Eigen::Vector3d>(placement + 9));
+  const pinocchio::SE3 frame = bench_model::placement(placement);
   const auto parent = pinocchio::JointIndex(joint);
   const auto id = b->model.addFrame(
       pinocchio::Frame("bench_frame", parent, pinocchio::FrameIndex(0), frame, pinocchio::OP_FRAME));

@@ -385,7 +385,7 @@ impl Assembler {
             nq: self.nq,
             params: self.params,
             uses_qd: lowered.inputs() >= Inputs::Velocities,
-            uses_qdd: lowered.inputs() == Inputs::Accelerations,
+            uses_qdd: lowered.inputs() >= Inputs::Accelerations,
             literals: self.literals,
             code,
             runs,

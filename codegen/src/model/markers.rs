@@ -68,14 +68,14 @@ impl Context<'_> {
         placed
             .into_iter()
             .map(|p| {
-                let (angular, linear) = self.graph.world_velocities(&p.frame, p.local, p.offset);
+                let v = self.graph.world_velocities(&p.frame, p.local, p.offset);
+                let (w, l) = (v.angular, v.linear);
                 Marker {
                     name: p.name,
                     position: p.position,
                     rotation: p.frame.rotation,
-                    velocity: [
-                        linear[0], linear[1], linear[2], angular[0], angular[1], angular[2],
-                    ],
+                    velocity: [l[0], l[1], l[2], w[0], w[1], w[2]],
+                    linear_about_point: v.linear_about_point,
                 }
             })
             .collect()

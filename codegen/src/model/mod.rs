@@ -148,6 +148,9 @@ pub struct Marker {
     /// Velocity in world axes: the point's linear velocity, then the
     /// frame's angular velocity (with explicit time terms).
     pub velocity: [Id; 6],
+    /// The point's linear velocity again, written about the point (`w_i x
+    /// (p - o_i)` per rotation): what the Jacobian is differentiated from.
+    pub linear_about_point: [Id; 3],
 }
 
 impl Marker {
@@ -158,9 +161,12 @@ impl Marker {
             .chain(self.rotation.into_iter().flatten())
     }
 
-    /// Its nodes: position, rotation (by rows), velocity.
+    /// Its nodes: position, rotation (by rows), velocity, linear velocity
+    /// about the point.
     fn nodes(&self) -> impl Iterator<Item = Id> + '_ {
-        self.pose_nodes().chain(self.velocity)
+        self.pose_nodes()
+            .chain(self.velocity)
+            .chain(self.linear_about_point)
     }
 
     /// Replace its nodes, in the order of [`Self::nodes`].
@@ -169,6 +175,7 @@ impl Marker {
         self.position = std::array::from_fn(|_| next());
         self.rotation = std::array::from_fn(|_| std::array::from_fn(|_| next()));
         self.velocity = std::array::from_fn(|_| next());
+        self.linear_about_point = std::array::from_fn(|_| next());
     }
 }
 

@@ -90,6 +90,9 @@ pub enum Inputs {
     Velocities,
     /// `q`, `qd`, `qdd` and `t`.
     Accelerations,
+    /// `q`, `qd`, the generalized forces `f` and `t` (`f` in the place of
+    /// `qdd`: the graph's `Symbol::Qdd`).
+    Forces,
 }
 
 /// The terms a function computes: per output, its entries as rows.
@@ -447,6 +450,21 @@ table! {
             eq.constraint_acceleration_derivatives
                 .as_ref()
                 .map(|(a_q, a_qd)| Terms::Nodes(vec![a_q.clone(), a_qd.clone()]))
+        },
+    },
+    /// `forward_dynamics`: `qdd = M^-1 (f - h)` and the pivots of `M`
+    /// (unconstrained scenes).
+    ForwardDynamics => Spec {
+        name: "forward_dynamics",
+        doc: "Forward dynamics of an unconstrained scene, `qdd = M^-1 (f - h)` for the generalized forces `f` (`B tau` and any others), as one program: `M` and `h` with `M = L^T D L` factored and solved on them, keeping the zeros that a tree's branches give `M`. Writes the pivots `d` of `D` too: the solve is only valid where every pivot is positive (the runtime checks them).",
+        inputs: Inputs::Forces,
+        outputs: &[vector("qdd", NQ), vector("d", NQ)],
+        optional: true,
+        per_marker: false,
+        terms: |_, eq| {
+            eq.forward_dynamics
+                .as_ref()
+                .map(|(qdd, d)| Terms::Nodes(vec![column(qdd), column(d)]))
         },
     },
     /// `marker_pose`: a marker's position (3) and rotation (3 x 3).
