@@ -19,7 +19,7 @@ run that give agreement and operation counts. Stdlib only.
 
 Usage (from the repository root):
 
-    python3 benches/pinocchio/side_by_side.py [default|native] [CRITERION ARGS...]
+    python3 benches/pinocchio/side_by_side.py [default|native|both] [CRITERION ARGS...]
 
 e.g. ``side_by_side.py default --warm-up-time 1 --measurement-time 3``.
 """
@@ -73,9 +73,10 @@ def ratio(x: float) -> str:
 
 
 def main() -> int:
-    builds = [b for b in BUILDS if len(sys.argv) < 2 or b[0] == sys.argv[1]]
+    wanted = sys.argv[1] if len(sys.argv) > 1 else "both"
+    builds = [b for b in BUILDS if wanted in ("both", b[0])]
     if not builds:
-        print(f"error: no build named {sys.argv[1]!r} (default, native)", file=sys.stderr)
+        print(f"error: no build named {wanted!r} (default, native, both)", file=sys.stderr)
         return 2
     extra = sys.argv[2:]
     results = {}

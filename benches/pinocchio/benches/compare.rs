@@ -566,14 +566,14 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
     println!(
         "{name}: operations, flexdyn / Pinocchio's generated C: inverse dynamics {} / {} (rnea); \
          M + h {} / {} (crba + nle in one program; {} + {} separately); forward dynamics {} \
-         and a Cholesky solve / {} (aba)",
+         / {} (aba)",
         flexdyn_operations(name, "inverse_dynamics"),
         ops(&generated.rnea),
         flexdyn_operations(name, "dynamics_terms"),
         ops(&generated.crba_nle),
         ops(&generated.crba),
         ops(&generated.nle),
-        flexdyn_operations(name, "dynamics_terms"),
+        flexdyn_operations(name, "forward_dynamics"),
         ops(&generated.aba),
     );
 
