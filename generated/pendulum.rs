@@ -14,8 +14,8 @@
 //   coriolis_forces                               0      0      0      0
 //   potential_forces                              0      3      0      1
 //   damping_forces                                0      1      0      0
-//   forward_dynamics                              2      7      1      1
-//   total                                         7     36      1      6
+//   forward_dynamics                              2      6      1      1
+//   total                                         7     35      1      6
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -212,7 +212,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         out[0] = qd[0] * self.c;
         true
     }
-    ///Forward dynamics of an unconstrained scene, `qdd = M^-1 (f - h)` for the generalized forces `f` (`B tau` and any others), as one program: `M` and `h` with `M = L^T D L` factored and solved on them, keeping the zeros that a tree's branches give `M`. Writes the pivots `d` of `D` too: the solve is only valid where every pivot is positive (the runtime checks them).
+    ///Forward dynamics of an unconstrained scene, `qdd = M^-1 (f - h)` for the generalized forces `f` (`B tau` and any others), as one program: `M` and `h` with `M = L^T D L` factored and solved on them, keeping the zeros that a tree's branches give `M`. Writes the pivots of `D` too, each relative to its diagonal entry of `M` (`d`, in (0, 1] for a positive definite `M`): the solve is only valid where every one is positive and not negligible (the runtime checks them).
     #[inline]
     fn forward_dynamics(
         &self,
@@ -224,9 +224,9 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         d: &mut SVector<f64, 1>,
     ) -> bool {
         let v0 = math::sin(q[0]);
-        let v1 = self.l * self.m;
-        qdd[0] = (f[0] - 9.81 * v0 * v1 - qd[0] * self.c) / (self.m * self.l * self.l);
-        d[0] = self.l * v1;
+        qdd[0] = (f[0] - 9.81 * self.m * self.l * v0 - qd[0] * self.c)
+            / (self.m * self.l * self.l);
+        d[0] = 1.0;
         true
     }
 }

@@ -222,7 +222,8 @@ pub trait DynModel {
     }
     /// Forward dynamics `qdd = M^-1 (f - h)` of an unconstrained scene for
     /// the generalized forces `f`, with the pivots `d` of `M = L^T D L`
-    /// (valid where all are positive), when generated.
+    /// relative to `M`'s diagonal (valid where all are above epsilon), when
+    /// generated.
     fn forward_dynamics(
         &self,
         q: &[f64],

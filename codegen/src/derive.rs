@@ -76,7 +76,8 @@ pub struct Equations {
     pub constraint_acceleration_derivatives: Option<(Matrix, Matrix)>,
     /// Forward dynamics of an unconstrained scene, `(qdd, pivots)`: `qdd =
     /// M^-1 (f - h)` in the generalized forces `f` (read from the symbols
-    /// `Symbol::Qdd`) and the pivots `D` of `M = L^T D L`; set after the
+    /// `Symbol::Qdd`) and the pivots `D` of `M = L^T D L`, each relative to
+    /// its diagonal entry of `M`; set after the
     /// prune stage by [`crate::solve::forward_dynamics`].
     pub forward_dynamics: Option<(Vec<Id>, Vec<Id>)>,
     /// Total kinetic energy.

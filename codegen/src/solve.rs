@@ -22,7 +22,8 @@ pub const MAX_COORDINATES: usize = 40;
 /// Sets `eq.forward_dynamics` of an unconstrained scene of at most
 /// [`MAX_COORDINATES`] coordinates: `qdd = M^-1 (f - h)` with the
 /// generalized forces `f` read from the symbols `Symbol::Qdd` (the program's
-/// third input), and the pivots `D` of `M = L^T D L`.
+/// third input), and the pivots `D` of `M = L^T D L`, each relative to
+/// its diagonal entry of `M`.
 pub fn forward_dynamics(g: &mut Graph, eq: &mut Equations) {
     let n = eq.mass.len();
     if !eq.phi.is_empty() || n == 0 || n > MAX_COORDINATES {
@@ -78,6 +79,8 @@ pub fn forward_dynamics(g: &mut Graph, eq: &mut Equations) {
             }
         }
     }
-    let pivots = (0..n).map(|k| h[k][k]).collect();
+    // Each pivot relative to its diagonal entry of M (in (0, 1] for a
+    // positive definite M), for the runtime's check.
+    let pivots = (0..n).map(|k| g.div(h[k][k], eq.mass[k][k])).collect();
     eq.forward_dynamics = Some((x, pivots));
 }

@@ -210,10 +210,11 @@ where
 
 /// The accelerations of an unconstrained model by its generated
 /// [`Equations::forward_dynamics`] (one program, `M` factored on the graph),
-/// where it has one and every pivot and acceleration is finite and every
-/// pivot positive; `None` sends the caller to the factorisation of `M`,
-/// which reports what is wrong (a mass matrix that is not positive
-/// definite, a non-finite output).
+/// where it has one, every acceleration is finite and every pivot relative
+/// to its diagonal entry of `M` is above epsilon (the factorisation's own
+/// criterion); `None` sends the caller to the factorisation of `M`, which
+/// reports what is wrong (a mass matrix that is not positive definite, a
+/// non-finite output).
 pub(crate) fn generated_forward_dynamics<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     q: &OVector<T, Q>,
@@ -233,7 +234,7 @@ where
     let mut qdd = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
     let mut d = qdd.clone();
     let valid = model.forward_dynamics(q, qd, &f, t, &mut qdd, &mut d)
-        && d.iter().all(|&p| p.is_finite() && p > T::zero())
+        && d.iter().all(|&p| p.is_finite() && p > T::EPSILON)
         && all_finite(&qdd);
     Ok(valid.then(|| AccelerationsOf {
         qdd,

@@ -127,10 +127,12 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
 
     /// Optional forward dynamics of an unconstrained scene as one program:
     /// writes `qdd = M^-1 (f - h)` for the generalized forces `f` (`B tau`
-    /// plus any others) and the pivots `d` of `M = L^T D L`, and returns
-    /// `true`. The result is valid only where every pivot is positive and
-    /// finite ([`crate::accelerations`] checks them and otherwise factors
-    /// `M` itself). Generated for unconstrained scenes of at most 40
+    /// plus any others) and the pivots of `M = L^T D L`, each relative to
+    /// its diagonal entry of `M` (`d`, in `(0, 1]` for a positive definite
+    /// `M`), and returns `true`. The result is valid only where every
+    /// relative pivot is finite and above the precision's epsilon
+    /// ([`crate::accelerations`] checks them and otherwise factors `M`
+    /// itself, which reports it). Generated for unconstrained scenes of at most 40
     /// coordinates; the default returns `false`.
     fn forward_dynamics(
         &self,

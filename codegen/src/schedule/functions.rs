@@ -456,7 +456,7 @@ table! {
     /// (unconstrained scenes).
     ForwardDynamics => Spec {
         name: "forward_dynamics",
-        doc: "Forward dynamics of an unconstrained scene, `qdd = M^-1 (f - h)` for the generalized forces `f` (`B tau` and any others), as one program: `M` and `h` with `M = L^T D L` factored and solved on them, keeping the zeros that a tree's branches give `M`. Writes the pivots `d` of `D` too: the solve is only valid where every pivot is positive (the runtime checks them).",
+        doc: "Forward dynamics of an unconstrained scene, `qdd = M^-1 (f - h)` for the generalized forces `f` (`B tau` and any others), as one program: `M` and `h` with `M = L^T D L` factored and solved on them, keeping the zeros that a tree's branches give `M`. Writes the pivots of `D` too, each relative to its diagonal entry of `M` (`d`, in (0, 1] for a positive definite `M`): the solve is only valid where every one is positive and not negligible (the runtime checks them).",
         inputs: Inputs::Forces,
         outputs: &[vector("qdd", NQ), vector("d", NQ)],
         optional: true,
