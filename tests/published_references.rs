@@ -10,10 +10,12 @@
 //! "andrews"), whose reference solution at `t = 0.03 s` is given to 16
 //! digits. The crank turns 2.5 times in those 30 ms.
 
-use std::path::Path;
-use std::process::Command;
-
 use flexdyn::table::Table;
+
+// Shared helpers; this file runs the binary and uses no refusal check.
+#[allow(dead_code)]
+#[path = "common/cli.rs"]
+mod cli;
 
 const BIN: &str = env!("CARGO_BIN_EXE_flexdyn");
 
@@ -56,32 +58,24 @@ fn andrews_squeezer_reaches_the_test_sets_reference_positions() {
         ),
     )
     .unwrap();
-    let scene =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/references/andrews_squeezer.toml");
     let csv = dir.path().join("out.csv");
-    let out = Command::new(BIN)
-        .args(["simulate", "--scene"])
-        .arg(&scene)
-        .arg("--initial")
-        .arg(&initial)
-        .args([
-            "--duration",
-            "0.03",
-            "--dt",
-            "0.001",
-            "--tolerance",
-            "1e-12",
-            "--quiet",
-        ])
-        .arg("--csv")
-        .arg(&csv)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let (code, err) = cli::run(&[
+        "simulate",
+        "--scene",
+        "tests/references/andrews_squeezer.toml",
+        "--initial",
+        &cli::p(dir.path(), "initial.json"),
+        "--duration",
+        "0.03",
+        "--dt",
+        "0.001",
+        "--tolerance",
+        "1e-12",
+        "--quiet",
+        "--csv",
+        &cli::p(dir.path(), "out.csv"),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
     let table = Table::read(&csv).unwrap();
     let last = |name: &str| *table.column(name).unwrap().last().unwrap();
     assert_eq!(last("t"), 0.03);
