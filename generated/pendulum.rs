@@ -142,7 +142,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
     ) {
         let v0 = math::sin(q[0]);
         let v1 = self.l * self.m;
-        tau[0] = self.l * qdd[0] * v1 + 9.81 * v0 * v1 + qd[0] * self.c;
+        tau[0] = 9.81 * v0 * v1 + qd[0] * self.c + self.l * qdd[0] * v1;
     }
     ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]

@@ -200,8 +200,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
-        let v4 = -0.1 * v1 * v6 - 0.3 * v3 * v7 - 0.1 * v0 * qdd[0] - 0.3 * v2 * qdd[1];
-        let v5 = 0.3 * v2 * v7 + 0.1 * v1 * qdd[0] - 0.1 * v0 * v6 - 0.3 * v3 * qdd[1];
+        let v4 = -0.1 * v1 * v6 - 0.1 * v0 * qdd[0] - 0.3 * v3 * v7 - 0.3 * v2 * qdd[1];
+        let v5 = 0.1 * v1 * qdd[0] + 0.3 * v2 * v7 - 0.1 * v0 * v6 - 0.3 * v3 * qdd[1];
         tau[0] = 1.0300500000000001 * v1 + 0.005666666666666668 * qdd[0]
             + 0.04000000000000001 * v1 * v5 - 0.04000000000000001 * v0 * v4;
         tau[1] = 0.004000000000000001 * v1 * v2 * v6

@@ -24,6 +24,9 @@ pub(crate) struct Frame {
     /// markers need: kept as steps so that scenes without markers build
     /// no nodes for them.
     pub(crate) steps: Vec<Step>,
+    /// Its index in the model's kinematic tree (`Model::placements`);
+    /// `None` for the world.
+    pub(crate) node: Option<usize>,
 }
 
 /// One step of a frame's placement, with the world rotation before it.
@@ -50,6 +53,10 @@ pub(crate) struct Point {
     pub(crate) position: [Id; 3],
     /// Velocity in the axes of the frame it was given in.
     pub(crate) velocity: [Id; 3],
+    /// That frame's node in the kinematic tree (`None` for the world).
+    pub(crate) node: Option<usize>,
+    /// The point in that frame's axes, from its origin.
+    pub(crate) local: [Id; 3],
 }
 
 /// A point's velocities in world axes ([`Graph::world_velocities`]).
@@ -144,11 +151,13 @@ impl Graph {
             velocity: [zero; 3],
             omega: [zero; 3],
             steps: Vec::new(),
+            node: None,
         }
     }
 
     /// The frame at `translation` (in `parent`'s axes) from `parent`'s
-    /// origin, rotated from `parent` by `rotations` in turn (intrinsic).
+    /// origin, rotated from `parent` by `rotations` in turn (intrinsic); not
+    /// yet a node of the kinematic tree (the model stage places it there).
     pub(crate) fn child_frame(
         &mut self,
         parent: &Frame,
@@ -191,7 +200,41 @@ impl Graph {
             velocity,
             omega,
             steps,
+            node: None,
         }
+    }
+
+    /// The twist `(v, w)` (origin velocity, then angular velocity, in its
+    /// own axes) of the frame placed as in [`Self::child_frame`], its
+    /// parent at rest: what its own coordinates add to its parent's
+    /// motion.
+    pub(crate) fn relative_twist(
+        &mut self,
+        translation: [Id; 3],
+        rotations: &[([f64; 3], Id)],
+    ) -> [Id; 6] {
+        let zero = self.constant(0.0);
+        let rate = self.time_derivative_at_zero_acceleration(&translation);
+        let mut velocity = [rate[0], rate[1], rate[2]];
+        let mut omega = [zero; 3];
+        for &(axis, angle) in rotations {
+            let local = self.axis_rotation(axis, angle);
+            let rate = self.time_derivative_at_zero_acceleration(&[angle])[0];
+            velocity = self.rotate_transpose(&local, velocity);
+            let rotated = self.rotate_transpose(&local, omega);
+            omega = std::array::from_fn(|k| {
+                let term = self.scale(rate, axis[k]);
+                self.add(rotated[k], term)
+            });
+        }
+        [
+            velocity[0],
+            velocity[1],
+            velocity[2],
+            omega[0],
+            omega[1],
+            omega[2],
+        ]
     }
 
     /// The angular velocity of `frame` and the velocity of the point at

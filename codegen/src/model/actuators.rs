@@ -93,6 +93,7 @@ impl Context<'_> {
                 potential: zero,
                 dissipation: zero,
                 bodies: Vec::new(),
+                weight: None,
             });
         }
         Ok(out)

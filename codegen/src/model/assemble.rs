@@ -80,6 +80,7 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
             potential,
             dissipation,
             bodies: terms.bodies,
+            weight: terms.weight,
         });
     }
     let mut constraints = Vec::new();
@@ -101,6 +102,8 @@ pub(crate) fn build(scene: &LoadedScene) -> Result<Model, Error> {
         constraints,
         actuators,
         markers,
+        placements: cx.placements,
+        gravity: cx.gravity,
         outputs,
         precision,
         flexible_links: cx.flexible,

@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 
 use toml::Spanned;
 
-use super::FlexibleLink;
+use super::{FlexibleLink, Placement};
 use crate::error::{Error, Source};
 use crate::expr::{Graph, Id, Symbol};
 use crate::fem::Material;
@@ -34,6 +34,8 @@ pub(super) struct Context<'a> {
     pub(super) parameter_values: BTreeMap<String, f64>,
     /// Flexible links read so far, in component order.
     pub(super) flexible: Vec<FlexibleLink>,
+    /// The frames' placements so far (the kinematic tree).
+    pub(super) placements: Vec<Placement>,
 }
 
 impl<'a> Context<'a> {
@@ -49,6 +51,7 @@ impl<'a> Context<'a> {
             nominal: Vec::new(),
             parameter_values: BTreeMap::new(),
             flexible: Vec::new(),
+            placements: Vec::new(),
         }
     }
 
@@ -389,6 +392,8 @@ impl<'a> Context<'a> {
         Ok(Point {
             position: std::array::from_fn(|k| self.graph.add(frame.origin[k], r[k])),
             velocity: self.graph.moving_point_velocity(&frame, local),
+            node: frame.node,
+            local,
         })
     }
 

@@ -4,7 +4,10 @@
 
 use super::components::station_frame;
 use super::context::Context;
+use super::Placement;
 use crate::error::Error;
+use crate::expr::Id;
+use crate::geometry::Frame;
 use crate::load::check_ident;
 use crate::load::scene::FrameDef;
 
@@ -33,10 +36,34 @@ impl Context<'_> {
                 let angle = self.scalar(&r.angle, Some(&ctx), false)?;
                 rotations.push((axis, angle));
             }
-            let frame = self.graph.child_frame(&parent, translation, &rotations);
+            let frame = self.child_frame(&parent, translation, &rotations);
             self.check_overflow(f.name.span().start, Some(&ctx), "the frame")?;
             self.frames.insert(f.name.get_ref().clone(), frame);
         }
         Ok(())
+    }
+
+    /// The frame placed in `parent` as [`crate::geometry::Graph::child_frame`]
+    /// does, added to the kinematic tree.
+    pub(super) fn child_frame(
+        &mut self,
+        parent: &Frame,
+        translation: [Id; 3],
+        rotations: &[([f64; 3], Id)],
+    ) -> Frame {
+        let mut frame = self.graph.child_frame(parent, translation, rotations);
+        let twist = self.graph.relative_twist(translation, rotations);
+        frame.node = Some(self.placements.len());
+        self.placements.push(Placement {
+            parent: parent.node,
+            translation,
+            rotations: rotations.to_vec(),
+            twist,
+            velocity: [frame.velocity, frame.omega]
+                .concat()
+                .try_into()
+                .expect("six"),
+        });
+        frame
     }
 }

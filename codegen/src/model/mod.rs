@@ -76,6 +76,11 @@ pub struct Component {
     /// mass or a rod (`T` the sum of its bodies' energies); empty for other
     /// kinds.
     pub bodies: Vec<Body>,
+    /// The part of `potential` that is the weight of its bodies, `-m g . r`
+    /// at each centre (a rigid body, a point mass, a flexible joint's
+    /// member): the derivation may apply gravity to them as an acceleration
+    /// of the world instead.
+    pub weight: Option<Id>,
 }
 
 /// A kinetic energy of rigid-body form, `T = (m v.v + w.I w) / 2`: `v` the
@@ -95,17 +100,74 @@ pub struct Body {
     /// Inertia about the centre of mass, in the frame's axes; `None` for a
     /// point mass.
     pub inertia: Option<[[Id; 3]; 3]>,
+    /// Where it is fixed in the kinematic tree, when it moves with a frame
+    /// of the scene (not for a rod, nor a body of the world).
+    pub attached: Option<Attachment>,
+}
+
+/// A body's place in the kinematic tree.
+#[derive(Debug, Clone, Copy)]
+pub struct Attachment {
+    /// The frame it moves with, an index into [`Model::placements`].
+    pub node: usize,
+    /// Its centre of mass in that frame's axes, from its origin.
+    pub centre: [Id; 3],
+}
+
+/// How a frame of the scene is placed in its parent: translated by
+/// `translation` (in the parent's axes), then rotated by each of
+/// `rotations` in turn. The model's frames in this form are its kinematic
+/// tree, which the derivation walks for the mass matrix
+/// ([`crate::derive`]).
+#[derive(Debug, Clone)]
+pub struct Placement {
+    /// The parent's index in [`Model::placements`] (always lower); `None`
+    /// for the world.
+    pub parent: Option<usize>,
+    /// The translation, in the parent's axes.
+    pub translation: [Id; 3],
+    /// The rotations in turn: unit axis and angle.
+    pub rotations: Vec<([f64; 3], Id)>,
+    /// The frame's twist `(v, w)` in its own axes with its parent at rest:
+    /// what its own coordinates add to its parent's motion.
+    pub twist: [Id; 6],
+    /// The frame's twist `(v, w)` in its own axes, as the model built it
+    /// (what the components' energies read).
+    pub velocity: [Id; 6],
+}
+
+impl Placement {
+    /// Its nodes: translation, angles, twist, velocity.
+    fn nodes(&self) -> impl Iterator<Item = Id> + '_ {
+        self.translation
+            .into_iter()
+            .chain(self.rotations.iter().map(|r| r.1))
+            .chain(self.twist)
+            .chain(self.velocity)
+    }
+
+    /// Replace its nodes, in the order of [`Self::nodes`].
+    fn set_nodes(&mut self, it: &mut impl Iterator<Item = Id>) {
+        let mut next = || it.next().expect("one node per root");
+        self.translation = std::array::from_fn(|_| next());
+        for r in &mut self.rotations {
+            r.1 = next();
+        }
+        self.twist = std::array::from_fn(|_| next());
+        self.velocity = std::array::from_fn(|_| next());
+    }
 }
 
 impl Component {
-    /// The nodes of the component's bodies.
+    /// The nodes of the component's bodies, and its weight's.
     fn body_nodes(&self) -> Vec<Id> {
-        let mut roots = Vec::new();
+        let mut roots: Vec<Id> = self.weight.into_iter().collect();
         for b in &self.bodies {
             roots.push(b.mass);
             roots.extend(b.velocity);
             roots.extend(b.omega);
             roots.extend(b.inertia.iter().flatten().flatten());
+            roots.extend(b.attached.iter().flat_map(|a| a.centre));
         }
         roots
     }
@@ -114,12 +176,18 @@ impl Component {
     /// [`Self::body_nodes`].
     fn set_body_nodes(&mut self, it: &mut impl Iterator<Item = Id>) {
         let mut next = || it.next().expect("one node per root");
+        if let Some(w) = &mut self.weight {
+            *w = next();
+        }
         for b in &mut self.bodies {
             b.mass = next();
             b.velocity = std::array::from_fn(|_| next());
             b.omega = std::array::from_fn(|_| next());
             if let Some(inertia) = &mut b.inertia {
                 *inertia = std::array::from_fn(|_| std::array::from_fn(|_| next()));
+            }
+            if let Some(a) = &mut b.attached {
+                a.centre = std::array::from_fn(|_| next());
             }
         }
     }
@@ -290,6 +358,11 @@ pub struct Model {
     pub actuators: Vec<Actuator>,
     /// Markers.
     pub markers: Vec<Marker>,
+    /// The kinematic tree: every frame's placement in its parent, parents
+    /// first.
+    pub placements: Vec<Placement>,
+    /// Gravity in world axes.
+    pub gravity: [Id; 3],
     /// Optional outputs.
     pub outputs: Outputs,
     /// Scalar type of the generated code.
@@ -350,11 +423,13 @@ impl Model {
     }
 
     /// Every node the model refers to: [`Self::input_roots`], then the
-    /// components' bodies', then the markers'.
+    /// components' bodies', the markers', the placements' and gravity.
     pub fn roots(&self) -> Vec<Id> {
         let mut roots = self.input_roots();
         roots.extend(self.components.iter().flat_map(Component::body_nodes));
         roots.extend(self.markers.iter().flat_map(Marker::nodes));
+        roots.extend(self.placements.iter().flat_map(Placement::nodes));
+        roots.extend(self.gravity);
         roots
     }
 
@@ -377,5 +452,9 @@ impl Model {
         for m in &mut self.markers {
             m.set_nodes(&mut it);
         }
+        for p in &mut self.placements {
+            p.set_nodes(&mut it);
+        }
+        self.gravity = std::array::from_fn(|_| it.next().expect("one node per root"));
     }
 }

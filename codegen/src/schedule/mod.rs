@@ -4,8 +4,9 @@
 //! nodes of its outputs, in two passes: common-subexpression elimination
 //! ([`cse`]: every node used more than once gets one `let`, `sin` and `cos`
 //! of one argument one `sin_cos` call, only nodes reachable from the outputs
-//! are kept), then sharing of repeated pairs of factors and terms
-//! ([`share`]); a program carries its operation count ([`code`]). Each
+//! are kept), then sharing of repeated pairs of factors and terms and of
+//! the reciprocals of repeated divisors ([`share`]); a program carries its
+//! operation count ([`code`]). Each
 //! program is then lowered once ([`lower()`]) into operations in evaluation
 //! order, which the emitter prints and the interpreter runs.
 
@@ -27,6 +28,7 @@ use crate::expr::{Graph, Id};
 pub fn schedule(graph: &Graph, outputs: &[Id]) -> Program {
     let (mut stmts, mut outputs, mut next) = cse::eliminate(graph, outputs);
     share::share_pairs(&mut stmts, &mut outputs, &mut next);
+    share::share_reciprocals(&mut stmts, &mut outputs, &mut next);
     Program::new(stmts, outputs)
 }
 

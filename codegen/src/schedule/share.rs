@@ -382,3 +382,97 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
         *stmts = out;
     }
 }
+
+/// Shares the reciprocals of the program's repeated divisors: a leaf that
+/// divides two or more products is inverted once, `r = 1 / d`, and those
+/// products multiply by `r` (a factorisation's `L_ij = x / D_j` down a
+/// column): a division costs several multiplications on every target.
+pub(super) fn share_reciprocals(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mut u32) {
+    let mut count: FastMap<Leaf, usize> = FastMap::default();
+    let mut tally = |c: &Code| {
+        if let Code::Prod { num, den } = c {
+            // `1 / d` itself gains nothing.
+            if num.is_empty() && den.len() == 1 {
+                return;
+            }
+            let mut seen: Vec<Leaf> = den.iter().filter_map(Leaf::of).collect();
+            seen.sort();
+            seen.dedup();
+            for l in seen {
+                *count.entry(l).or_default() += 1;
+            }
+        }
+    };
+    for s in stmts.iter() {
+        visit(stmt_code(s), &mut tally);
+    }
+    for o in outputs.iter() {
+        visit(o, &mut tally);
+    }
+    count.retain(|_, n| *n >= 2);
+    if count.is_empty() {
+        return;
+    }
+    let mut inverse: FastMap<Leaf, u32> = FastMap::default();
+    let mut invert = |c: &mut Code, lets: &mut Vec<Stmt>| {
+        let Code::Prod { num, den } = c else {
+            return;
+        };
+        if num.is_empty() && den.len() == 1 {
+            return;
+        }
+        let mut k = 0;
+        while k < den.len() {
+            let Some(l) = Leaf::of(&den[k]).filter(|l| count.contains_key(l)) else {
+                k += 1;
+                continue;
+            };
+            let r = *inverse.entry(l).or_insert_with(|| {
+                let v = *next;
+                *next += 1;
+                lets.push(Stmt::Let {
+                    var: v,
+                    value: Code::Prod {
+                        num: Vec::new(),
+                        den: vec![l.code()],
+                    },
+                });
+                v
+            });
+            den.remove(k);
+            num.push(Code::Var(r));
+        }
+    };
+    let mut out = Vec::with_capacity(stmts.len());
+    for mut s in stmts.drain(..) {
+        visit_mut(stmt_code_mut(&mut s), &mut |c| invert(c, &mut out));
+        out.push(s);
+    }
+    for o in outputs.iter_mut() {
+        visit_mut(o, &mut |c| invert(c, &mut out));
+    }
+    *stmts = out;
+}
+
+/// Calls `f` on every product and sum of `c`, children first, mutably.
+fn visit_mut(c: &mut Code, f: &mut dyn FnMut(&mut Code)) {
+    match c {
+        Code::Var(_) | Code::Sym(_) | Code::Lit(_) => return,
+        Code::Sum { terms, .. } => {
+            for (_, t) in terms.iter_mut() {
+                visit_mut(t, f);
+            }
+        }
+        Code::Prod { num, den } => {
+            for t in num.iter_mut().chain(den.iter_mut()) {
+                visit_mut(t, f);
+            }
+        }
+        Code::Call(_, a) => return visit_mut(a, f),
+        Code::Atan2(y, x) => {
+            visit_mut(y, f);
+            return visit_mut(x, f);
+        }
+    }
+    f(c);
+}

@@ -259,6 +259,42 @@ name = "arm"
 parent = "hub"
 translation = ["0.2 + s", "0.05", "0.1*sin(t)"]
 rotation = [{ axis = "x", angle = "b" }, { axis = "y", angle = "0.3*b + c" }]
+[[frames]]
+name = "bracket"
+parent = "hub"
+translation = [0.0, 0.1, 0.2]
+rotation = [{ axis = "x", angle = 0.4 }]
+[[frames]]
+name = "finger"
+parent = "bracket"
+translation = [0.05, 0.0, 0.0]
+rotation = [{ axis = "z", angle = "b" }]
+[[frames]]
+name = "spinner"
+rotation = [{ axis = "z", angle = "0.9*t" }]
+[[frames]]
+name = "tip"
+parent = "spinner"
+translation = [0.1, 0.0, 0.0]
+rotation = [{ axis = "y", angle = "c" }]
+[[components]]
+type = "rigid_body"
+frame = "bracket"
+mass = 0.25
+position = [0.01, 0.02, 0.03]
+inertia = [0.002, 0.003, 0.004]
+[[components]]
+type = "rigid_body"
+frame = "finger"
+mass = 0.15
+position = [0.04, 0.0, 0.01]
+inertia = [0.001, 0.002, 0.0015]
+[[components]]
+type = "rigid_body"
+frame = "tip"
+mass = 0.35
+position = [0.0, 0.03, 0.05]
+inertia = [0.003, 0.002, 0.001]
 [[components]]
 type = "rigid_body"
 frame = "arm"

@@ -518,7 +518,7 @@ pub(in crate::model) fn station_frame(
             rotations.push((axis, angle));
         }
     }
-    Ok(cx.graph.child_frame(parent, translation, &rotations))
+    Ok(cx.child_frame(parent, translation, &rotations))
 }
 
 /// `constant + sum_j coeffs[j] vars[j]`, dropping the coefficients below

@@ -80,6 +80,8 @@ pub(super) struct Terms {
     pub(super) energies: [Id; 3],
     /// `T` in rigid-body form (a rigid body, a point mass).
     pub(super) bodies: Vec<Body>,
+    /// The bodies' weight, a part of `V` ([`crate::model::Component::weight`]).
+    pub(super) weight: Option<Id>,
 }
 
 impl From<[Id; 3]> for Terms {
@@ -87,6 +89,7 @@ impl From<[Id; 3]> for Terms {
         Terms {
             energies,
             bodies: Vec::new(),
+            weight: None,
         }
     }
 }

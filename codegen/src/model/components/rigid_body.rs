@@ -16,7 +16,7 @@ use crate::geometry::{Frame, Point};
 use crate::inertia::inertia_problem;
 use crate::load::scene::{ComponentDef, InertiaEntry, SScalar, Scalar};
 use crate::model::context::Context;
-use crate::model::Body;
+use crate::model::{Attachment, Body};
 
 pub(super) const KIND: Kind = Kind {
     name: "rigid_body",
@@ -71,6 +71,8 @@ pub(super) fn centre_of_mass(
         None => Ok(Point {
             position: frame.origin,
             velocity: frame.velocity,
+            node: frame.node,
+            local: [cx.graph.constant(0.0); 3],
         }),
     }
 }
@@ -103,7 +105,12 @@ pub(super) fn body_terms(
             velocity: com.velocity,
             omega,
             inertia,
+            attached: com.node.map(|node| Attachment {
+                node,
+                centre: com.local,
+            }),
         }],
+        weight: Some(potential),
     }
 }
 

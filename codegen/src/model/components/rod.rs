@@ -62,12 +62,14 @@ impl Energies for Rod {
                 velocity: middle,
                 omega,
                 inertia: None,
+                attached: None,
             },
             Body {
                 mass: twelfth,
                 velocity: along,
                 omega,
                 inertia: None,
+                attached: None,
             },
         ];
         let aa = g.dot(va, va);
@@ -84,6 +86,7 @@ impl Energies for Rod {
         Ok(Terms {
             energies: [kinetic, potential, zero],
             bodies,
+            weight: None,
         })
     }
 }
