@@ -64,7 +64,8 @@ pub(super) struct Tree {
     /// Each frame's columns `(i, S_a,i)`.
     columns: Vec<Vec<(usize, [Id; 6])>>,
     /// Whether a frame moves in its parent: coordinates or time in its
-    /// placement (the others are folded into their parents).
+    /// placement. The others are folded into their parents, so every
+    /// parent in `placements` moves.
     moving: Vec<bool>,
 }
 
@@ -196,9 +197,6 @@ impl Tree {
             let (Some(i), Some(parent)) = (inertia[a], placements[a].parent) else {
                 continue;
             };
-            if !self.moving[parent] {
-                continue;
-            }
             let carried = carry_inertia(g, &placements[a], &i);
             inertia[parent] = Some(match inertia[parent] {
                 Some(j) => add(g, &j, &carried),
@@ -222,9 +220,6 @@ impl Tree {
                 }
                 let mut node = a;
                 while let Some(parent) = placements[node].parent {
-                    if !self.moving[parent] {
-                        break;
-                    }
                     force = carry_force(g, &placements[node], force);
                     for &(j, r) in &self.columns[parent] {
                         let term = project(g, &r, &force);
@@ -344,7 +339,7 @@ impl Tree {
                 let term = project(g, &s, &total);
                 out[i].push(term);
             }
-            if let Some(parent) = placements[a].parent.filter(|&q| self.moving[q]) {
+            if let Some(parent) = placements[a].parent {
                 let carried = carry_force(g, &placements[a], total);
                 forces[parent] = Some(match forces[parent] {
                     Some(x) => add_wrench(g, x, carried),
