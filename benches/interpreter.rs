@@ -1,16 +1,21 @@
 //! The interpreter (`flexdyn_codegen::interpret`, a scene file evaluated at
 //! run time) against the compiled module of the same scene: `dynamics_terms`
 //! and `bias` of the pendulum, the four-bar, the five-bar and the UR5, both without
-//! allocation (preallocated outputs, reused scratch). Run with
+//! allocation (preallocated outputs, reused scratch); and the interpreter's
+//! batches (`Tape::eval_batch`, [`BATCH`] states in one call, timed per
+//! call: divide by [`BATCH`] for a state). Run with
 //! `cargo bench --bench interpreter`.
 
 use std::path::Path;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use flexdyn::codegen::interpret::{Function, Interpreted, Scratch};
+use flexdyn::codegen::interpret::{Function, Interpreted, Scratch, LANES};
 use flexdyn::runtime::nalgebra::{SMatrix, SVector};
 use flexdyn::runtime::Model;
 use flexdyn::scenes::{five_bar::FiveBar, four_bar::FourBar, pendulum::Pendulum, ur5::Ur5};
+
+/// States in one batched call.
+const BATCH: usize = 8 * LANES;
 
 /// A state of `nq` coordinates away from special angles.
 fn state(nq: usize) -> (Vec<f64>, Vec<f64>) {
@@ -58,6 +63,23 @@ where
             b.iter(|| {
                 tape.eval(black_box(&q), &qd, 0.0, &params, &mut scratch, &mut out);
                 black_box(&out);
+            })
+        });
+        let mut lanes = Scratch::<LANES>::default();
+        let (qs, qds) = (q.repeat(BATCH), qd.repeat(BATCH));
+        let (ts, mut outs) = ([0.0; BATCH], vec![0.0; BATCH * tape.output_len()]);
+        c.bench_function(&format!("{scene}/{}/interpreted_batch", f.name()), |b| {
+            b.iter(|| {
+                tape.eval_batch(
+                    black_box(&qs),
+                    &qds,
+                    &[],
+                    &ts,
+                    &params,
+                    &mut lanes,
+                    &mut outs,
+                );
+                black_box(&outs);
             })
         });
     }

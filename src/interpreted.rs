@@ -7,7 +7,7 @@ use std::cell::RefCell;
 use std::path::Path;
 use std::sync::Arc;
 
-use flexdyn_codegen::interpret::{Function, Interpreted, Scratch, Tape};
+use flexdyn_codegen::interpret::{Function, Interpreted, Scratch, Tape, LANES};
 
 use crate::dynamic::{At, DynModel};
 
@@ -21,6 +21,9 @@ pub struct InterpretedModel {
     origin: Vec<f64>,
     /// Each tape's slots (by [`Tape::index`]), sized on first use.
     scratch: RefCell<Vec<Scratch>>,
+    /// The slots of batched calls ([`InterpretedModel::call_batch`]), for
+    /// any tape.
+    lanes: RefCell<Scratch<LANES>>,
     /// The outputs of a function with several, before they go to the
     /// caller's storage; sized on first use.
     outputs: RefCell<Vec<f64>>,
@@ -48,6 +51,7 @@ impl InterpretedModel {
         InterpretedModel {
             origin: vec![0.0; scene.nq()],
             scratch: RefCell::new(vec![Scratch::default(); scene.tape_count()]),
+            lanes: RefCell::new(Scratch::default()),
             scene: Arc::new(scene),
             params,
             outputs: RefCell::new(Vec::new()),
@@ -57,6 +61,61 @@ impl InterpretedModel {
     /// The interpreted scene.
     pub fn scene(&self) -> &Interpreted {
         &self.scene
+    }
+
+    /// [`DynModel::call`] at `t.len()` states at once: `q`, `qd` and `qdd`
+    /// hold the states' values one after the other (`qd`, `qdd` may be
+    /// empty where `f` does not read them), and `out` receives each state's
+    /// outputs, state after state, as `call` writes them one after the
+    /// other. Several states run side by side on the tape
+    /// ([`Tape::eval_batch`]), bitwise as `call` computes each alone.
+    /// `false`, nothing written, when the scene does not generate `f` or
+    /// has no such marker.
+    ///
+    /// # Panics
+    ///
+    /// When a slice's length differs from the states' dimensions.
+    #[allow(clippy::too_many_arguments)]
+    pub fn call_batch(
+        &self,
+        f: Function,
+        marker: Option<usize>,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: &[f64],
+        out: &mut [f64],
+    ) -> bool {
+        let tape = match marker {
+            None => self.scene.tape(f),
+            Some(k) => self.scene.marker_tape(f, k),
+        };
+        let Some(tape) = tape else {
+            return false;
+        };
+        if 2 * t.len() >= LANES {
+            let lanes = &mut self.lanes.borrow_mut();
+            tape.eval_batch(q, qd, qdd, t, &self.params, lanes, out);
+            return true;
+        }
+        // Too few states to fill the lanes: one at a time.
+        let (nq, len) = (self.scene.nq(), tape.output_len());
+        if len == 0 {
+            return true;
+        }
+        fn state(x: &[f64], nq: usize, k: usize) -> &[f64] {
+            x.get(k * nq..(k + 1) * nq).unwrap_or(&[])
+        }
+        for (k, (out, &t)) in out.chunks_exact_mut(len).zip(t).enumerate() {
+            let at = At {
+                q: state(q, nq, k),
+                qd: state(qd, nq, k),
+                qdd: state(qdd, nq, k),
+                t,
+            };
+            self.run_tape(tape, at, &mut [out]);
+        }
+        true
     }
 
     /// Runs `tape` at `at` and writes its outputs, in order, to `outs`
@@ -96,8 +155,14 @@ impl DynModel for InterpretedModel {
     fn actuators(&self) -> Vec<&str> {
         self.scene.actuators().iter().map(String::as_str).collect()
     }
+    fn nq(&self) -> usize {
+        self.scene.nq()
+    }
     fn nc(&self) -> usize {
         self.scene.nc()
+    }
+    fn nu(&self) -> usize {
+        self.scene.nu()
     }
     fn parameters(&self) -> Vec<&str> {
         self.scene

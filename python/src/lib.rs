@@ -10,15 +10,19 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use clap::Parser;
 use nalgebra::DVector;
 use numpy::ndarray::{Array1, ArrayD, Axis, IxDyn};
-use numpy::{AllowTypeChange, Complex64, IntoPyArray, PyArrayLikeDyn};
+use numpy::{
+    AllowTypeChange, Complex64, IntoPyArray, PyArray1, PyArrayDyn, PyArrayLikeDyn, PyArrayMethods,
+    PyUntypedArrayMethods,
+};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use rayon::prelude::*;
 
+use flexdyn_lib::codegen::interpret::LANES;
 use flexdyn_lib::codegen::{import_urdf, Source, UrdfOptions};
 use flexdyn_lib::compiled::COMPILED_SCENES;
-use flexdyn_lib::dynamic::{At, DynModel, Function};
+use flexdyn_lib::dynamic::{DynModel, Function};
 use flexdyn_lib::interpreted::InterpretedModel;
 use flexdyn_runtime::{accelerations, forward_dynamics_derivatives, Baumgarte, DynamicsConfig};
 
@@ -36,47 +40,85 @@ struct Model {
     _dir: Option<tempfile::TempDir>,
 }
 
-/// How an evaluated function maps a state to its outputs; `false` when the
-/// scene does not generate it.
-type EvalMany<'a> =
+/// An array argument's values, row-major, and its shape: a C-contiguous
+/// `float64` numpy array is copied as it is, anything else goes through
+/// numpy's conversion first (a list, another dtype, a strided view).
+struct Arg {
+    values: Vec<f64>,
+    shape: Vec<usize>,
+}
+
+impl<'py> FromPyObject<'py> for Arg {
+    fn extract_bound(ob: &Bound<'py, PyAny>) -> PyResult<Self> {
+        if let Ok(a) = ob.downcast::<PyArrayDyn<f64>>() {
+            if a.is_c_contiguous() {
+                if let Ok(values) = a.to_vec() {
+                    let shape = a.shape().to_vec();
+                    return Ok(Arg { values, shape });
+                }
+            }
+        }
+        let a: PyArrayLikeDyn<'py, f64, AllowTypeChange> = ob.extract()?;
+        let view = a.as_array();
+        Ok(Arg {
+            shape: view.shape().to_vec(),
+            values: view.iter().copied().collect(),
+        })
+    }
+}
+
+/// A function evaluated state by state: the arguments of one state, its
+/// time and one slice per output; `false` when the scene does not generate
+/// it.
+type EachState<'a> =
     &'a (dyn Fn(&InterpretedModel, &[&[f64]], f64, &mut [&mut [f64]]) -> bool + Sync);
 
+/// How [`Model::apply_many`] evaluates a function.
+#[derive(Clone, Copy)]
+enum Eval<'a> {
+    /// A function of the table (of a marker), its arguments `q`, then `qd`,
+    /// then `qdd`: states side by side on its tape
+    /// ([`InterpretedModel::call_batch`]).
+    Table(Function, Option<usize>),
+    /// Anything else, one state at a time.
+    Each(EachState<'a>),
+}
+
 impl Model {
-    /// `f` at one state or a batch: `args` are arrays of `sizes` entries (or
-    /// `(N, size)`), `t` a number or `N` numbers; one array per output of
-    /// `shapes` (then `(N, *shape)` for a batch). `function` names `f` in the
-    /// error when the scene does not generate it.
+    /// A function at one state or a batch: `args` are arrays of `sizes`
+    /// entries (or `(N, size)`), `t` a number or `N` numbers; one array per
+    /// output of `shapes` (then `(N, *shape)` for a batch). `function` names
+    /// it in the error when the scene does not generate it.
     #[allow(clippy::too_many_arguments)]
     fn apply_many(
         &self,
         py: Python<'_>,
-        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        args: &[Arg],
         sizes: &[usize],
-        t: &Bound<'_, PyAny>,
+        t: Option<&Bound<'_, PyAny>>,
         shapes: &[&[usize]],
-        f: EvalMany<'_>,
+        eval: Eval<'_>,
         function: &str,
     ) -> PyResult<Vec<PyObject>> {
-        let arrays: Vec<_> = args.iter().map(|a| a.as_array()).collect();
-        let batch = match arrays.first().map(|a| a.ndim()) {
+        let batch = match args.first().map(|a| a.shape.len()) {
             Some(1) | None => None,
-            Some(2) => Some(arrays[0].shape()[0]),
+            Some(2) => Some(args[0].shape[0]),
             Some(d) => {
                 return Err(PyValueError::new_err(format!(
                     "expected 1 or 2 dimensions, got {d}"
                 )))
             }
         };
-        for (k, (a, &n)) in arrays.iter().zip(sizes).enumerate() {
+        for (k, (a, &n)) in args.iter().zip(sizes).enumerate() {
             let ok = match batch {
-                None => a.ndim() == 1 && a.len() == n,
-                Some(b) => a.ndim() == 2 && a.shape() == [b, n],
+                None => a.shape == [n],
+                Some(b) => a.shape == [b, n],
             };
             if !ok {
                 return Err(PyValueError::new_err(format!(
                     "argument {} has shape {:?}; scene `{}` needs {}",
                     k + 1,
-                    a.shape(),
+                    a.shape,
                     self.model.name(),
                     match batch {
                         None => format!("({n},)"),
@@ -86,10 +128,12 @@ impl Model {
             }
         }
         let count = batch.unwrap_or(1);
-        let times: Vec<f64> = match t.extract::<f64>() {
-            Ok(t) => vec![t; count],
-            Err(_) => {
+        let times: Vec<f64> = match t.map(|t| t.extract::<f64>()) {
+            None => vec![0.0; count],
+            Some(Ok(t)) => vec![t; count],
+            Some(Err(_)) => {
                 let v: Vec<f64> = t
+                    .expect("a time")
                     .extract()
                     .map_err(|_| PyValueError::new_err("t: a number or one per state"))?;
                 if v.len() != count {
@@ -104,44 +148,57 @@ impl Model {
         let lens: Vec<usize> = shapes.iter().map(|s| s.iter().product()).collect();
         let size: usize = lens.iter().sum();
         let mut out = vec![0.0; size * count];
-        // Each argument contiguous, state after state (`iter` is row-major).
-        let flat: Vec<Vec<f64>> = arrays.iter().map(|a| a.iter().copied().collect()).collect();
-        let model = &self.model;
         let missing = AtomicBool::new(false);
-        let one = |m: &InterpretedModel, k: usize, mut o: &mut [f64]| {
-            let mut at: [&[f64]; 3] = [&[]; 3];
-            for (i, (a, &n)) in flat.iter().zip(sizes).enumerate() {
-                at[i] = &a[k * n..(k + 1) * n];
-            }
-            let mut outs: Vec<&mut [f64]> = Vec::with_capacity(lens.len());
-            for &n in &lens {
-                let (this, rest) = std::mem::take(&mut o).split_at_mut(n);
-                outs.push(this);
-                o = rest;
-            }
-            if !f(m, &at[..flat.len()], times[k], &mut outs) {
+        // States `first..first + n` into `part` (their outputs, state after
+        // state).
+        let run = |m: &InterpretedModel, first: usize, n: usize, part: &mut [f64]| {
+            let found = match eval {
+                Eval::Table(f, marker) => {
+                    let nq = m.nq();
+                    let arg = |i: usize| {
+                        args.get(i)
+                            .map_or(&[][..], |a| &a.values[first * nq..(first + n) * nq])
+                    };
+                    let t = &times[first..first + n];
+                    m.call_batch(f, marker, arg(0), arg(1), arg(2), t, part)
+                }
+                Eval::Each(f) => (0..n).all(|j| {
+                    let k = first + j;
+                    let mut at: [&[f64]; 3] = [&[]; 3];
+                    for (i, (a, &len)) in args.iter().zip(sizes).enumerate() {
+                        at[i] = &a.values[k * len..(k + 1) * len];
+                    }
+                    let mut o = &mut part[j * size..(j + 1) * size];
+                    let mut outs: Vec<&mut [f64]> = Vec::with_capacity(lens.len());
+                    for &len in &lens {
+                        let (this, rest) = std::mem::take(&mut o).split_at_mut(len);
+                        outs.push(this);
+                        o = rest;
+                    }
+                    f(m, &at[..args.len()], times[k], &mut outs)
+                }),
+            };
+            if !found {
                 missing.store(true, Ordering::Relaxed);
             }
         };
-        if count >= PARALLEL_BATCH {
-            // One copy of the model (its own scratch) per chunk of states.
-            let chunk = count.div_ceil(rayon::current_num_threads()).max(1);
-            let copies: Vec<InterpretedModel> =
-                (0..count.div_ceil(chunk)).map(|_| model.clone()).collect();
+        if count >= PARALLEL_BATCH && size > 0 {
+            // One copy of the model (its own scratch) per chunk of states,
+            // a whole number of the tapes' lanes.
+            let chunk = count
+                .div_ceil(rayon::current_num_threads())
+                .next_multiple_of(LANES);
+            let copies: Vec<InterpretedModel> = (0..count.div_ceil(chunk))
+                .map(|_| self.model.clone())
+                .collect();
             py.allow_threads(|| {
-                out.par_chunks_mut(size.max(1) * chunk)
+                out.par_chunks_mut(chunk * size)
                     .zip(copies.into_par_iter())
                     .enumerate()
-                    .for_each(|(c, (part, m))| {
-                        for (j, o) in part.chunks_mut(size.max(1)).enumerate() {
-                            one(&m, c * chunk + j, &mut o[..size]);
-                        }
-                    })
+                    .for_each(|(c, (part, m))| run(&m, c * chunk, part.len() / size, part))
             });
         } else {
-            for (k, o) in out.chunks_mut(size.max(1)).enumerate().take(count) {
-                one(model, k, &mut o[..size]);
-            }
+            run(&self.model, 0, count, &mut out);
         }
         if missing.into_inner() {
             return Err(PyValueError::new_err(format!(
@@ -175,21 +232,13 @@ impl Model {
         py: Python<'_>,
         f: Function,
         marker: Option<usize>,
-        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        args: &[Arg],
         t: Option<&Bound<'_, PyAny>>,
         shapes: &[&[usize]],
     ) -> PyResult<Vec<PyObject>> {
         let sizes = vec![self.model.nq(); args.len()];
-        let run = |m: &InterpretedModel, a: &[&[f64]], t: f64, o: &mut [&mut [f64]]| {
-            let at = At {
-                q: a[0],
-                qd: a.get(1).copied().unwrap_or_default(),
-                qdd: a.get(2).copied().unwrap_or_default(),
-                t,
-            };
-            m.call(f, marker, at, o)
-        };
-        self.apply_many(py, args, &sizes, &time(py, t), shapes, &run, f.name())
+        let eval = Eval::Table(f, marker);
+        self.apply_many(py, args, &sizes, t, shapes, eval, f.name())
     }
 
     /// [`Model::table`] of a function with one output.
@@ -197,7 +246,7 @@ impl Model {
         &self,
         py: Python<'_>,
         f: Function,
-        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        args: &[Arg],
         t: Option<&Bound<'_, PyAny>>,
         shape: &[usize],
     ) -> PyResult<PyObject> {
@@ -211,7 +260,7 @@ impl Model {
         py: Python<'_>,
         f: Function,
         marker: Option<usize>,
-        args: &[PyArrayLikeDyn<'_, f64, AllowTypeChange>],
+        args: &[Arg],
         t: Option<&Bound<'_, PyAny>>,
         shapes: &[&[usize]],
     ) -> PyResult<Py<PyTuple>> {
@@ -251,6 +300,9 @@ fn numpy_array(
     shape: &[usize],
     batch: bool,
 ) -> PyResult<PyObject> {
+    if let ([_], false) = (shape, batch) {
+        return Ok(PyArray1::from_slice(py, &values).into_any().unbind());
+    }
     let per_state: Vec<usize> = match shape {
         [r, c] => vec![*c, *r],
         other => other.to_vec(),
@@ -324,7 +376,7 @@ impl Model {
     fn mass_matrix(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let n = self.model.nq();
@@ -335,8 +387,8 @@ impl Model {
     fn bias(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let n = self.model.nq();
@@ -347,9 +399,9 @@ impl Model {
     fn inverse_dynamics(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qdd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
+        qdd: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let n = self.model.nq();
@@ -364,9 +416,9 @@ impl Model {
     fn forward_dynamics(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        tau: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
+        tau: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let (n, nu) = (self.model.nq(), self.model.nu());
@@ -390,7 +442,7 @@ impl Model {
         let args = [q, qd, tau];
         let name = "forward_dynamics";
         let mut arrays =
-            self.apply_many(py, &args, &[n, n, nu], &time(py, t), &[&[n]], &f, name)?;
+            self.apply_many(py, &args, &[n, n, nu], t, &[&[n]], Eval::Each(&f), name)?;
         Ok(arrays.remove(0))
     }
     /// Constraint residuals `Phi(q, t)`.
@@ -398,7 +450,7 @@ impl Model {
     fn constraints(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let nc = self.model.nc();
@@ -409,7 +461,7 @@ impl Model {
     fn constraint_jacobian(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let (n, nc) = (self.model.nq(), self.model.nc());
@@ -420,8 +472,8 @@ impl Model {
     fn constraint_rhs(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         let nc = self.model.nc();
@@ -432,8 +484,8 @@ impl Model {
     fn kinetic_energy(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         self.table_one(py, Function::KineticEnergy, &[q, qd], t, &[])
@@ -443,7 +495,7 @@ impl Model {
     fn potential_energy(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyObject> {
         self.table_one(py, Function::PotentialEnergy, &[q], t, &[])
@@ -456,7 +508,7 @@ impl Model {
         &self,
         py: Python<'_>,
         marker: &Bound<'_, PyAny>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
@@ -470,7 +522,7 @@ impl Model {
         &self,
         py: Python<'_>,
         marker: &Bound<'_, PyAny>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
@@ -485,8 +537,8 @@ impl Model {
         &self,
         py: Python<'_>,
         marker: &Bound<'_, PyAny>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let k = self.marker_index(marker)?;
@@ -506,9 +558,9 @@ impl Model {
     fn inverse_dynamics_derivatives(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qdd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
+        qdd: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyTuple>> {
         let n = self.model.nq();
@@ -524,9 +576,9 @@ impl Model {
     fn forward_dynamics_derivatives(
         &self,
         py: Python<'_>,
-        q: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        qd: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
-        tau: PyArrayLikeDyn<'_, f64, AllowTypeChange>,
+        q: Arg,
+        qd: Arg,
+        tau: Arg,
         t: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Py<PyDict>> {
         let (n, nc, nu) = (self.model.nq(), self.model.nc(), self.model.nu());
@@ -582,9 +634,9 @@ impl Model {
             py,
             &[q, qd, tau],
             &[n, n, nu],
-            &time(py, t),
+            t,
             shapes,
-            &f,
+            Eval::Each(&f),
             name,
         )?;
         let dict = PyDict::new(py);
@@ -612,14 +664,6 @@ impl Model {
             self.model.nc(),
             self.model.nu()
         )
-    }
-}
-
-/// `t`, default 0.
-fn time<'py>(py: Python<'py>, t: Option<&Bound<'py, PyAny>>) -> Bound<'py, PyAny> {
-    match t {
-        Some(t) => t.clone(),
-        None => 0.0f64.into_pyobject(py).expect("a float").into_any(),
     }
 }
 

@@ -60,16 +60,25 @@ def test_terms_equal_flexdyn_eval_bitwise(scene, tmp_path):
 
 def test_a_batch_equals_a_loop_of_single_states():
     m = flexdyn.load(SCENES / "five_bar.toml")
-    q, qd, qdd = states(m, 700)  # above the parallel threshold
-    tau = RNG.uniform(-1, 1, (700, m.nu))
-    batch = [m.mass_matrix(q), m.bias(q, qd), m.inverse_dynamics(q, qd, qdd),
-             m.constraint_jacobian(q), m.forward_dynamics(q, qd, tau), m.kinetic_energy(q, qd)]
-    loop = [np.array([f(k) for k in range(700)]) for f in (
-        lambda k: m.mass_matrix(q[k]), lambda k: m.bias(q[k], qd[k]),
-        lambda k: m.inverse_dynamics(q[k], qd[k], qdd[k]), lambda k: m.constraint_jacobian(q[k]),
-        lambda k: m.forward_dynamics(q[k], qd[k], tau[k]), lambda k: m.kinetic_energy(q[k], qd[k]))]
-    for b, l in zip(batch, loop):
-        assert b.shape == l.shape and np.array_equal(b, l)
+    # A few states (one at a time), some (side by side on the tapes, a
+    # partial group last) and many (also split over the cores).
+    for n in (3, 13, 700):
+        q, qd, qdd = states(m, n)
+        tau = RNG.uniform(-1, 1, (n, m.nu))
+        batch = [m.mass_matrix(q), m.bias(q, qd), m.inverse_dynamics(q, qd, qdd),
+                 m.constraint_jacobian(q), m.forward_dynamics(q, qd, tau),
+                 m.kinetic_energy(q, qd)]
+        loop = [np.array([f(k) for k in range(n)]) for f in (
+            lambda k: m.mass_matrix(q[k]), lambda k: m.bias(q[k], qd[k]),
+            lambda k: m.inverse_dynamics(q[k], qd[k], qdd[k]),
+            lambda k: m.constraint_jacobian(q[k]),
+            lambda k: m.forward_dynamics(q[k], qd[k], tau[k]),
+            lambda k: m.kinetic_energy(q[k], qd[k]))]
+        for b, l in zip(batch, loop):
+            assert b.shape == l.shape and np.array_equal(b, l), n
+    # Arrays in other layouts and plain lists read as the same numbers.
+    assert np.array_equal(m.bias(np.asfortranarray(q), qd[:, ::-1][:, ::-1]), batch[1])
+    assert np.array_equal(m.bias(q[5].tolist(), list(qd[5])), batch[1][5])
 
 
 def test_forward_dynamics_solve_the_equations_of_motion():

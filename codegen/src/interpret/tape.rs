@@ -65,16 +65,32 @@ pub(super) struct Instr {
     pub(super) c: u32,
 }
 
+/// States a batched evaluation ([`Tape::eval_batch`]) runs side by side:
+/// every instruction is applied to this many states at once (a loop the
+/// compiler turns into SIMD), which spreads the dispatch over them.
+pub const LANES: usize = 8;
+
 /// The slots tapes evaluate in, owned by the caller and reused from call to
 /// call: they grow to a tape's size on first use, and remember whose
 /// literals they hold, so that calls of one tape after another copy only
 /// the arguments. One scratch serves any number of tapes (switching tapes
-/// copies the literals again).
-#[derive(Debug, Clone, Default)]
-pub struct Scratch {
-    slots: Vec<f64>,
+/// copies the literals again). Each slot holds `L` values, one per state
+/// evaluated side by side: `L = 1` for [`Tape::eval`], [`LANES`] for
+/// [`Tape::eval_batch`].
+#[derive(Debug, Clone)]
+pub struct Scratch<const L: usize = 1> {
+    slots: Vec<[f64; L]>,
     /// The [`Tape::id`] whose literals are in place (0: none).
     holds: u64,
+}
+
+impl<const L: usize> Default for Scratch<L> {
+    fn default() -> Self {
+        Scratch {
+            slots: Vec::new(),
+            holds: 0,
+        }
+    }
 }
 
 /// A number no other tape of this process has (never 0).
@@ -208,46 +224,170 @@ impl Tape {
         );
         let len = self.output_len();
         assert_eq!(out.len(), len, "expected {len} outputs, got {}", out.len());
-        if scratch.holds != self.id {
-            let size = self.slots.next_power_of_two();
-            if scratch.slots.len() < size {
-                scratch.slots.resize(size, 0.0);
+        let s = self.slots(scratch);
+        let input = |offset: usize, values: &[f64], s: &mut [[f64; 1]]| {
+            for (slot, &v) in s[offset..offset + values.len()].iter_mut().zip(values) {
+                *slot = [v];
             }
-            let lit = 3 * nq + 1 + self.params;
-            scratch.slots[lit..lit + self.literals.len()].copy_from_slice(&self.literals);
-            scratch.holds = self.id;
-        }
-        let s = &mut scratch.slots[..self.slots.next_power_of_two()];
-        s[..nq].copy_from_slice(q);
+        };
+        input(0, q, s);
         if self.uses_qd {
-            s[nq..2 * nq].copy_from_slice(qd);
+            input(nq, qd, s);
         }
         if self.uses_qdd {
-            s[2 * nq..3 * nq].copy_from_slice(qdd);
+            input(2 * nq, qdd, s);
         }
-        s[3 * nq] = t;
-        if !params.is_empty() {
-            s[3 * nq + 1..3 * nq + 1 + params.len()].copy_from_slice(params);
+        input(3 * nq, &[t], s);
+        input(3 * nq + 1, params, s);
+        self.run(s);
+        for &(slot, pos) in &self.writes {
+            out[pos as usize] = s[slot as usize][0];
         }
+    }
+
+    /// [`Tape::eval_with_accelerations`] of `n` states at once: `q` (and
+    /// `qd`, `qdd` where the function reads them, else empty) hold `n`
+    /// states of `nq` values one after the other, `t` one time per state,
+    /// and `out` receives `n` times [`Tape::output_len`] values, state after
+    /// state. The states run [`LANES`] at a time, each bitwise as
+    /// [`Tape::eval`] computes it alone (the same operations in the same
+    /// order, lane by lane).
+    ///
+    /// # Panics
+    ///
+    /// When a slice's length differs from `n` times the scene's dimensions.
+    #[allow(clippy::too_many_arguments)]
+    pub fn eval_batch(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: &[f64],
+        params: &[f64],
+        scratch: &mut Scratch<LANES>,
+        out: &mut [f64],
+    ) {
+        let (nq, n, len) = (self.nq, t.len(), self.output_len());
+        assert_eq!(
+            q.len(),
+            n * nq,
+            "expected {n} x {nq} positions, got {}",
+            q.len()
+        );
+        for (uses, x, what) in [
+            (self.uses_qd, qd, "velocities"),
+            (self.uses_qdd, qdd, "accelerations"),
+        ] {
+            assert!(
+                x.len() == n * nq || (x.is_empty() && !uses),
+                "expected {n} x {nq} {what}, got {}",
+                x.len()
+            );
+        }
+        assert_eq!(
+            params.len(),
+            self.params,
+            "expected {} runtime parameters",
+            self.params
+        );
+        assert_eq!(
+            out.len(),
+            n * len,
+            "expected {n} x {len} outputs, got {}",
+            out.len()
+        );
+        let s = self.slots(scratch);
+        for (k, p) in params.iter().enumerate() {
+            s[3 * nq + 1 + k] = [*p; LANES];
+        }
+        for first in (0..n).step_by(LANES) {
+            // Lanes past the last state repeat it (their results are dropped).
+            let state = |l: usize| (first + l).min(n - 1);
+            let input = |offset: usize, x: &[f64], width: usize, s: &mut [[f64; LANES]]| {
+                for i in 0..width {
+                    s[offset + i] = core::array::from_fn(|l| x[state(l) * width + i]);
+                }
+            };
+            input(0, q, nq, s);
+            if self.uses_qd {
+                input(nq, qd, nq, s);
+            }
+            if self.uses_qdd {
+                input(2 * nq, qdd, nq, s);
+            }
+            input(3 * nq, t, 1, s);
+            self.run_lanes(s);
+            for l in 0..LANES.min(n - first) {
+                let o = &mut out[(first + l) * len..(first + l + 1) * len];
+                for &(slot, pos) in &self.writes {
+                    o[pos as usize] = s[slot as usize][l];
+                }
+            }
+        }
+    }
+
+    /// The tape's slots in `scratch`, a power of two long, its literals in
+    /// place.
+    fn slots<'s, const L: usize>(&self, scratch: &'s mut Scratch<L>) -> &'s mut [[f64; L]] {
+        let size = self.slots.next_power_of_two();
+        if scratch.holds != self.id {
+            if scratch.slots.len() < size {
+                scratch.slots.resize(size, [0.0; L]);
+            }
+            let lit = 3 * self.nq + 1 + self.params;
+            for (slot, &v) in scratch.slots[lit..lit + self.literals.len()]
+                .iter_mut()
+                .zip(&self.literals)
+            {
+                *slot = [v; L];
+            }
+            scratch.holds = self.id;
+        }
+        &mut scratch.slots[..size]
+    }
+
+    /// [`Tape::run`] of a batch, with AVX2's registers of four `f64` where
+    /// the processor has them (the same IEEE operations as SSE2's, so the
+    /// same bits; no fused multiply-adds).
+    fn run_lanes(&self, s: &mut [[f64; LANES]]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2, checked above.
+            unsafe { self.run_avx2(s) };
+            return;
+        }
+        self.run(s);
+    }
+
+    /// [`Tape::run`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_avx2(&self, s: &mut [[f64; LANES]]) {
+        self.run(s);
+    }
+
+    /// Every run, in order, over the slots.
+    #[inline(always)]
+    fn run<const L: usize>(&self, s: &mut [[f64; L]]) {
         let mut start = 0;
         for &(op, end) in &self.runs {
             let run = &self.code[start..end as usize];
             start = end as usize;
             run_op(op, run, s);
         }
-        for &(slot, pos) in &self.writes {
-            out[pos as usize] = s[slot as usize];
-        }
     }
 }
 
-/// One run of operation `op` over the slots `s`: one dispatch, then a loop
-/// the processor predicts. Sines and cosines go four at a time through
-/// [`math::sin_cos_array`] (bitwise [`math::sin_cos`] lane by lane, as
-/// generated code batches them); the instructions of a `SinCos` run are
-/// independent, so reading four arguments before writing their results
-/// changes nothing.
-fn run_op(op: Instruction, run: &[Instr], s: &mut [f64]) {
+/// One run of operation `op` over the slots `s`, each slot `L` states side
+/// by side: one dispatch, then a loop the processor predicts, over the
+/// lanes a loop the compiler vectorises. Sines and cosines go several at a
+/// time through [`math::sin_cos_array`] (bitwise [`math::sin_cos`] lane by
+/// lane, as generated code batches them): four instructions of the run for
+/// one state (the instructions of a `SinCos` run are independent, so
+/// reading four arguments before writing their results changes nothing),
+/// the lanes of one instruction for several.
+#[inline(always)]
+fn run_op<const L: usize>(op: Instruction, run: &[Instr], s: &mut [[f64; L]]) {
     // `s` is a power of two long and every index below its length, so
     // masking changes no index and lets the compiler drop the bounds checks.
     let m = s.len() - 1;
@@ -255,15 +395,21 @@ fn run_op(op: Instruction, run: &[Instr], s: &mut [f64]) {
     macro_rules! each {
         (|$x:ident, $y:ident| $v:expr) => {
             for i in run {
-                let ($x, $y) = (s[i.a as usize & m], s[i.b as usize & m]);
-                s[i.dst as usize & m] = $v;
+                let (x, y) = (s[i.a as usize & m], s[i.b as usize & m]);
+                s[i.dst as usize & m] = core::array::from_fn(|l| {
+                    let ($x, $y) = (x[l], y[l]);
+                    $v
+                });
             }
         };
         (|$x:ident, $y:ident, $z:ident| $v:expr) => {
             for i in run {
-                let ($x, $y) = (s[i.a as usize & m], s[i.b as usize & m]);
-                let $z = s[i.c as usize & m];
-                s[i.dst as usize & m] = $v;
+                let (x, y) = (s[i.a as usize & m], s[i.b as usize & m]);
+                let z = s[i.c as usize & m];
+                s[i.dst as usize & m] = core::array::from_fn(|l| {
+                    let ($x, $y, $z) = (x[l], y[l], z[l]);
+                    $v
+                });
             }
         };
     }
@@ -278,19 +424,26 @@ fn run_op(op: Instruction, run: &[Instr], s: &mut [f64]) {
         Instruction::MulAdd => each!(|x, y, z| z + x * y),
         Instruction::SubMul => each!(|x, y, z| z - x * y),
         Instruction::MulSub => each!(|x, y, z| x * y - z),
-        Instruction::SinCos => {
+        Instruction::SinCos if L == 1 => {
             let mut fours = run.chunks_exact(4);
             for four in &mut fours {
-                let sc = math::sin_cos_array([0, 1, 2, 3].map(|k| s[four[k].a as usize & m]));
+                let sc = math::sin_cos_array([0, 1, 2, 3].map(|k| s[four[k].a as usize & m][0]));
                 for (i, (sin, cos)) in four.iter().zip(sc) {
-                    s[i.dst as usize & m] = sin;
-                    s[i.b as usize & m] = cos;
+                    s[i.dst as usize & m] = [sin; L];
+                    s[i.b as usize & m] = [cos; L];
                 }
             }
             for i in fours.remainder() {
-                let (sin, cos) = math::sin_cos(s[i.a as usize & m]);
-                s[i.dst as usize & m] = sin;
-                s[i.b as usize & m] = cos;
+                let (sin, cos) = math::sin_cos(s[i.a as usize & m][0]);
+                s[i.dst as usize & m] = [sin; L];
+                s[i.b as usize & m] = [cos; L];
+            }
+        }
+        Instruction::SinCos => {
+            for i in run {
+                let sc = math::sin_cos_array(s[i.a as usize & m]);
+                s[i.dst as usize & m] = sc.map(|(sin, _)| sin);
+                s[i.b as usize & m] = sc.map(|(_, cos)| cos);
             }
         }
     }
