@@ -11,7 +11,7 @@ Each figure is the best of ``--repeat`` timings (the machine is shared).
 Both sides are checked to agree first. Needs the package (``pip install
 ./python``), ``pin`` and ``example-robot-data``.
 
-    python python/benchmarks/panda_inverse_dynamics.py [--batch 10000] [--repeat 5]
+    python python/benchmarks/panda_inverse_dynamics.py [--batch 10000] [--repeat 20]
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def best(f, repeat: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--batch", type=int, default=10000)
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=20)
     args = ap.parse_args()
 
     path = urdf()
