@@ -1,5 +1,6 @@
 //! Instructions and stack of the rigid robot's generated terms, of one
-//! flexible scene's fused terms and of the runtime's inverse-dynamics call
+//! flexible scene's fused terms and its tip marker's kinematics (the
+//! deflection included), and of the runtime's inverse-dynamics call
 //! at 1 kHz along the paper's circle, in f64 and in f32, on an emulated
 //! Cortex-M4F. Prints `count NAME INSTRUCTIONS STACK_BYTES` lines, the
 //! torques of the last call as `tau I BITS` (hex of the f64) and
@@ -70,6 +71,40 @@ macro_rules! measure_terms {
             }),
         );
         black_box((&m, &h, &phi, &phi_q, &gamma));
+    }};
+}
+
+/// Measures the kinematics of marker 0 of model `$model` (module `$m`) in
+/// `$real`: pose and Jacobian in one call, then velocity and acceleration
+/// bias, reported as `$name.marker_jacobian` and `$name.marker_motion`.
+macro_rules! measure_marker {
+    ($name:literal, $model:expr, $m:ident, $real:ty, $zero:expr) => {{
+        use models::$m::NQ;
+        let model = black_box($model);
+        let (q, qd) = state::<$real, NQ>(|x| x as $real);
+        let t: $real = black_box(0.0);
+        let mut p = SVector::<$real, 3>::zeros();
+        let mut r = SMatrix::<$real, 3, 3>::zeros();
+        let mut j = SMatrix::<$real, 6, NQ>::zeros();
+        let (mut v, mut a) = (SVector::<$real, 6>::zeros(), SVector::<$real, 6>::zeros());
+        let mut found = true;
+        report(
+            concat!($name, ".marker_jacobian"),
+            measure($zero, &mut || {
+                found &= model.marker_jacobian(0, &q, t, &mut p, &mut r, &mut j)
+            }),
+        );
+        report(
+            concat!($name, ".marker_motion"),
+            measure($zero, &mut || {
+                found &= model.marker_motion(0, &q, &qd, t, &mut v, &mut a)
+            }),
+        );
+        if !found {
+            line(format_args!(concat!($name, ": no marker 0")));
+            exit(false)
+        }
+        black_box((&p, &r, &j, &v, &a));
     }};
 }
 
@@ -150,6 +185,21 @@ fn main() -> ! {
         f32,
         zero,
         false
+    );
+
+    measure_marker!(
+        "spin_up_beam",
+        beam::SpinUpBeam::default(),
+        spin_up_beam,
+        f64,
+        zero
+    );
+    measure_marker!(
+        "spin_up_beam_f32",
+        models::f32::spin_up_beam::SpinUpBeam::default(),
+        spin_up_beam,
+        f32,
+        zero
     );
 
     let t = measure_inverse("inverse_dynamics", &model, zero);

@@ -11,7 +11,10 @@
 //   inverse_dynamics                             35     62      0      0
 //   kinetic_energy                               15     33      0      0
 //   potential_energy                              3      8      0      0
-//   total                                       116    228      0      5
+//   marker_pose (tip)                            13     26      0      3
+//   marker_jacobian (tip)                        19     41      0      3
+//   marker_motion (tip)                          29     47      0      2
+//   total                                       177    342      0     13
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -26,7 +29,7 @@ pub const NC: usize = 1;
 /// Number of actuator inputs.
 pub const NU: usize = 1;
 /// Number of markers.
-pub const NM: usize = 0;
+pub const NM: usize = 1;
 ///Equations of motion of scene `spin_up_beam`: 5 coordinates, 1 constraints, 1 actuators. Fields are the runtime parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpinUpBeam {
@@ -59,6 +62,7 @@ impl flexdyn_runtime::Model<5, 1, 1, f32> for SpinUpBeam {
         "beam_eta4",
     ];
     const ACTUATORS: [&'static str; 1] = ["hub_torque"];
+    const MARKERS: &'static [&'static str] = &["tip"];
     ///Mass matrix `M(q, t)`; the upper triangle is computed and mirrored.
     #[inline]
     fn mass_matrix(&self, q: &SVector<f32, 5>, _t: f32, m: &mut SMatrix<f32, 5, 5>) {
@@ -269,6 +273,151 @@ impl flexdyn_runtime::Model<5, 1, 1, f32> for SpinUpBeam {
     fn set_parameter(&mut self, name: &str, value: f32) -> bool {
         match name {
             "phase" => self.phase = value,
+            _ => return false,
+        }
+        true
+    }
+    ///World position of marker `marker` and its rotation (marker axes to world axes).
+    #[inline]
+    fn marker_pose(
+        &self,
+        marker: usize,
+        q: &SVector<f32, 5>,
+        _t: f32,
+        position: &mut SVector<f32, 3>,
+        rotation: &mut SMatrix<f32, 3, 3>,
+    ) -> bool {
+        match marker {
+            0 => {
+                let (v0, v1) = math::sin_cos(q[0]);
+                let v2 = 0.5773513 * q[1] + 0.57738835 * q[3];
+                let v3 = -0.07947272 * q[2] - 0.27603677 * q[4];
+                let v4 = 0.07947272 * q[1] + 0.27603677 * q[3];
+                let (v5, v6) = math::sin_cos(v3);
+                let (v7, v8) = math::sin_cos(v4);
+                let v9 = v1 * v6;
+                let v10 = v0 * v6;
+                position[0] = 10.0 * v1 - v0 * v2;
+                position[1] = 10.0 * v0 + v1 * v2;
+                position[2] = 0.5773513 * q[2] + 0.57738835 * q[4];
+                rotation[(0, 0)] = v8 * v9 - v0 * v7;
+                rotation[(0, 1)] = -v7 * v9 - v0 * v8;
+                rotation[(0, 2)] = v1 * v5;
+                rotation[(1, 0)] = v8 * v10 + v1 * v7;
+                rotation[(1, 1)] = v1 * v8 - v7 * v10;
+                rotation[(1, 2)] = v0 * v5;
+                rotation[(2, 0)] = -v5 * v8;
+                rotation[(2, 1)] = v5 * v7;
+                rotation[(2, 2)] = v6;
+            }
+            _ => return false,
+        }
+        true
+    }
+    ///World position and rotation of marker `marker`, and its Jacobian (6 x nq) in world-aligned axes at the marker: rows 0-2 the velocity of the marker point, rows 3-5 the angular velocity (Pinocchio's `LOCAL_WORLD_ALIGNED`), from one program.
+    #[inline]
+    fn marker_jacobian(
+        &self,
+        marker: usize,
+        q: &SVector<f32, 5>,
+        _t: f32,
+        position: &mut SVector<f32, 3>,
+        rotation: &mut SMatrix<f32, 3, 3>,
+        jacobian: &mut SMatrix<f32, 6, 5>,
+    ) -> bool {
+        match marker {
+            0 => {
+                let (v0, v1) = math::sin_cos(q[0]);
+                let v2 = 0.5773513 * q[1] + 0.57738835 * q[3];
+                let v3 = -0.07947272 * q[2] - 0.27603677 * q[4];
+                let v4 = 0.07947272 * q[1] + 0.27603677 * q[3];
+                let v5 = 10.0 * v1 - v0 * v2;
+                let v6 = v1 * v2;
+                let (v7, v8) = math::sin_cos(v3);
+                let v9 = v1 * v7;
+                let v10 = v0 * v7;
+                let (v11, v12) = math::sin_cos(v4);
+                let v13 = v1 * v8;
+                let v14 = v0 * v8;
+                *jacobian = SMatrix::zeros();
+                position[0] = v5;
+                position[1] = 10.0 * v0 + v6;
+                position[2] = 0.5773513 * q[2] + 0.57738835 * q[4];
+                rotation[(0, 0)] = v12 * v13 - v0 * v11;
+                rotation[(0, 1)] = -v11 * v13 - v0 * v12;
+                rotation[(0, 2)] = v9;
+                rotation[(1, 0)] = v12 * v14 + v1 * v11;
+                rotation[(1, 1)] = v1 * v12 - v11 * v14;
+                rotation[(1, 2)] = v10;
+                rotation[(2, 0)] = -v7 * v12;
+                rotation[(2, 1)] = v7 * v11;
+                rotation[(2, 2)] = v8;
+                jacobian[(0, 0)] = -10.0 * v0 - v6;
+                jacobian[(0, 1)] = -0.5773513 * v0;
+                jacobian[(0, 3)] = -0.57738835 * v0;
+                jacobian[(1, 0)] = v5;
+                jacobian[(1, 1)] = 0.5773513 * v1;
+                jacobian[(1, 3)] = 0.57738835 * v1;
+                jacobian[(2, 2)] = 0.5773513;
+                jacobian[(2, 4)] = 0.57738835;
+                jacobian[(3, 1)] = 0.07947272 * v9;
+                jacobian[(3, 2)] = 0.07947272 * v0;
+                jacobian[(3, 3)] = 0.27603677 * v9;
+                jacobian[(3, 4)] = 0.27603677 * v0;
+                jacobian[(4, 1)] = 0.07947272 * v10;
+                jacobian[(4, 2)] = -0.07947272 * v1;
+                jacobian[(4, 3)] = 0.27603677 * v10;
+                jacobian[(4, 4)] = -0.27603677 * v1;
+                jacobian[(5, 0)] = 1.0;
+                jacobian[(5, 1)] = 0.07947272 * v8;
+                jacobian[(5, 3)] = 0.27603677 * v8;
+            }
+            _ => return false,
+        }
+        true
+    }
+    ///Velocity of marker `marker` in world axes (the point's linear velocity, then the angular velocity; `J qd` plus explicit time terms) and its acceleration bias (its acceleration when `qdd = 0`: `J' qd` plus explicit time terms; the point's classical acceleration, then the angular acceleration).
+    #[inline]
+    fn marker_motion(
+        &self,
+        marker: usize,
+        q: &SVector<f32, 5>,
+        qd: &SVector<f32, 5>,
+        _t: f32,
+        velocity: &mut SVector<f32, 6>,
+        acceleration_bias: &mut SVector<f32, 6>,
+    ) -> bool {
+        match marker {
+            0 => {
+                let (v0, v1) = math::sin_cos(q[0]);
+                let v2 = 0.5773513 * q[1] + 0.57738835 * q[3];
+                let v3 = -0.07947272 * q[2] - 0.27603677 * q[4];
+                let v4 = 0.5773513 * qd[1] + 0.57738835 * qd[3];
+                let (v5, v6) = math::sin_cos(v3);
+                let v7 = -0.07947272 * qd[2] - 0.27603677 * qd[4];
+                let v8 = 0.07947272 * qd[1] + 0.27603677 * qd[3];
+                let v9 = v0 * v4;
+                let v10 = v1 * v4;
+                let v11 = v5 * v8;
+                let v12 = qd[0] * v0;
+                let v13 = qd[0] * v1;
+                let v14 = v6 * v7;
+                let v15 = v8 * v14;
+                velocity[0] = -qd[0] * (10.0 * v0 + v1 * v2) - v9;
+                velocity[1] = qd[0] * (10.0 * v1 - v0 * v2) + v10;
+                velocity[2] = 0.5773513 * qd[2] + 0.57738835 * qd[4];
+                velocity[3] = v1 * v11 - v0 * v7;
+                velocity[4] = v1 * v7 + v0 * v11;
+                velocity[5] = qd[0] + v6 * v8;
+                acceleration_bias[0] = -qd[0] * (v10 + 10.0 * v1 * qd[0] - v2 * v12)
+                    - v4 * v13;
+                acceleration_bias[1] = qd[0] * (-v9 - 10.0 * v0 * qd[0] - v2 * v13)
+                    - v4 * v12;
+                acceleration_bias[2] = 0.0;
+                acceleration_bias[3] = v1 * v15 - v7 * v13 - v11 * v12;
+                acceleration_bias[4] = v11 * v13 + v0 * v15 - v7 * v12;
+                acceleration_bias[5] = -v7 * v11;
+            }
             _ => return false,
         }
         true
