@@ -363,19 +363,33 @@ impl Tape {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn run_avx2(&self, s: &mut [[f64; LANES]]) {
-        self.run(s);
+        for (op, run) in self.each_run() {
+            run_op_inlined(op, run, s);
+        }
     }
 
     /// Every run, in order, over the slots.
-    #[inline(always)]
     fn run<const L: usize>(&self, s: &mut [[f64; L]]) {
-        let mut start = 0;
-        for &(op, end) in &self.runs {
-            let run = &self.code[start..end as usize];
-            start = end as usize;
+        for (op, run) in self.each_run() {
             run_op(op, run, s);
         }
     }
+
+    /// The runs: each operation with its instructions.
+    fn each_run(&self) -> impl Iterator<Item = (Instruction, &[Instr])> {
+        let starts = core::iter::once(0).chain(self.runs.iter().map(|&(_, end)| end as usize));
+        self.runs
+            .iter()
+            .zip(starts)
+            .map(|(&(op, end), start)| (op, &self.code[start..end as usize]))
+    }
+}
+
+/// [`run_op_inlined`] as a function of its own, where the compiler keeps
+/// the masked indices free of bounds checks (inlined into the loop over
+/// the runs, it checked every index).
+fn run_op<const L: usize>(op: Instruction, run: &[Instr], s: &mut [[f64; L]]) {
+    run_op_inlined(op, run, s);
 }
 
 /// One run of operation `op` over the slots `s`, each slot `L` states side
@@ -387,7 +401,7 @@ impl Tape {
 /// reading four arguments before writing their results changes nothing),
 /// the lanes of one instruction for several.
 #[inline(always)]
-fn run_op<const L: usize>(op: Instruction, run: &[Instr], s: &mut [[f64; L]]) {
+fn run_op_inlined<const L: usize>(op: Instruction, run: &[Instr], s: &mut [[f64; L]]) {
     // `s` is a power of two long and every index below its length, so
     // masking changes no index and lets the compiler drop the bounds checks.
     let m = s.len() - 1;
