@@ -128,22 +128,23 @@ impl Model {
             }
         }
         let count = batch.unwrap_or(1);
-        let times: Vec<f64> = match t.map(|t| t.extract::<f64>()) {
+        let times: Vec<f64> = match t {
             None => vec![0.0; count],
-            Some(Ok(t)) => vec![t; count],
-            Some(Err(_)) => {
-                let v: Vec<f64> = t
-                    .expect("a time")
-                    .extract()
-                    .map_err(|_| PyValueError::new_err("t: a number or one per state"))?;
-                if v.len() != count {
-                    return Err(PyValueError::new_err(format!(
-                        "t: {} times for {count} states",
-                        v.len()
-                    )));
+            Some(t) => match t.extract::<f64>() {
+                Ok(t) => vec![t; count],
+                Err(_) => {
+                    let v: Vec<f64> = t
+                        .extract()
+                        .map_err(|_| PyValueError::new_err("t: a number or one per state"))?;
+                    if v.len() != count {
+                        return Err(PyValueError::new_err(format!(
+                            "t: {} times for {count} states",
+                            v.len()
+                        )));
+                    }
+                    v
                 }
-                v
-            }
+            },
         };
         let lens: Vec<usize> = shapes.iter().map(|s| s.iter().product()).collect();
         let size: usize = lens.iter().sum();
