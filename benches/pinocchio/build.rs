@@ -77,7 +77,16 @@ const ROBOTS: &[Robot] = &[
 
 /// Pinocchio's functions generated to C per robot, in the order of the
 /// table's fields (`benches/compare.rs`), the frame last and optional.
-const C_FUNCTIONS: [&str; 6] = ["rnea", "crba_nle", "crba", "nle", "aba", "frame"];
+const C_FUNCTIONS: [&str; 8] = [
+    "rnea",
+    "crba_nle",
+    "crba",
+    "nle",
+    "aba",
+    "frame",
+    "rnea_derivatives",
+    "aba_derivatives",
+];
 
 fn main() {
     let here = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap());
@@ -266,7 +275,8 @@ fn generate_c(include: &Path, casadi: &Path, models: &Path, native: bool, table:
             Command::new(&generator)
                 .arg(models.join(format!("{}.model", robot.name)))
                 .arg(format!("pin_{}", robot.name))
-                .arg(&c_file),
+                .arg(&c_file)
+                .args(robot.derivatives.then_some("derivatives")),
             &format!("generating Pinocchio's C for {}", robot.name),
         );
         build.file(&c_file);

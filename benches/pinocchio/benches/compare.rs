@@ -121,6 +121,8 @@ mod pinocchio_c {
         pub nle: Option<CFunction>,
         pub aba: Option<CFunction>,
         pub frame: Option<CFunction>,
+        pub rnea_derivatives: Option<CFunction>,
+        pub aba_derivatives: Option<CFunction>,
     }
     include!(concat!(env!("OUT_DIR"), "/pinocchio_c.rs"));
 }
@@ -684,7 +686,13 @@ fn compare_derivatives<R: Model<N, 0, N> + Default, const N: usize>(
     // Pinocchio's column-major n x n matrix in flexdyn's coordinate order.
     let reorder =
         |m: &[f64]| -> Vec<f64> { (0..N * N).map(|k| m[p[k % N] + N * p[k / N]]).collect() };
+    let generated = generated_c(name);
+    let mut c_rnea = CCall::new(&generated.rnea_derivatives, "rnea derivatives");
+    let mut c_aba = CCall::new(&generated.aba_derivatives, "aba derivatives");
     let mut worst = [0.0f64; 5];
+    // Pinocchio's generated C against its analytical derivatives (both in
+    // Pinocchio's coordinate order).
+    let mut worst_c = [0.0f64; 5];
     for s in &states {
         let mut tau = SVector::<f64, N>::zeros();
         let (mut tq, mut tv) = (SMatrix::<f64, N, N>::zeros(), SMatrix::<f64, N, N>::zeros());
@@ -733,7 +741,53 @@ fn compare_derivatives<R: Model<N, 0, N> + Default, const N: usize>(
         {
             worst[k] = worst[k].max(relative_error(ours, &reorder(theirs)));
         }
+        let mut c = [vec![0.0; N], vec![0.0; N * N], vec![0.0; N * N]];
+        let [c_tau, c_tq, c_tv] = &mut c;
+        c_rnea.call(
+            &[&s.pin[0], &s.pin[1], &s.pin[2]],
+            &mut [c_tau.as_mut_slice(), c_tq, c_tv],
+        );
+        let mut f = [
+            vec![0.0; N],
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+        ];
+        let [c_ddq, c_fq, c_fv, c_minv] = &mut f;
+        c_aba.call(
+            &[&s.pin[0], &s.pin[1], &s.pin[3]],
+            &mut [c_ddq.as_mut_slice(), c_fq, c_fv, c_minv],
+        );
+        for (k, (c, theirs)) in [
+            (&c[1], &dq),
+            (&c[2], &dv),
+            (&f[1], &fq),
+            (&f[2], &fv),
+            (&f[3], &minv),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            worst_c[k] = worst_c[k].max(relative_error(c, theirs));
+        }
     }
+    println!(
+        "{name}: Pinocchio's generated C (CasADi's Jacobians of rnea and aba) against its analytical \
+         derivatives: dtau/dq {:.1e}, dtau/dv {:.1e}, ddq/dq {:.1e}, ddq/dv {:.1e}, ddq/dtau {:.1e}; \
+         operations, flexdyn inverse_dynamics_derivatives / C: {} / {}; C aba derivatives: {}",
+        worst_c[0],
+        worst_c[1],
+        worst_c[2],
+        worst_c[3],
+        worst_c[4],
+        flexdyn_operations(name, "inverse_dynamics_derivatives"),
+        c_rnea.f.operations,
+        c_aba.f.operations
+    );
+    assert!(
+        worst_c.iter().all(|&e| e < 1e-9),
+        "{name}: Pinocchio's generated derivatives disagree with its analytical ones"
+    );
     println!(
         "{name}: largest relative difference to Pinocchio's derivatives over {} states:          dtau/dq {:.1e}, dtau/dv {:.1e}, ddq/dq {:.1e}, ddq/dv {:.1e}, ddq/dtau {:.1e}",
         states.len(),
@@ -773,10 +827,39 @@ fn compare_derivatives<R: Model<N, 0, N> + Default, const N: usize>(
             }
         })
     });
+    g.bench_function("pinocchio C rnea derivatives", |b| {
+        let mut out = [vec![0.0; N], vec![0.0; N * N], vec![0.0; N * N]];
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            let [tau, tq, tv] = &mut out;
+            c_rnea.call(
+                &[&s.pin[0], &s.pin[1], &s.pin[2]],
+                &mut [tau.as_mut_slice(), tq, tv],
+            );
+            black_box(&out);
+        })
+    });
     g.bench_function("flexdyn forward_dynamics_derivatives", |b| {
         b.iter(|| {
             let s = next(&states, &mut i);
             black_box(forward_dynamics_derivatives(&robot, &s.q, &s.qd, 0.0, &s.tau).map(|d| d.qdd))
+        })
+    });
+    g.bench_function("pinocchio C aba derivatives", |b| {
+        let mut out = [
+            vec![0.0; N],
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+            vec![0.0; N * N],
+        ];
+        b.iter(|| {
+            let s = next(&states, &mut i);
+            let [ddq, fq, fv, minv] = &mut out;
+            c_aba.call(
+                &[&s.pin[0], &s.pin[1], &s.pin[3]],
+                &mut [ddq.as_mut_slice(), fq, fv, minv],
+            );
+            black_box(&out);
         })
     });
     g.bench_function("pinocchio computeABADerivatives", |b| {

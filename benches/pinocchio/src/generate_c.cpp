@@ -5,13 +5,16 @@
 // writes one C file with CasADi's CodeGenerator, common subexpressions
 // eliminated (the `cse` option).
 //
-// Usage: generate_c MODEL PREFIX OUT.c
+// Usage: generate_c MODEL PREFIX OUT.c [derivatives]
 //
 // Writes OUT.c with the functions PREFIX_rnea (q, v, a -> tau), PREFIX_crba_nle
 // (q, v -> M, nle: one program), PREFIX_crba (q -> M), PREFIX_nle (q, v ->
 // nle), PREFIX_aba (q, v, tau -> ddq) and, when MODEL has a frame line,
 // PREFIX_frame (q -> position, rotation, 6 x nv Jacobian in
-// LOCAL_WORLD_ALIGNED), CasADi's calling convention, every output dense and
+// LOCAL_WORLD_ALIGNED) and, with `derivatives`, PREFIX_rnea_derivatives (q,
+// v, a -> tau, dtau/dq, dtau/dv) and PREFIX_aba_derivatives (q, v, tau ->
+// ddq, dddq/dq, dddq/dv, dddq/dtau): CasADi's Jacobians of the SX rnea and
+// aba. CasADi's calling convention, every output dense and
 // column-major, M symmetric. As in the templated shim, the joint damping
 // `d .* v` is added to tau and nle and subtracted from the torque given to
 // aba. Prints, per function: its name, its operation count (CasADi's
@@ -95,8 +98,11 @@ std::vector<double> numbers(const std::vector<std::string> &fields, std::size_t 
 }  // namespace
 
 int main(int argc, char **argv) {
-  if (argc != 4) fail("usage: generate_c MODEL PREFIX OUT.c");
+  if (argc != 4 && !(argc == 5 && std::string(argv[4]) == "derivatives")) {
+    fail("usage: generate_c MODEL PREFIX OUT.c [derivatives]");
+  }
   const std::string path = argv[1], prefix = argv[2], out = argv[3];
+  const bool derivatives = argc == 5;
   std::ifstream in(path);
   if (!in) fail("cannot read " + path);
   pinocchio::Model model;
@@ -165,6 +171,22 @@ int main(int argc, char **argv) {
     const ADVector torque = taue - damping_force;
     const ADVector ddq = pinocchio::aba(ad, data, qe, ve, torque);
     functions.emplace_back(prefix + "_aba", std::vector<SX>{q, v, tau}, std::vector<SX>{dense(ddq)}, cse);
+  }
+  if (derivatives) {
+    // CasADi's Jacobians of the generated rnea and aba (what a user of
+    // Pinocchio's code generation gets without the analytical derivatives).
+    const ADVector t = pinocchio::rnea(ad, data, qe, ve, ae) + damping_force;
+    const SX ts = dense(t);
+    functions.emplace_back(prefix + "_rnea_derivatives", std::vector<SX>{q, v, a},
+                           std::vector<SX>{ts, densify(jacobian(ts, q)), densify(jacobian(ts, v))},
+                           cse);
+    const ADVector torque = taue - damping_force;
+    const ADVector ddq = pinocchio::aba(ad, data, qe, ve, torque);
+    const SX d = dense(ddq);
+    functions.emplace_back(prefix + "_aba_derivatives", std::vector<SX>{q, v, tau},
+                           std::vector<SX>{d, densify(jacobian(d, q)), densify(jacobian(d, v)),
+                                           densify(jacobian(d, tau))},
+                           cse);
   }
   if (has_frame) {
     ADData::Matrix6x jacobian = ADData::Matrix6x::Zero(6, n);
