@@ -157,37 +157,6 @@ fn choose(c: &Code, rank: &dyn Fn(&Pair) -> usize) -> Vec<(Pair, usize, usize, f
     chosen
 }
 
-/// Calls `f` on every product and sum of `c`, children first.
-fn visit(c: &Code, f: &mut dyn FnMut(&Code)) {
-    match c {
-        Code::Var(_) | Code::Sym(_) | Code::Lit(_) => {}
-        Code::Sum { terms, .. } => {
-            for (_, t) in terms {
-                visit(t, f);
-            }
-            f(c);
-        }
-        Code::Prod { num, den } => {
-            for t in num.iter().chain(den) {
-                visit(t, f);
-            }
-            f(c);
-        }
-        Code::Call(_, a) => visit(a, f),
-        Code::Atan2(y, x) => {
-            visit(y, f);
-            visit(x, f);
-        }
-    }
-}
-
-fn stmt_code(s: &Stmt) -> &Code {
-    match s {
-        Stmt::Let { value, .. } => value,
-        Stmt::SinCos { arg, .. } => arg,
-    }
-}
-
 fn stmt_code_mut(s: &mut Stmt) -> &mut Code {
     match s {
         Stmt::Let { value, .. } => value,
@@ -327,7 +296,7 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
         // How many products and sums contain each pair (an existing `let`
         // computing it counts as one).
         let mut contained: FastMap<Pair, usize> = existing.keys().map(|&p| (p, 1)).collect();
-        let mut count = |c: &Code| {
+        let mut count = |c: &mut Code| {
             let mut seen: Vec<Pair> = pairs_of(c).into_iter().map(|p| p.0).collect();
             seen.sort();
             seen.dedup();
@@ -335,26 +304,16 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
                 *contained.entry(p).or_default() += 1;
             }
         };
-        for s in stmts.iter() {
-            visit(stmt_code(s), &mut count);
-        }
-        for o in outputs.iter() {
-            visit(o, &mut count);
-        }
+        visit_all(stmts, outputs, &mut count);
         // How many would take each pair, choosing greedily by that count;
         // only pairs computed at least twice are worth sharing.
         let mut taken: FastMap<Pair, usize> = existing.keys().map(|&p| (p, 1)).collect();
-        let mut tally = |c: &Code| {
+        let mut tally = |c: &mut Code| {
             for p in choose(c, &|p| contained.get(p).copied().unwrap_or(0)) {
                 *taken.entry(p.0).or_default() += 1;
             }
         };
-        for s in stmts.iter() {
-            visit(stmt_code(s), &mut tally);
-        }
-        for o in outputs.iter() {
-            visit(o, &mut tally);
-        }
+        visit_all(stmts, outputs, &mut tally);
         let rank: FastMap<Pair, usize> = taken
             .into_iter()
             .filter(|&(_, n)| n >= 2)
@@ -389,7 +348,7 @@ pub(super) fn share_pairs(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mu
 /// column): a division costs several multiplications on every target.
 pub(super) fn share_reciprocals(stmts: &mut Vec<Stmt>, outputs: &mut [Code], next: &mut u32) {
     let mut count: FastMap<Leaf, usize> = FastMap::default();
-    let mut tally = |c: &Code| {
+    let mut tally = |c: &mut Code| {
         if let Code::Prod { num, den } = c {
             // `1 / d` itself gains nothing.
             if num.is_empty() && den.len() == 1 {
@@ -403,12 +362,7 @@ pub(super) fn share_reciprocals(stmts: &mut Vec<Stmt>, outputs: &mut [Code], nex
             }
         }
     };
-    for s in stmts.iter() {
-        visit(stmt_code(s), &mut tally);
-    }
-    for o in outputs.iter() {
-        visit(o, &mut tally);
-    }
+    visit_all(stmts, outputs, &mut tally);
     count.retain(|_, n| *n >= 2);
     if count.is_empty() {
         return;
@@ -454,7 +408,18 @@ pub(super) fn share_reciprocals(stmts: &mut Vec<Stmt>, outputs: &mut [Code], nex
     *stmts = out;
 }
 
-/// Calls `f` on every product and sum of `c`, children first, mutably.
+/// Calls `f` on every product and sum of the statements and the outputs,
+/// children first (the counting passes only read them).
+fn visit_all(stmts: &mut [Stmt], outputs: &mut [Code], f: &mut dyn FnMut(&mut Code)) {
+    for s in stmts.iter_mut() {
+        visit_mut(stmt_code_mut(s), f);
+    }
+    for o in outputs.iter_mut() {
+        visit_mut(o, f);
+    }
+}
+
+/// Calls `f` on every product and sum of `c`, children first.
 fn visit_mut(c: &mut Code, f: &mut dyn FnMut(&mut Code)) {
     match c {
         Code::Var(_) | Code::Sym(_) | Code::Lit(_) => return,
