@@ -20,9 +20,10 @@
 //! `qdd = 0` is row `i` of every constraint's Hessian, which gives it from
 //! the generated `da/dq` without another generated function.
 
-use crate::dynamics::{generated_forward_dynamics, Kkt};
+use crate::dynamics::{factor_mass, generated_forward_dynamics, AccelerationsOf, Kkt};
 use crate::error::{invalid_configuration, Error, Quantity};
 use crate::eval;
+use crate::linalg::{solve_lower, solve_lower_transpose};
 use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
 use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector};
@@ -88,15 +89,14 @@ where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
+    if let Some(generated) = generated_forward_dynamics::<M, T, Q, C, U>(model, q, qd, t, tau)? {
+        return unconstrained(model, q, qd, t, generated);
+    }
     let (nq, nc, nu) = model.sizes();
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
     let b = eval::actuator_map(model, t)?;
     let kkt = Kkt::new(m, &phi_q, T::KKT_MAX_CONDITION, t)?;
-    let (mut qdd, lambda) = kkt.solve(&(b.clone() * tau - h), &gamma);
-    // The accelerations of `accelerations`, bit for bit, where generated.
-    if let Some(generated) = generated_forward_dynamics::<M, T, Q, C, U>(model, q, qd, t, tau)? {
-        qdd = generated.qdd;
-    }
+    let (qdd, lambda) = kkt.solve(&(b.clone() * tau - h), &gamma);
     eval::check_result(&qdd, Quantity::Acceleration, t)?;
     eval::check_result(&lambda, Quantity::ConstraintForces, t)?;
 
@@ -179,6 +179,58 @@ where
         lambda_tau,
         velocity_constraint_q: a_qd * T::of(0.5),
         condition: kkt.condition,
+    })
+}
+
+/// [`forward_dynamics_derivatives`] of an unconstrained model at the
+/// accelerations of its generated forward dynamics (`acc`, bit for bit
+/// those of [`crate::accelerations`]): `M` from its own generated program,
+/// factored once, and the three right-hand sides (`-d ID/dq`, `-d ID/dqd`,
+/// `B`) solved in place, column by column.
+fn unconstrained<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
+    model: &M,
+    q: &OVector<T, Q>,
+    qd: &OVector<T, Q>,
+    t: T,
+    acc: AccelerationsOf<T, Q, C>,
+) -> Result<ForwardDerivativesOf<T, Q, C, U>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, nc, nu) = model.sizes();
+    let mut l = eval::mass(model, q, t)?;
+    factor_mass(&mut l, t)?;
+    let mut id = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
+    let mut qdd_q = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
+    let mut qdd_qd = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
+    if !model.inverse_dynamics_derivatives(q, qd, &acc.qdd, t, &mut id, &mut qdd_q, &mut qdd_qd) {
+        return Err(not_generated());
+    }
+    eval::check(&qdd_q, Quantity::InverseDynamicsDerivatives, t)?;
+    eval::check(&qdd_qd, Quantity::InverseDynamicsDerivatives, t)?;
+    qdd_q.neg_mut();
+    qdd_qd.neg_mut();
+    let mut qdd_tau = eval::actuator_map(model, t)?;
+    for x in [&mut qdd_q, &mut qdd_qd] {
+        solve_lower(&l, x);
+        solve_lower_transpose(&l, x);
+        eval::check_result(x, Quantity::Acceleration, t)?;
+    }
+    solve_lower(&l, &mut qdd_tau);
+    solve_lower_transpose(&l, &mut qdd_tau);
+    eval::check_result(&qdd_tau, Quantity::Acceleration, t)?;
+    Ok(ForwardDerivativesOf {
+        qdd: acc.qdd,
+        lambda: acc.lambda,
+        qdd_q,
+        qdd_qd,
+        qdd_tau,
+        lambda_q: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
+        lambda_qd: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
+        lambda_tau: OMatrix::<T, C, U>::zeros_generic(nc, nu),
+        velocity_constraint_q: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
+        condition: acc.condition,
     })
 }
 

@@ -119,15 +119,7 @@ where
         max_condition: T,
         t: T,
     ) -> Result<Self, Error> {
-        if let Err((pivot, value)) = cholesky(&mut m) {
-            return Err(Error::new(
-                ErrorKind::MassMatrixNotPositiveDefinite {
-                    pivot,
-                    value: value.into(),
-                },
-                t,
-            ));
-        }
+        factor_mass(&mut m, t)?;
         let mut y = phi_q.transpose();
         solve_lower(&m, &mut y);
         let s_mat = y.transpose() * &y;
@@ -169,6 +161,23 @@ where
         solve_lower_transpose(&self.l, &mut x);
         (x, mu)
     }
+}
+
+/// Overwrites `m` with its Cholesky factor `L` (`M = L L^T`); errors are
+/// reported at time `t`.
+pub(crate) fn factor_mass<T: Scalar, Q: Dim>(m: &mut OMatrix<T, Q, Q>, t: T) -> Result<(), Error>
+where
+    DefaultAllocator: Allocator<Q, Q>,
+{
+    cholesky(m).map_err(|(pivot, value)| {
+        Error::new(
+            ErrorKind::MassMatrixNotPositiveDefinite {
+                pivot,
+                value: value.into(),
+            },
+            t,
+        )
+    })
 }
 
 /// Solves the constrained equations of motion for the accelerations and
