@@ -186,7 +186,7 @@ where
 /// accelerations of its generated forward dynamics (`acc`, bit for bit
 /// those of [`crate::accelerations`]): `M` from its own generated program,
 /// factored once, and the three right-hand sides (`-d ID/dq`, `-d ID/dqd`,
-/// `B`) solved in place, column by column.
+/// `B`) solved in place ([`solve_lower`], [`solve_lower_transpose`]).
 fn unconstrained<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     q: &OVector<T, Q>,
