@@ -837,6 +837,27 @@ mod tests {
     }
 
     #[test]
+    fn solves_of_many_columns_equal_their_columns_solved_alone() {
+        let a = SMatrix::<f64, 4, 4>::from_fn(|i, j| {
+            let (x, y) = (i as f64, j as f64);
+            (1.0 + x + y).recip() + if i == j { 1.5 } else { 0.0 }
+        });
+        let mut l = a;
+        assert!(cholesky(&mut l).is_ok());
+        let b = SMatrix::<f64, 4, 5>::from_fn(|i, j| (0.3 + 1.7 * i as f64 - 0.9 * j as f64).sin());
+        let mut x = b;
+        solve_lower(&l, &mut x);
+        solve_lower_transpose(&l, &mut x);
+        for j in 0..5 {
+            let mut alone = b.fixed_columns::<1>(j).into_owned();
+            solve_lower(&l, &mut alone);
+            solve_lower_transpose(&l, &mut alone);
+            assert_eq!(x.column(j), alone.column(0), "column {j}");
+            assert!((a * alone - b.column(j)).norm() < 1e-14);
+        }
+    }
+
+    #[test]
     fn spd_and_lu_solve_and_detect_singular() {
         let a = SMatrix::<f64, 3, 3>::new(4.0, 2.0, 0.4, 2.0, 3.0, 0.5, 0.4, 0.5, 2.0);
         let b = SVector::<f64, 3>::new(1.0, -2.0, 0.5);
