@@ -23,7 +23,7 @@
 use crate::dynamics::{factor_mass, generated_forward_dynamics, AccelerationsOf, Kkt};
 use crate::error::{invalid_configuration, Error, Quantity};
 use crate::eval;
-use crate::linalg::{solve_lower, solve_lower_transpose};
+use crate::linalg::solve_cholesky;
 use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
 use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector};
@@ -186,7 +186,7 @@ where
 /// accelerations of its generated forward dynamics (`acc`, bit for bit
 /// those of [`crate::accelerations`]): `M` from its own generated program,
 /// factored once, and the three right-hand sides (`-d ID/dq`, `-d ID/dqd`,
-/// `B`) solved in place ([`solve_lower`], [`solve_lower_transpose`]).
+/// `B`) solved in place ([`solve_cholesky`]).
 fn unconstrained<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     q: &OVector<T, Q>,
@@ -213,12 +213,10 @@ where
     qdd_qd.neg_mut();
     let mut qdd_tau = eval::actuator_map(model, t)?;
     for x in [&mut qdd_q, &mut qdd_qd] {
-        solve_lower(&l, x);
-        solve_lower_transpose(&l, x);
+        solve_cholesky(&l, x);
         eval::check_result(x, Quantity::Acceleration, t)?;
     }
-    solve_lower(&l, &mut qdd_tau);
-    solve_lower_transpose(&l, &mut qdd_tau);
+    solve_cholesky(&l, &mut qdd_tau);
     eval::check_result(&qdd_tau, Quantity::Acceleration, t)?;
     Ok(ForwardDerivativesOf {
         qdd: acc.qdd,

@@ -185,6 +185,18 @@ pub(crate) fn solve_lower_transpose<T: Scalar, N: Dim, K: Dim>(
     }
 }
 
+/// Solves `L L^T x = b` in place for every column of `b`, `L` from
+/// [`cholesky`]: [`solve_lower`], then [`solve_lower_transpose`].
+pub(crate) fn solve_cholesky<T: Scalar, N: Dim, K: Dim>(
+    l: &OMatrix<T, N, N>,
+    b: &mut OMatrix<T, N, K>,
+) where
+    DefaultAllocator: Allocator<N, N> + Allocator<N, K>,
+{
+    solve_lower(l, b);
+    solve_lower_transpose(l, b);
+}
+
 /// Symmetric positive semi-definite solver: Jacobi equilibration followed by a
 /// diagonally pivoted Cholesky factorisation, which reveals (near) rank
 /// deficiency through its pivots.
@@ -276,8 +288,7 @@ where
             let pi = self.perm[i];
             y[i] = self.scale[pi] * b[pi];
         }
-        solve_lower(&self.l, &mut y);
-        solve_lower_transpose(&self.l, &mut y);
+        solve_cholesky(&self.l, &mut y);
         for i in 0..n {
             let pi = self.perm[i];
             b[pi] = self.scale[pi] * y[i];
