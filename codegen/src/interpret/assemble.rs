@@ -394,6 +394,8 @@ impl Assembler {
             index: 0,
             shapes: lowered.shapes.clone(),
             slots,
+            #[cfg(feature = "jit")]
+            native: Default::default(),
         }
     }
 }

@@ -11,6 +11,8 @@
 //! bitwise `sin_cos` lane by lane).
 
 mod assemble;
+#[cfg(feature = "jit")]
+mod native;
 mod tape;
 
 use std::path::Path;
@@ -243,7 +245,9 @@ mod tests {
     /// A batch (not a multiple of the lanes, with states far apart, where
     /// the sines leave the inline reduction) bitwise equal to its states
     /// one by one, for every tape of scenes with constraints, time,
-    /// markers, runtime parameters and derivatives.
+    /// markers, runtime parameters and derivatives; on the lanes of the
+    /// interpreter, and by [`Tape::eval_batch`] (machine code where the
+    /// tape has it), both against the interpreter and [`Tape::eval`].
     #[test]
     fn batches_equal_their_states_one_by_one() {
         for name in ["four_bar", "spin_up_beam", "cart_pole", "ur5"] {
@@ -273,6 +277,8 @@ mod tests {
                     if tape.uses_qdd() { &qdd[..] } else { &[][..] },
                 );
                 tape.eval_batch(&q, v, a, &t, &params, &mut lanes, &mut batch);
+                let mut interpreted = vec![f64::NAN; n * len];
+                tape.interpret_batch(&q, v, a, &t, &params, &mut lanes, &mut interpreted);
                 for k in 0..n {
                     let mut want = vec![f64::NAN; len];
                     let state = |x: &[f64]| x[k * nq..(k + 1) * nq].to_vec();
@@ -285,14 +291,27 @@ mod tests {
                         &mut one,
                         &mut want,
                     );
-                    let got = &batch[k * len..(k + 1) * len];
-                    assert!(
-                        got.iter()
-                            .zip(&want)
-                            .all(|(a, b)| a.to_bits() == b.to_bits()),
-                        "{name} {} state {k}: {got:?} vs {want:?}",
-                        f.name()
+                    let mut alone = vec![f64::NAN; len];
+                    tape.interpret(
+                        &state(&q),
+                        &state(&qd),
+                        &state(&qdd),
+                        t[k],
+                        &params,
+                        &mut one,
+                        &mut alone,
                     );
+                    for got in [&batch, &interpreted] {
+                        let got = &got[k * len..(k + 1) * len];
+                        assert!(
+                            got.iter()
+                                .zip(&want)
+                                .chain(got.iter().zip(&alone))
+                                .all(|(a, b)| a.to_bits() == b.to_bits()),
+                            "{name} {} state {k}: {got:?} vs {want:?}",
+                            f.name()
+                        );
+                    }
                 }
             }
         }

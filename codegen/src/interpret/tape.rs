@@ -128,6 +128,10 @@ pub struct Tape {
     /// `(rows, columns)` of each output.
     pub(super) shapes: Vec<(usize, usize)>,
     pub(super) slots: usize,
+    /// The tape as machine code, compiled on first evaluation (`None`
+    /// inside where it could not be: the tape is then interpreted).
+    #[cfg(feature = "jit")]
+    pub(super) native: std::sync::OnceLock<Option<super::native::Native>>,
 }
 
 impl Tape {
@@ -224,6 +228,28 @@ impl Tape {
         );
         let len = self.output_len();
         assert_eq!(out.len(), len, "expected {len} outputs, got {}", out.len());
+        #[cfg(feature = "jit")]
+        if let Some(native) = self.native() {
+            native.call(q, qd, qdd, t, params, out);
+            return;
+        }
+        self.interpret(q, qd, qdd, t, params, scratch, out);
+    }
+
+    /// Runs the tape on the interpreter (what [`Tape::eval`] does where the
+    /// tape has no machine code), the arguments' lengths checked.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn interpret(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: f64,
+        params: &[f64],
+        scratch: &mut Scratch,
+        out: &mut [f64],
+    ) {
+        let nq = self.nq;
         let s = self.slots(scratch);
         let input = |offset: usize, values: &[f64], s: &mut [[f64; 1]]| {
             for (slot, &v) in s[offset..offset + values.len()].iter_mut().zip(values) {
@@ -296,6 +322,35 @@ impl Tape {
             "expected {n} x {len} outputs, got {}",
             out.len()
         );
+        #[cfg(feature = "jit")]
+        if let Some(native) = self.native() {
+            // Machine code runs a state faster than the lanes run it.
+            fn state(x: &[f64], nq: usize, k: usize) -> &[f64] {
+                x.get(k * nq..(k + 1) * nq).unwrap_or(&[])
+            }
+            for (k, (o, &t)) in out.chunks_exact_mut(len.max(1)).zip(t).enumerate() {
+                let (q, qd, qdd) = (state(q, nq, k), state(qd, nq, k), state(qdd, nq, k));
+                native.call(q, qd, qdd, t, params, o);
+            }
+            return;
+        }
+        self.interpret_batch(q, qd, qdd, t, params, scratch, out);
+    }
+
+    /// [`Tape::eval_batch`] on the interpreter, [`LANES`] states side by
+    /// side, the arguments' lengths checked.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn interpret_batch(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        t: &[f64],
+        params: &[f64],
+        scratch: &mut Scratch<LANES>,
+        out: &mut [f64],
+    ) {
+        let (nq, n, len) = (self.nq, t.len(), self.output_len());
         let s = self.slots(scratch);
         for (k, p) in params.iter().enumerate() {
             s[3 * nq + 1 + k] = [*p; LANES];
@@ -324,6 +379,15 @@ impl Tape {
                 }
             }
         }
+    }
+
+    /// The tape's machine code, compiled on the first call; `None` where
+    /// the tape is interpreted.
+    #[cfg(feature = "jit")]
+    fn native(&self) -> Option<&super::native::Native> {
+        self.native
+            .get_or_init(|| super::native::compile(self))
+            .as_ref()
     }
 
     /// The tape's slots in `scratch`, a power of two long, its literals in
