@@ -396,6 +396,8 @@ impl Assembler {
             slots,
             #[cfg(feature = "jit")]
             native: Default::default(),
+            #[cfg(feature = "jit")]
+            native_pairs: Default::default(),
         }
     }
 }

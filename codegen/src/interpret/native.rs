@@ -34,10 +34,11 @@ use flexdyn_runtime::math;
 use super::tape::{Instr, Instruction, Tape};
 use crate::expr::Func;
 
-/// Tapes longer than this are interpreted: compiling one function grows
-/// faster than linearly with its length (register allocation), and a tape
-/// this long spends its time in memory either way.
-pub(super) const MAX_INSTRUCTIONS: usize = 100_000;
+/// Tapes longer than this are interpreted: compiling one would take more
+/// than half a second (about 7 us per instruction with the single-pass
+/// register allocator), and a tape this long spends much of its time in
+/// memory either way.
+const MAX_INSTRUCTIONS: usize = 100_000;
 
 /// Longer tapes get Cranelift's single-pass register allocator: its
 /// default (backtracking) allocates better but takes time that grows much
@@ -48,12 +49,16 @@ const BACKTRACKING_INSTRUCTIONS: usize = 3_000;
 
 /// `fn(q, qd, qdd, t, params, out)`: the caller's slices, checked against
 /// the tape's dimensions before the call.
-type Entry = unsafe extern "C" fn(*const f64, *const f64, *const f64, f64, *const f64, *mut f64);
+type Entry =
+    unsafe extern "C" fn(*const f64, *const f64, *const f64, *const f64, *const f64, *mut f64);
 
-/// A tape's machine code and the memory that holds it.
+/// A tape's machine code, for one state or for two side by side, and the
+/// memory that holds it.
 #[derive(Clone)]
 pub(super) struct Native {
     entry: Entry,
+    /// States per call.
+    lanes: usize,
     /// Owns the code; freed when the last clone of the tape goes.
     _module: Arc<Owner>,
 }
@@ -82,28 +87,44 @@ impl Drop for Owner {
 }
 
 impl Native {
-    /// Runs the code. The caller has checked the slices' lengths against
-    /// the tape (`q`, `out` always; `qd`, `qdd` where the tape reads them;
-    /// `params`).
+    /// Runs the code on its number of states (one after the other in the
+    /// slices, `t` one time per state).
+    ///
+    /// # Panics
+    ///
+    /// When a slice is shorter than the states: `q` and `out` always, `qd`
+    /// and `qdd` where the tape reads them, `params` and `t`.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn call(
         &self,
+        tape: &Tape,
         q: &[f64],
         qd: &[f64],
         qdd: &[f64],
-        t: f64,
+        t: &[f64],
         params: &[f64],
         out: &mut [f64],
     ) {
-        // SAFETY: the code reads `q`, `qd`, `qdd` and `params` within the
-        // lengths the tape was compiled for, which the caller checked,
-        // `qd`/`qdd` only where the tape uses them, and writes each
-        // position of `out` below the tape's output length once.
+        let (n, nq) = (self.lanes, tape.nq);
+        assert!(
+            q.len() >= n * nq
+                && (qd.len() >= n * nq || !tape.uses_qd)
+                && (qdd.len() >= n * nq || !tape.uses_qdd)
+                && t.len() >= n
+                && params.len() >= tape.params
+                && out.len() >= n * tape.output_len(),
+            "arguments shorter than {n} states"
+        );
+        // SAFETY: the code reads `n` states of `q`, `qd`, `qdd`, `n` times
+        // and the tape's parameters, `qd`/`qdd` only where the tape uses
+        // them, and writes `n` times the tape's output length to `out`,
+        // all checked above.
         unsafe {
             (self.entry)(
                 q.as_ptr(),
                 qd.as_ptr(),
                 qdd.as_ptr(),
-                t,
+                t.as_ptr(),
                 params.as_ptr(),
                 out.as_mut_ptr(),
             )
@@ -142,16 +163,17 @@ extern "C" fn native_atan2(y: f64, x: f64) -> f64 {
     math::atan2(y, x)
 }
 
-/// Sines and cosines of the four values at `p`, written to `p[0..4]` and
-/// `p[4..8]`.
+/// Sines and cosines of the first `N` (at most 4) values at `p`, written
+/// to `p[0..N]` and `p[4..4 + N]`.
 ///
 /// # Safety
 ///
-/// `p` points to 8 `f64`.
-unsafe extern "C" fn native_sin_cos4(p: *mut f64) {
-    // SAFETY: the compiled code passes a stack slot of 8 values.
+/// `p` points to 8 `f64`, the first `N` initialised.
+unsafe extern "C" fn native_sin_cos<const N: usize>(p: *mut f64) {
+    // SAFETY: the compiled code passes a stack slot of 8 values, the first
+    // `N` stored.
     let p = unsafe { &mut *(p as *mut [f64; 8]) };
-    let sc = math::sin_cos_array([p[0], p[1], p[2], p[3]]);
+    let sc = math::sin_cos_array::<N>(core::array::from_fn(|k| p[k]));
     for (k, (s, c)) in sc.into_iter().enumerate() {
         p[k] = s;
         p[4 + k] = c;
@@ -185,17 +207,18 @@ const FUNCS: [Func; 9] = [
     Func::Step,
 ];
 
-/// The tape as machine code; `None` where the tape is too long or the
-/// backend fails (the tape is then interpreted).
-pub(super) fn compile(tape: &Tape) -> Option<Native> {
+/// The tape as machine code for `lanes` states a call (1 or 2); `None`
+/// where the tape is too long or the backend fails (the tape is then
+/// interpreted).
+pub(super) fn compile(tape: &Tape, lanes: usize) -> Option<Native> {
     if tape.code.len() > MAX_INSTRUCTIONS {
         return None;
     }
-    compile_with(tape, tape.code.len() <= BACKTRACKING_INSTRUCTIONS)
+    compile_with(tape, lanes, tape.code.len() <= BACKTRACKING_INSTRUCTIONS)
 }
 
 /// [`compile`] with the backtracking or the single-pass register allocator.
-fn compile_with(tape: &Tape, backtracking: bool) -> Option<Native> {
+fn compile_with(tape: &Tape, lanes: usize, backtracking: bool) -> Option<Native> {
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").ok()?;
     flags.set("enable_verifier", "false").ok()?;
@@ -212,16 +235,18 @@ fn compile_with(tape: &Tape, backtracking: bool) -> Option<Native> {
         jb.symbol(name, p);
     }
     jb.symbol("flexdyn_atan2", native_atan2 as *const u8);
-    jb.symbol("flexdyn_sin_cos4", native_sin_cos4 as *const u8);
+    jb.symbol("flexdyn_sin_cos1", native_sin_cos::<1> as *const u8);
+    jb.symbol("flexdyn_sin_cos4", native_sin_cos::<4> as *const u8);
     let mut module = JITModule::new(jb);
-    let id = translate(tape, &mut module)?;
+    let id = translate(tape, &mut module, lanes)?;
     module.finalize_definitions().ok()?;
     let code = module.get_finalized_function(id);
     // SAFETY: `translate` defined this function with `Entry`'s signature
-    // (five pointers and one `f64`, the platform's C convention).
+    // (six pointers, the platform's C convention).
     let entry: Entry = unsafe { std::mem::transmute::<*const u8, Entry>(code) };
     Some(Native {
         entry,
+        lanes,
         _module: Arc::new(Owner(Mutex::new(Some(module)))),
     })
 }
@@ -230,7 +255,8 @@ fn compile_with(tape: &Tape, backtracking: bool) -> Option<Native> {
 struct Imports {
     unary: Vec<(Func, FuncId)>,
     atan2: FuncId,
-    sin_cos4: FuncId,
+    /// Sines and cosines of one value, and of four.
+    sin_cos: [FuncId; 2],
 }
 
 fn declare(module: &mut JITModule) -> Option<Imports> {
@@ -256,23 +282,31 @@ fn declare(module: &mut JITModule) -> Option<Imports> {
         atan2: module
             .declare_function("flexdyn_atan2", Linkage::Import, &f64x2)
             .ok()?,
-        sin_cos4: module
-            .declare_function("flexdyn_sin_cos4", Linkage::Import, &pointer)
-            .ok()?,
+        sin_cos: [
+            module
+                .declare_function("flexdyn_sin_cos1", Linkage::Import, &pointer)
+                .ok()?,
+            module
+                .declare_function("flexdyn_sin_cos4", Linkage::Import, &pointer)
+                .ok()?,
+        ],
     })
 }
 
-/// Defines the tape's function in `module`.
-fn translate(tape: &Tape, module: &mut JITModule) -> Option<FuncId> {
+/// Defines the tape's function in `module` over `lanes` states side by
+/// side (1, or 2 in `f64x2` vectors: the same IEEE operations lane by
+/// lane): the slices hold `lanes` states one after the other, `t` one
+/// time per state.
+fn translate(tape: &Tape, module: &mut JITModule, lanes: usize) -> Option<FuncId> {
     let imports = declare(module)?;
     let ptr = module.target_config().pointer_type();
     let mut ctx = module.make_context();
-    let params = &mut ctx.func.signature.params;
-    params.extend([ptr, ptr, ptr].map(AbiParam::new));
-    params.push(AbiParam::new(types::F64));
-    params.extend([ptr, ptr].map(AbiParam::new));
+    ctx.func
+        .signature
+        .params
+        .extend([ptr; 6].map(AbiParam::new));
     let id = module
-        .declare_function("tape", Linkage::Local, &ctx.func.signature)
+        .declare_anonymous_function(&ctx.func.signature)
         .ok()?;
     ctx.func.name = UserFuncName::user(0, id.as_u32());
     let mut fbc = FunctionBuilderContext::new();
@@ -291,17 +325,46 @@ fn translate(tape: &Tape, module: &mut JITModule) -> Option<FuncId> {
         .map(|&(f, id)| (f, module.declare_func_in_func(id, b.func)))
         .collect();
     let atan2 = module.declare_func_in_func(imports.atan2, b.func);
-    let sin_cos4 = module.declare_func_in_func(imports.sin_cos4, b.func);
-    let pair = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 64, 3));
+    let sin_cos = imports
+        .sin_cos
+        .map(|id| module.declare_func_in_func(id, b.func));
+    let buffer = b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 64, 3));
 
     let nq = tape.nq;
+    let len = tape.output_len();
     let literal0 = 3 * nq + 1 + tape.params;
     let temps0 = literal0 + tape.literals.len();
     let flags = MemFlagsData::trusted();
+    let vector = match lanes {
+        1 => types::F64,
+        2 => types::F64X2,
+        _ => return None,
+    };
+    let offset = |k: usize| i32::try_from(8 * k).ok();
+    // A value's lanes, and lanes as a value.
+    let split = |v: Value, b: &mut FunctionBuilder| -> Vec<Value> {
+        if lanes == 1 {
+            return vec![v];
+        }
+        (0..lanes as u8)
+            .map(|l| b.ins().extractlane(v, l))
+            .collect()
+    };
+    let join = |x: &[Value], b: &mut FunctionBuilder| -> Value {
+        let mut v = x[0];
+        if lanes > 1 {
+            v = b.ins().scalar_to_vector(vector, x[0]);
+            for (l, &x) in x.iter().enumerate().skip(1) {
+                v = b.ins().insertlane(v, x, l as u8);
+            }
+        }
+        v
+    };
     let mut values: Vec<Option<Value>> = vec![None; tape.slots];
     // The current value of slot `s`: inputs loaded where first read
     // (velocities and accelerations only where the tape says it reads
-    // them), literals as constants.
+    // them; each lane's state `stride` values after the last), runtime
+    // parameters and literals the same in every lane.
     let read = |s: u32, b: &mut FunctionBuilder, values: &mut Vec<Option<Value>>| {
         let s = s as usize;
         if let Some(v) = *values.get(s)? {
@@ -310,42 +373,89 @@ fn translate(tape: &Tape, module: &mut JITModule) -> Option<FuncId> {
         let v = if s >= temps0 {
             return None; // read before written: not a tape the assembler makes
         } else if s >= literal0 {
-            b.ins().f64const(tape.literals[s - literal0])
+            let c = b.ins().f64const(tape.literals[s - literal0]);
+            if lanes == 1 {
+                c
+            } else {
+                b.ins().splat(vector, c)
+            }
+        } else if s > 3 * nq {
+            let p = b
+                .ins()
+                .load(types::F64, flags, params, offset(s - 3 * nq - 1)?);
+            if lanes == 1 {
+                p
+            } else {
+                b.ins().splat(vector, p)
+            }
         } else {
-            let (base, k) = match s {
-                s if s < nq => (q, s),
-                s if s < 2 * nq && tape.uses_qd => (qd, s - nq),
+            let (base, k, stride) = match s {
+                s if s < nq => (q, s, nq),
+                s if s < 2 * nq && tape.uses_qd => (qd, s - nq, nq),
                 s if s < 2 * nq => return None,
-                s if s < 3 * nq && tape.uses_qdd => (qdd, s - 2 * nq),
+                s if s < 3 * nq && tape.uses_qdd => (qdd, s - 2 * nq, nq),
                 s if s < 3 * nq => return None,
-                s if s == 3 * nq => {
-                    values[s] = Some(t);
-                    return Some(t);
-                }
-                s => (params, s - 3 * nq - 1),
+                _ => (t, 0, 1),
             };
-            b.ins()
-                .load(types::F64, flags, base, i32::try_from(8 * k).ok()?)
+            let x = (0..lanes)
+                .map(|l| {
+                    Some(
+                        b.ins()
+                            .load(types::F64, flags, base, offset(k + l * stride)?),
+                    )
+                })
+                .collect::<Option<Vec<Value>>>()?;
+            join(&x, b)
         };
         values[s] = Some(v);
         Some(v)
+    };
+    // `f` of each lane of `x` (and `y`), by calls.
+    let call = |f: cranelift_codegen::ir::FuncRef, x: &[Value], b: &mut FunctionBuilder| {
+        let x: Vec<Vec<Value>> = x.iter().map(|&v| split(v, b)).collect();
+        let r: Vec<Value> = (0..lanes)
+            .map(|l| {
+                let args: Vec<Value> = x.iter().map(|v| v[l]).collect();
+                let c = b.ins().call(f, &args);
+                b.inst_results(c)[0]
+            })
+            .collect();
+        join(&r, b)
     };
     let start = std::iter::once(0).chain(tape.runs.iter().map(|&(_, end)| end as usize));
     for (&(op, end), start) in tape.runs.iter().zip(start) {
         let run: &[Instr] = tape.code.get(start..end as usize)?;
         if op == Instruction::SinCos {
-            for group in run.chunks(4) {
-                // A group of fewer than four repeats its first argument.
-                let first = group.first()?.a;
-                let p = b.ins().stack_addr(ptr, pair, 0);
-                for k in 0..4 {
-                    let x = read(group.get(k).map_or(first, |i| i.a), &mut b, &mut values)?;
-                    b.ins().store(flags, x, p, 8 * k as i32);
+            for group in run.chunks(4 / lanes) {
+                // Their arguments' lanes: one value alone, two or three as
+                // four (the last repeated).
+                let mut x = Vec::new();
+                for i in group {
+                    let v = read(i.a, &mut b, &mut values)?;
+                    x.extend(split(v, &mut b));
                 }
-                b.ins().call(sin_cos4, &[p]);
+                let width = if x.len() == 1 { 1 } else { 4 };
+                let p = b.ins().stack_addr(ptr, buffer, 0);
+                for k in 0..width {
+                    let v = *x.get(k).or(x.last())?;
+                    b.ins().store(flags, v, p, offset(k)?);
+                }
+                b.ins().call(sin_cos[width / 4], &[p]);
                 for (k, i) in group.iter().enumerate() {
-                    let sin = b.ins().load(types::F64, flags, p, 8 * k as i32);
-                    let cos = b.ins().load(types::F64, flags, p, 32 + 8 * k as i32);
+                    let result = |at: usize, b: &mut FunctionBuilder| {
+                        let x = (0..lanes)
+                            .map(|l| {
+                                Some(b.ins().load(
+                                    types::F64,
+                                    flags,
+                                    p,
+                                    offset(at + k * lanes + l)?,
+                                ))
+                            })
+                            .collect::<Option<Vec<Value>>>()?;
+                        Some(join(&x, b))
+                    };
+                    let (sin, cos) = (result(0, &mut b)?, result(4, &mut b)?);
                     *values.get_mut(i.dst as usize)? = Some(sin);
                     *values.get_mut(i.b as usize)? = Some(cos);
                 }
@@ -358,8 +468,7 @@ fn translate(tape: &Tape, module: &mut JITModule) -> Option<FuncId> {
                 Instruction::Neg => b.ins().fneg(x),
                 Instruction::Call(f) => {
                     let (_, r) = unary_refs.iter().find(|(g, _)| *g == f)?;
-                    let call = b.ins().call(*r, &[x]);
-                    b.inst_results(call)[0]
+                    call(*r, &[x], &mut b)
                 }
                 _ => {
                     let y = read(i.b, &mut b, &mut values)?;
@@ -368,10 +477,7 @@ fn translate(tape: &Tape, module: &mut JITModule) -> Option<FuncId> {
                         Instruction::Sub => b.ins().fsub(x, y),
                         Instruction::Mul => b.ins().fmul(x, y),
                         Instruction::Div => b.ins().fdiv(x, y),
-                        Instruction::Atan2 => {
-                            let call = b.ins().call(atan2, &[x, y]);
-                            b.inst_results(call)[0]
-                        }
+                        Instruction::Atan2 => call(atan2, &[x, y], &mut b),
                         Instruction::MulAdd | Instruction::SubMul | Instruction::MulSub => {
                             let z = read(i.c, &mut b, &mut values)?;
                             let p = b.ins().fmul(x, y);
@@ -390,8 +496,10 @@ fn translate(tape: &Tape, module: &mut JITModule) -> Option<FuncId> {
     }
     for &(slot, pos) in &tape.writes {
         let v = read(slot, &mut b, &mut values)?;
-        b.ins()
-            .store(flags, v, out, i32::try_from(8 * pos as usize).ok()?);
+        for (l, x) in split(v, &mut b).into_iter().enumerate() {
+            b.ins()
+                .store(flags, x, out, offset(l * len + pos as usize)?);
+        }
     }
     b.ins().return_(&[]);
     b.finalize(module.target_config());
@@ -407,9 +515,9 @@ mod tests {
 
     /// Every tape of scenes with constraints, time, markers, runtime
     /// parameters, flexible links, derivatives and every math function,
-    /// compiled (with either register allocator) and interpreted at states
-    /// that include values far from zero (the sines' long reduction):
-    /// bitwise equal, and compiled.
+    /// compiled (with either register allocator, for one state and for
+    /// two side by side) and interpreted at states that include values far
+    /// from zero (the sines' long reduction): bitwise equal, and compiled.
     #[test]
     fn native_code_equals_the_interpreter_bitwise() {
         let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
@@ -429,12 +537,16 @@ mod tests {
             for ((f, _, tape), backtracking) in
                 it.tapes.iter().flat_map(|t| [(t, true), (t, false)])
             {
-                let native = super::compile_with(tape, backtracking).expect("compiles");
+                let one = super::compile_with(tape, 1, backtracking).expect("compiles");
+                let two = super::compile_with(tape, 2, backtracking).expect("compiles");
                 compiled += 1;
+                let len = tape.output_len();
+                let mut pair = vec![f64::NAN; 2 * len];
+                let mut previous: Option<(Vec<f64>, [Vec<f64>; 3], f64)> = None;
                 for k in 0..6 {
                     let x = |i: usize, s: f64| {
                         let v = ((k * 13 + i * 5) as f64 * s).sin() * 1.7;
-                        if (i + k) % 5 == 0 {
+                        if (i + k).is_multiple_of(5) {
                             v * 1e7
                         } else {
                             v
@@ -444,17 +556,36 @@ mod tests {
                     let qd: Vec<f64> = (0..nq).map(|i| x(i, 0.91)).collect();
                     let qdd: Vec<f64> = (0..nq).map(|i| x(i, 1.73)).collect();
                     let t = 0.3 * k as f64;
-                    let len = tape.output_len();
                     let (mut want, mut got) = (vec![f64::NAN; len], vec![f64::NAN; len]);
                     tape.interpret(&q, &qd, &qdd, t, &params, &mut scratch, &mut want);
-                    native.call(&q, &qd, &qdd, t, &params, &mut got);
+                    one.call(tape, &q, &qd, &qdd, &[t], &params, &mut got);
+                    let same = |a: &[f64], b: &[f64]| {
+                        a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits())
+                    };
                     assert!(
-                        got.iter()
-                            .zip(&want)
-                            .all(|(a, b)| a.to_bits() == b.to_bits()),
+                        same(&got, &want),
                         "{name} {} state {k}: {got:?} vs {want:?}",
                         f.name()
                     );
+                    // This state and the previous one side by side.
+                    if let Some((before, [q0, qd0, qdd0], t0)) = previous.take() {
+                        let both = |a: &[f64], b: &[f64]| [a, b].concat();
+                        two.call(
+                            tape,
+                            &both(&q0, &q),
+                            &both(&qd0, &qd),
+                            &both(&qdd0, &qdd),
+                            &[t0, t],
+                            &params,
+                            &mut pair,
+                        );
+                        assert!(
+                            same(&pair, &both(&before, &want)),
+                            "{name} {} states {k} and before, two at a time",
+                            f.name()
+                        );
+                    }
+                    previous = Some((want, [q, qd, qdd], t));
                 }
             }
         }

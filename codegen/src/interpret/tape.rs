@@ -132,6 +132,9 @@ pub struct Tape {
     /// inside where it could not be: the tape is then interpreted).
     #[cfg(feature = "jit")]
     pub(super) native: std::sync::OnceLock<Option<super::native::Native>>,
+    /// The same for two states side by side, compiled on the first batch.
+    #[cfg(feature = "jit")]
+    pub(super) native_pairs: std::sync::OnceLock<Option<super::native::Native>>,
 }
 
 impl Tape {
@@ -229,8 +232,8 @@ impl Tape {
         let len = self.output_len();
         assert_eq!(out.len(), len, "expected {len} outputs, got {}", out.len());
         #[cfg(feature = "jit")]
-        if let Some(native) = self.native() {
-            native.call(q, qd, qdd, t, params, out);
+        if let Some(native) = self.native(&self.native, 1) {
+            native.call(self, q, qd, qdd, &[t], params, out);
             return;
         }
         self.interpret(q, qd, qdd, t, params, scratch, out);
@@ -275,9 +278,10 @@ impl Tape {
     /// `qd`, `qdd` where the function reads them, else empty) hold `n`
     /// states of `nq` values one after the other, `t` one time per state,
     /// and `out` receives `n` times [`Tape::output_len`] values, state after
-    /// state. The states run [`LANES`] at a time, each bitwise as
-    /// [`Tape::eval`] computes it alone (the same operations in the same
-    /// order, lane by lane).
+    /// state. The states run two at a time in machine code where the tape
+    /// has it (vectors of two `f64`), else [`LANES`] at a time on the
+    /// interpreter, each bitwise as [`Tape::eval`] computes it alone (the
+    /// same operations in the same order, lane by lane).
     ///
     /// # Panics
     ///
@@ -323,14 +327,21 @@ impl Tape {
             out.len()
         );
         #[cfg(feature = "jit")]
-        if let Some(native) = self.native() {
-            // Machine code runs a state faster than the lanes run it.
-            fn state(x: &[f64], nq: usize, k: usize) -> &[f64] {
-                x.get(k * nq..(k + 1) * nq).unwrap_or(&[])
+        if let (Some(one), Some(two)) = (
+            self.native(&self.native, 1),
+            self.native(&self.native_pairs, 2),
+        ) {
+            // Machine code, two states a call (and the last one alone).
+            fn part(x: &[f64], k: usize, n: usize, w: usize) -> &[f64] {
+                x.get(k * w..(k + n) * w).unwrap_or(&[])
             }
-            for (k, (o, &t)) in out.chunks_exact_mut(len.max(1)).zip(t).enumerate() {
-                let (q, qd, qdd) = (state(q, nq, k), state(qd, nq, k), state(qdd, nq, k));
-                native.call(q, qd, qdd, t, params, o);
+            let mut k = 0;
+            for o in out.chunks_mut(2 * len.max(1)) {
+                let m = (t.len() - k).min(2);
+                let native = if m == 2 { two } else { one };
+                let (q, qd, qdd) = (part(q, k, m, nq), part(qd, k, m, nq), part(qdd, k, m, nq));
+                native.call(self, q, qd, qdd, &t[k..k + m], params, o);
+                k += m;
             }
             return;
         }
@@ -384,9 +395,12 @@ impl Tape {
     /// The tape's machine code, compiled on the first call; `None` where
     /// the tape is interpreted.
     #[cfg(feature = "jit")]
-    fn native(&self) -> Option<&super::native::Native> {
-        self.native
-            .get_or_init(|| super::native::compile(self))
+    fn native<'a>(
+        &self,
+        cell: &'a std::sync::OnceLock<Option<super::native::Native>>,
+        lanes: usize,
+    ) -> Option<&'a super::native::Native> {
+        cell.get_or_init(|| super::native::compile(self, lanes))
             .as_ref()
     }
 
