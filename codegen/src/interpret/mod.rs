@@ -11,6 +11,9 @@
 //! bitwise `sin_cos` lane by lane).
 
 mod assemble;
+mod eval;
+#[cfg(feature = "jit")]
+mod machine;
 #[cfg(feature = "jit")]
 mod native;
 mod tape;
@@ -282,25 +285,12 @@ mod tests {
                 for k in 0..n {
                     let mut want = vec![f64::NAN; len];
                     let state = |x: &[f64]| x[k * nq..(k + 1) * nq].to_vec();
+                    let (qk, qdk, qddk) = (state(&q), state(&qd), state(&qdd));
                     tape.eval_with_accelerations(
-                        &state(&q),
-                        &state(&qd),
-                        &state(&qdd),
-                        t[k],
-                        &params,
-                        &mut one,
-                        &mut want,
+                        &qk, &qdk, &qddk, t[k], &params, &mut one, &mut want,
                     );
                     let mut alone = vec![f64::NAN; len];
-                    tape.interpret(
-                        &state(&q),
-                        &state(&qd),
-                        &state(&qdd),
-                        t[k],
-                        &params,
-                        &mut one,
-                        &mut alone,
-                    );
+                    tape.interpret(&qk, &qdk, &qddk, t[k], &params, &mut one, &mut alone);
                     for got in [&batch, &interpreted] {
                         let got = &got[k * len..(k + 1) * len];
                         assert!(

@@ -31,6 +31,7 @@ use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{FuncId, Linkage, Module};
 use flexdyn_runtime::math;
 
+use super::machine::{Entry, Machine, Shape};
 use super::tape::{Instr, Instruction, Tape};
 use crate::expr::Func;
 
@@ -47,28 +48,6 @@ const MAX_INSTRUCTIONS: usize = 100_000;
 /// pass; 76 ms against 15 ms for its 2,329 of `dynamics_terms`).
 const BACKTRACKING_INSTRUCTIONS: usize = 3_000;
 
-/// `fn(q, qd, qdd, t, params, out)`: the caller's slices, checked against
-/// the tape's dimensions before the call.
-type Entry =
-    unsafe extern "C" fn(*const f64, *const f64, *const f64, *const f64, *const f64, *mut f64);
-
-/// A tape's machine code, for one state or for two side by side, and the
-/// memory that holds it.
-#[derive(Clone)]
-pub(super) struct Native {
-    entry: Entry,
-    /// States per call.
-    lanes: usize,
-    /// Owns the code; freed when the last clone of the tape goes.
-    _module: Arc<Owner>,
-}
-
-impl std::fmt::Debug for Native {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("Native")
-    }
-}
-
 /// The JIT module, kept only to free its memory.
 struct Owner(Mutex<Option<JITModule>>);
 
@@ -80,54 +59,8 @@ impl Drop for Owner {
         };
         if let Some(module) = module {
             // SAFETY: the only pointer into this module's code is the
-            // `Native` entry that holds this owner, which is being dropped.
+            // `Machine` entry that holds this owner, which is being dropped.
             unsafe { module.free_memory() };
-        }
-    }
-}
-
-impl Native {
-    /// Runs the code on its number of states (one after the other in the
-    /// slices, `t` one time per state).
-    ///
-    /// # Panics
-    ///
-    /// When a slice is shorter than the states: `q` and `out` always, `qd`
-    /// and `qdd` where the tape reads them, `params` and `t`.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn call(
-        &self,
-        tape: &Tape,
-        q: &[f64],
-        qd: &[f64],
-        qdd: &[f64],
-        t: &[f64],
-        params: &[f64],
-        out: &mut [f64],
-    ) {
-        let (n, nq) = (self.lanes, tape.nq);
-        assert!(
-            q.len() >= n * nq
-                && (qd.len() >= n * nq || !tape.uses_qd)
-                && (qdd.len() >= n * nq || !tape.uses_qdd)
-                && t.len() >= n
-                && params.len() >= tape.params
-                && out.len() >= n * tape.output_len(),
-            "arguments shorter than {n} states"
-        );
-        // SAFETY: the code reads `n` states of `q`, `qd`, `qdd`, `n` times
-        // and the tape's parameters, `qd`/`qdd` only where the tape uses
-        // them, and writes `n` times the tape's output length to `out`,
-        // all checked above.
-        unsafe {
-            (self.entry)(
-                q.as_ptr(),
-                qd.as_ptr(),
-                qdd.as_ptr(),
-                t.as_ptr(),
-                params.as_ptr(),
-                out.as_mut_ptr(),
-            )
         }
     }
 }
@@ -195,22 +128,10 @@ fn unary(f: Func) -> (&'static str, *const u8) {
     }
 }
 
-const FUNCS: [Func; 9] = [
-    Func::Sin,
-    Func::Cos,
-    Func::Tan,
-    Func::Exp,
-    Func::Ln,
-    Func::Sqrt,
-    Func::Abs,
-    Func::Sign,
-    Func::Step,
-];
-
 /// The tape as machine code for `lanes` states a call (1 or 2); `None`
 /// where the tape is too long or the backend fails (the tape is then
 /// interpreted).
-pub(super) fn compile(tape: &Tape, lanes: usize) -> Option<Native> {
+pub(super) fn compile(tape: &Tape, lanes: usize) -> Option<Machine> {
     if tape.code.len() > MAX_INSTRUCTIONS {
         return None;
     }
@@ -218,7 +139,7 @@ pub(super) fn compile(tape: &Tape, lanes: usize) -> Option<Native> {
 }
 
 /// [`compile`] with the backtracking or the single-pass register allocator.
-fn compile_with(tape: &Tape, lanes: usize, backtracking: bool) -> Option<Native> {
+fn compile_with(tape: &Tape, lanes: usize, backtracking: bool) -> Option<Machine> {
     let mut flags = settings::builder();
     flags.set("opt_level", "speed").ok()?;
     flags.set("enable_verifier", "false").ok()?;
@@ -230,7 +151,7 @@ fn compile_with(tape: &Tape, lanes: usize, backtracking: bool) -> Option<Native>
         .finish(settings::Flags::new(flags))
         .ok()?;
     let mut jb = JITBuilder::with_isa(isa, cranelift_module::default_libcall_names());
-    for f in FUNCS {
+    for f in Func::ALL {
         let (name, p) = unary(f);
         jb.symbol(name, p);
     }
@@ -244,10 +165,21 @@ fn compile_with(tape: &Tape, lanes: usize, backtracking: bool) -> Option<Native>
     // SAFETY: `translate` defined this function with `Entry`'s signature
     // (six pointers, the platform's C convention).
     let entry: Entry = unsafe { std::mem::transmute::<*const u8, Entry>(code) };
-    Some(Native {
-        entry,
-        lanes,
-        _module: Arc::new(Owner(Mutex::new(Some(module)))),
+    let shape = Shape {
+        nq: tape.nq,
+        uses_qd: tape.uses_qd,
+        uses_qdd: tape.uses_qdd,
+        params: tape.params,
+        outputs: tape.output_len(),
+    };
+    // SAFETY: the code reads and writes within `shape` for `lanes` states.
+    Some(unsafe {
+        Machine::new(
+            entry,
+            lanes,
+            shape,
+            Arc::new(Owner(Mutex::new(Some(module)))),
+        )
     })
 }
 
@@ -271,7 +203,7 @@ fn declare(module: &mut JITModule) -> Option<Imports> {
     let f64x2 = sig(&[types::F64, types::F64], &[types::F64], module);
     let pointer = sig(&[ptr], &[], module);
     let mut unary_ids = Vec::new();
-    for f in FUNCS {
+    for f in Func::ALL {
         let id = module
             .declare_function(unary(f).0, Linkage::Import, &f64x1)
             .ok()?;
@@ -558,7 +490,7 @@ mod tests {
                     let t = 0.3 * k as f64;
                     let (mut want, mut got) = (vec![f64::NAN; len], vec![f64::NAN; len]);
                     tape.interpret(&q, &qd, &qdd, t, &params, &mut scratch, &mut want);
-                    one.call(tape, &q, &qd, &qdd, &[t], &params, &mut got);
+                    one.call(&q, &qd, &qdd, &[t], &params, &mut got);
                     let same = |a: &[f64], b: &[f64]| {
                         a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits())
                     };
@@ -571,7 +503,6 @@ mod tests {
                     if let Some((before, [q0, qd0, qdd0], t0)) = previous.take() {
                         let both = |a: &[f64], b: &[f64]| [a, b].concat();
                         two.call(
-                            tape,
                             &both(&q0, &q),
                             &both(&qd0, &qd),
                             &both(&qdd0, &qdd),
