@@ -65,33 +65,6 @@ impl Drop for Owner {
     }
 }
 
-extern "C" fn native_sin(x: f64) -> f64 {
-    math::sin(x)
-}
-extern "C" fn native_cos(x: f64) -> f64 {
-    math::cos(x)
-}
-extern "C" fn native_tan(x: f64) -> f64 {
-    math::tan(x)
-}
-extern "C" fn native_exp(x: f64) -> f64 {
-    math::exp(x)
-}
-extern "C" fn native_ln(x: f64) -> f64 {
-    math::ln(x)
-}
-extern "C" fn native_sqrt(x: f64) -> f64 {
-    math::sqrt(x)
-}
-extern "C" fn native_abs(x: f64) -> f64 {
-    math::abs(x)
-}
-extern "C" fn native_sign(x: f64) -> f64 {
-    math::sign(x)
-}
-extern "C" fn native_step(x: f64) -> f64 {
-    math::step(x)
-}
 extern "C" fn native_atan2(y: f64, x: f64) -> f64 {
     math::atan2(y, x)
 }
@@ -113,19 +86,33 @@ unsafe extern "C" fn native_sin_cos<const N: usize>(p: *mut f64) {
     }
 }
 
-/// The runtime functions the code calls, by symbol.
-fn unary(f: Func) -> (&'static str, *const u8) {
-    match f {
-        Func::Sin => ("flexdyn_sin", native_sin as *const u8),
-        Func::Cos => ("flexdyn_cos", native_cos as *const u8),
-        Func::Tan => ("flexdyn_tan", native_tan as *const u8),
-        Func::Exp => ("flexdyn_exp", native_exp as *const u8),
-        Func::Ln => ("flexdyn_ln", native_ln as *const u8),
-        Func::Sqrt => ("flexdyn_sqrt", native_sqrt as *const u8),
-        Func::Abs => ("flexdyn_abs", native_abs as *const u8),
-        Func::Sign => ("flexdyn_sign", native_sign as *const u8),
-        Func::Step => ("flexdyn_step", native_step as *const u8),
-    }
+/// `unary(f)`: the symbol and the C entry of the runtime function `f`
+/// that generated code calls.
+macro_rules! unary_entries {
+    ($($func:ident => $f:path,)*) => {
+        fn unary(f: Func) -> (&'static str, *const u8) {
+            match f {
+                $(Func::$func => {
+                    extern "C" fn entry(x: f64) -> f64 {
+                        $f(x)
+                    }
+                    (concat!("flexdyn_", stringify!($func)), entry as *const u8)
+                })*
+            }
+        }
+    };
+}
+
+unary_entries! {
+    Sin => math::sin,
+    Cos => math::cos,
+    Tan => math::tan,
+    Exp => math::exp,
+    Ln => math::ln,
+    Sqrt => math::sqrt,
+    Abs => math::abs,
+    Sign => math::sign,
+    Step => math::step,
 }
 
 /// The tape as machine code for `lanes` states a call (1 or 2); `None`
