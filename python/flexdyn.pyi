@@ -12,8 +12,9 @@ Time = Union[float, Sequence[float], npt.NDArray[np.float64]]
 Path = Union[str, PathLike]
 
 class Model:
-    """A scene's equations of motion, generated in memory and interpreted
-    (bitwise the numbers of its compiled module). Every array argument is
+    """A scene's equations of motion, generated in memory, each function
+    compiled to machine code on its first call (interpreted where that is
+    not possible): bitwise the numbers of its compiled module. Every array argument is
     one state (`(nq,)`) or a batch (`(N, nq)`, evaluated in Rust, in
     parallel for large N); `t` a number or one per state."""
 

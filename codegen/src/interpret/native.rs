@@ -122,7 +122,15 @@ pub(super) fn compile(tape: &Tape, lanes: usize) -> Option<Machine> {
     if tape.code.len() > MAX_INSTRUCTIONS {
         return None;
     }
-    compile_with(tape, lanes, tape.code.len() <= BACKTRACKING_INSTRUCTIONS)
+    let backtracking = tape.code.len() <= BACKTRACKING_INSTRUCTIONS;
+    // Cranelift reports what it cannot do as errors (an unsupported
+    // processor, memory that may not be made executable); a panic inside
+    // it would be a bug of its own, and the tape is interpreted then too.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        compile_with(tape, lanes, backtracking)
+    }))
+    .ok()
+    .flatten()
 }
 
 /// [`compile`] with the backtracking or the single-pass register allocator.
