@@ -59,7 +59,8 @@ impl Drop for Owner {
         };
         if let Some(module) = module {
             // SAFETY: the only pointer into this module's code is the
-            // `Machine` entry that holds this owner, which is being dropped.
+            // `Machine` entry that holds this owner, which is being dropped
+            // (none where the code could not be made).
             unsafe { module.free_memory() };
         }
     }
@@ -154,9 +155,14 @@ fn compile_with(tape: &Tape, lanes: usize, backtracking: bool) -> Option<Machine
     jb.symbol("flexdyn_sin_cos1", native_sin_cos::<1> as *const u8);
     jb.symbol("flexdyn_sin_cos4", native_sin_cos::<4> as *const u8);
     let mut module = JITModule::new(jb);
-    let id = translate(tape, &mut module, lanes)?;
-    module.finalize_definitions().ok()?;
-    let code = module.get_finalized_function(id);
+    let code = translate(tape, &mut module, lanes).and_then(|id| {
+        module.finalize_definitions().ok()?;
+        Some(module.get_finalized_function(id))
+    });
+    // The owner frees the module's memory when it goes: at once if the
+    // code could not be made.
+    let owner = Arc::new(Owner(Mutex::new(Some(module))));
+    let code = code?;
     // SAFETY: `translate` defined this function with `Entry`'s signature
     // (six pointers, the platform's C convention).
     let entry: Entry = unsafe { std::mem::transmute::<*const u8, Entry>(code) };
@@ -168,14 +174,7 @@ fn compile_with(tape: &Tape, lanes: usize, backtracking: bool) -> Option<Machine
         outputs: tape.output_len(),
     };
     // SAFETY: the code reads and writes within `shape` for `lanes` states.
-    Some(unsafe {
-        Machine::new(
-            entry,
-            lanes,
-            shape,
-            Arc::new(Owner(Mutex::new(Some(module)))),
-        )
-    })
+    Some(unsafe { Machine::new(entry, lanes, shape, owner) })
 }
 
 /// The functions the code imports, declared in `module`.
