@@ -276,13 +276,17 @@ fn translate(tape: &Tape, module: &mut JITModule, lanes: usize) -> Option<FuncId
             .map(|l| b.ins().extractlane(v, l))
             .collect()
     };
+    // (The same value in every lane is a splat.)
     let join = |x: &[Value], b: &mut FunctionBuilder| -> Value {
-        let mut v = x[0];
-        if lanes > 1 {
-            v = b.ins().scalar_to_vector(vector, x[0]);
-            for (l, &x) in x.iter().enumerate().skip(1) {
-                v = b.ins().insertlane(v, x, l as u8);
-            }
+        if lanes == 1 {
+            return x[0];
+        }
+        if x.iter().all(|&v| v == x[0]) {
+            return b.ins().splat(vector, x[0]);
+        }
+        let mut v = b.ins().scalar_to_vector(vector, x[0]);
+        for (l, &x) in x.iter().enumerate().skip(1) {
+            v = b.ins().insertlane(v, x, l as u8);
         }
         v
     };
@@ -300,20 +304,12 @@ fn translate(tape: &Tape, module: &mut JITModule, lanes: usize) -> Option<FuncId
             return None; // read before written: not a tape the assembler makes
         } else if s >= literal0 {
             let c = b.ins().f64const(tape.literals[s - literal0]);
-            if lanes == 1 {
-                c
-            } else {
-                b.ins().splat(vector, c)
-            }
+            join(&[c; 2][..lanes], b)
         } else if s > 3 * nq {
             let p = b
                 .ins()
                 .load(types::F64, flags, params, offset(s - 3 * nq - 1)?);
-            if lanes == 1 {
-                p
-            } else {
-                b.ins().splat(vector, p)
-            }
+            join(&[p; 2][..lanes], b)
         } else {
             let (base, k, stride) = match s {
                 s if s < nq => (q, s, nq),
