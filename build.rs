@@ -36,9 +36,15 @@ fn main() {
             .perturb_coefficient("four_bar", "marker_jacobian", 5, 1e-6)
             // Coefficient 12 of the cart-pole's inverse_dynamics_derivatives
             // is the second -0.05 of `tau_q[(0, 1)]`: only `d tau/dq` is
-            // wrong (and through it the forward dynamics' `d qdd/dq`).
+            // wrong (the forward dynamics' derivatives have their own
+            // program).
             .scene("scenes/cart_pole.toml")
             .perturb_coefficient("cart_pole", "inverse_dynamics_derivatives", 12, 1e-6)
+            // Coefficient 55 of the double pendulum's
+            // forward_dynamics_derivatives is the second -0.336 of a sum
+            // read only by `d qdd/dqd`.
+            .scene("scenes/double_pendulum.toml")
+            .perturb_coefficient("double_pendulum", "forward_dynamics_derivatives", 55, 1e-6)
             .out_dir(out.join("perturbed"))
             .generate()
     });

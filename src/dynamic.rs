@@ -240,6 +240,25 @@ pub trait DynModel {
             &mut [qdd, d],
         )
     }
+    /// [`DynModel::forward_dynamics`] with the derivatives of `qdd`: `d
+    /// qdd/dq`, `d qdd/dqd` at the forces `f` and `d qdd/df = M^-1` (each
+    /// `nq x nq`), when generated.
+    fn forward_dynamics_derivatives(
+        &self,
+        q: &[f64],
+        qd: &[f64],
+        f: &[f64],
+        t: f64,
+        out: FdDerivatives<'_>,
+    ) -> bool {
+        let outs: &mut [&mut [f64]] = &mut [out.qdd, out.d, out.qdd_q, out.qdd_qd, out.qdd_f];
+        self.call(
+            Function::ForwardDynamicsDerivatives,
+            None,
+            At::qdd(q, qd, f, t),
+            outs,
+        )
+    }
     /// Position (3) and rotation (3 x 3) of marker `marker`; `false`
     /// (nothing written) when there is no such marker.
     fn marker_pose(
@@ -297,6 +316,21 @@ pub struct IdDerivatives<'a> {
     pub tau_q: &'a mut [f64],
     /// `d tau / d qd` (`nq x nq`).
     pub tau_qd: &'a mut [f64],
+}
+
+/// Where `forward_dynamics_derivatives` writes `(qdd, d, qdd_q, qdd_qd,
+/// qdd_f)`.
+pub struct FdDerivatives<'a> {
+    /// `qdd = M^-1 (f - h)` (`nq`).
+    pub qdd: &'a mut [f64],
+    /// The pivots of `M = L^T D L` relative to `M`'s diagonal (`nq`).
+    pub d: &'a mut [f64],
+    /// `d qdd / d q` (`nq x nq`).
+    pub qdd_q: &'a mut [f64],
+    /// `d qdd / d qd` (`nq x nq`).
+    pub qdd_qd: &'a mut [f64],
+    /// `d qdd / d f = M^-1` (`nq x nq`).
+    pub qdd_f: &'a mut [f64],
 }
 
 /// Where `dynamics_terms` writes `(M, h, Phi_q, gamma)`.
@@ -489,6 +523,23 @@ where
                 m.forward_dynamics(&q(), &qd(), &qdd(), t, &mut a, &mut d)
                     && put(outs, &[a.as_slice(), d.as_slice()])
             }
+            Function::ForwardDynamicsDerivatives => {
+                let (mut a, mut d) = (vector(), vector());
+                let (mut a_q, mut a_qd, mut a_f) = (square(), square(), square());
+                let (q, qd, f) = (q(), qd(), qdd());
+                let (d_q, d_qd, d_f) = (&mut a_q, &mut a_qd, &mut a_f);
+                m.forward_dynamics_derivatives(&q, &qd, &f, t, &mut a, &mut d, d_q, d_qd, d_f)
+                    && put(
+                        outs,
+                        &[
+                            a.as_slice(),
+                            d.as_slice(),
+                            a_q.as_slice(),
+                            a_qd.as_slice(),
+                            a_f.as_slice(),
+                        ],
+                    )
+            }
             Function::MarkerPose => marker.is_some_and(|k| {
                 let (mut p, mut r) = (point(), rotation());
                 m.marker_pose(k, &q(), t, &mut p, &mut r)
@@ -608,6 +659,28 @@ impl Equations<Dyn, Dyn, Dyn> for dyn DynModel + '_ {
     ) -> bool {
         let (q, qd, f) = (q.as_slice(), qd.as_slice(), f.as_slice());
         DynModel::forward_dynamics(self, q, qd, f, t, qdd.as_mut_slice(), d.as_mut_slice())
+    }
+    fn forward_dynamics_derivatives(
+        &self,
+        q: &DVector<f64>,
+        qd: &DVector<f64>,
+        f: &DVector<f64>,
+        t: f64,
+        qdd: &mut DVector<f64>,
+        d: &mut DVector<f64>,
+        qdd_q: &mut DMatrix<f64>,
+        qdd_qd: &mut DMatrix<f64>,
+        qdd_f: &mut DMatrix<f64>,
+    ) -> bool {
+        let out = FdDerivatives {
+            qdd: qdd.as_mut_slice(),
+            d: d.as_mut_slice(),
+            qdd_q: qdd_q.as_mut_slice(),
+            qdd_qd: qdd_qd.as_mut_slice(),
+            qdd_f: qdd_f.as_mut_slice(),
+        };
+        let (q, qd, f) = (q.as_slice(), qd.as_slice(), f.as_slice());
+        DynModel::forward_dynamics_derivatives(self, q, qd, f, t, out)
     }
     fn constraints_and_jacobian(
         &self,

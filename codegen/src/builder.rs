@@ -94,6 +94,7 @@ impl Model {
         forward_dynamics(&mut self.graph, &mut eq);
         if self.graph.take_overflow() {
             eq.forward_dynamics = None;
+            eq.forward_dynamics_derivatives = None;
         }
         Ok(eq)
     }

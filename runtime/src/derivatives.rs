@@ -6,7 +6,10 @@
 //! dynamics `ID(q, qd, qdd) = M qdd + h` equal `B tau` along the solution,
 //! so differentiating that identity gives `M d qdd/dx = -d ID/dx` at `qdd`
 //! for `x = q, qd`, and `M d qdd/d tau = B`: one factorisation of `M`, no
-//! differentiation of `M^-1`.
+//! differentiation of `M^-1`. Where the scene has its generated forward
+//! dynamics that is one generated program
+//! ([`crate::Model::forward_dynamics_derivatives`]); otherwise the
+//! saddle-point path below, without constraints.
 //!
 //! Constrained: `(qdd, lambda)` solve `M qdd - Phi_q^T lambda = B tau - h`,
 //! `Phi_q qdd = gamma` (the ideal equations, without Baumgarte
@@ -20,10 +23,9 @@
 //! `qdd = 0` is row `i` of every constraint's Hessian, which gives it from
 //! the generated `da/dq` without another generated function.
 
-use crate::dynamics::{factor_mass, generated_forward_dynamics, AccelerationsOf, Kkt};
+use crate::dynamics::{solved, Kkt};
 use crate::error::{invalid_configuration, Error, Quantity};
 use crate::eval;
-use crate::linalg::solve_cholesky;
 use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
 use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector};
@@ -89,8 +91,8 @@ where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
-    if let Some(generated) = generated_forward_dynamics::<M, T, Q, C, U>(model, q, qd, t, tau)? {
-        return unconstrained(model, q, qd, t, generated);
+    if let Some(derivatives) = generated(model, q, qd, t, tau)? {
+        return Ok(derivatives);
     }
     let (nq, nc, nu) = model.sizes();
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
@@ -182,45 +184,48 @@ where
     })
 }
 
-/// [`forward_dynamics_derivatives`] of an unconstrained model at the
-/// accelerations of its generated forward dynamics (`acc`, bit for bit
-/// those of [`crate::accelerations`]): `M` from its own generated program,
-/// factored once, and the three right-hand sides (`-d ID/dq`, `-d ID/dqd`,
-/// `B`) solved in place ([`solve_cholesky`]).
-fn unconstrained<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
+/// [`forward_dynamics_derivatives`] of an unconstrained model from its
+/// generated program ([`crate::Model::forward_dynamics_derivatives`]:
+/// `qdd`, `d qdd/dq`, `d qdd/dqd` and `M^-1` on the generated factors of
+/// `M`), `d qdd/d tau = M^-1 B`; `None` where the model has no such program
+/// or its pivots say the solve does not hold (then the factorisation of the
+/// other paths reports why).
+fn generated<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     q: &OVector<T, Q>,
     qd: &OVector<T, Q>,
     t: T,
-    acc: AccelerationsOf<T, Q, C>,
-) -> Result<ForwardDerivativesOf<T, Q, C, U>, Error>
+    tau: &OVector<T, U>,
+) -> Result<Option<ForwardDerivativesOf<T, Q, C, U>>, Error>
 where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
     let (nq, nc, nu) = model.sizes();
-    let mut l = eval::mass(model, q, t)?;
-    factor_mass(&mut l, t)?;
-    let mut id = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
+    if nc.value() != 0 {
+        return Ok(None);
+    }
+    let b = eval::actuator_map(model, t)?;
+    let f = &b * tau;
+    let mut qdd = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
+    let mut d = qdd.clone();
     let mut qdd_q = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
-    let mut qdd_qd = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
-    if !model.inverse_dynamics_derivatives(q, qd, &acc.qdd, t, &mut id, &mut qdd_q, &mut qdd_qd) {
-        return Err(not_generated());
+    let mut qdd_qd = qdd_q.clone();
+    let mut inverse = qdd_q.clone();
+    let (dq, dqd, inv) = (&mut qdd_q, &mut qdd_qd, &mut inverse);
+    if !(model.forward_dynamics_derivatives(q, qd, &f, t, &mut qdd, &mut d, dq, dqd, inv)
+        && solved(&qdd, &d))
+    {
+        return Ok(None);
     }
-    eval::check(&qdd_q, Quantity::InverseDynamicsDerivatives, t)?;
-    eval::check(&qdd_qd, Quantity::InverseDynamicsDerivatives, t)?;
-    qdd_q.neg_mut();
-    qdd_qd.neg_mut();
-    let mut qdd_tau = eval::actuator_map(model, t)?;
-    for x in [&mut qdd_q, &mut qdd_qd] {
-        solve_cholesky(&l, x);
-        eval::check_result(x, Quantity::Acceleration, t)?;
+    let qdd_tau = inverse * b;
+    for m in [&qdd_q, &qdd_qd] {
+        eval::check_result(m, Quantity::Acceleration, t)?;
     }
-    solve_cholesky(&l, &mut qdd_tau);
     eval::check_result(&qdd_tau, Quantity::Acceleration, t)?;
-    Ok(ForwardDerivativesOf {
-        qdd: acc.qdd,
-        lambda: acc.lambda,
+    Ok(Some(ForwardDerivativesOf {
+        qdd,
+        lambda: OVector::<T, C>::zeros_generic(nc, Const::<1>),
         qdd_q,
         qdd_qd,
         qdd_tau,
@@ -228,8 +233,8 @@ where
         lambda_qd: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
         lambda_tau: OMatrix::<T, C, U>::zeros_generic(nc, nu),
         velocity_constraint_q: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
-        condition: acc.condition,
-    })
+        condition: T::one(),
+    }))
 }
 
 /// The error for a model without the generated derivatives.

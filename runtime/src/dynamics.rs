@@ -248,14 +248,22 @@ where
     let f = eval::actuator_map(model, t)? * tau;
     let mut qdd = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
     let mut d = qdd.clone();
-    let valid = model.forward_dynamics(q, qd, &f, t, &mut qdd, &mut d)
-        && d.iter().all(|&p| p.is_finite() && p > T::EPSILON)
-        && all_finite(&qdd);
+    let valid = model.forward_dynamics(q, qd, &f, t, &mut qdd, &mut d) && solved(&qdd, &d);
     Ok(valid.then(|| AccelerationsOf {
         qdd,
         lambda: OVector::<T, C>::zeros_generic(nc, Const::<1>),
         condition: T::one(),
     }))
+}
+
+/// Whether a generated solve of `M = L^T D L` holds: every pivot `d`
+/// (relative to `M`'s diagonal) finite and above the precision's epsilon,
+/// and the accelerations `qdd` finite.
+pub(crate) fn solved<T: Scalar, Q: Dim>(qdd: &OVector<T, Q>, d: &OVector<T, Q>) -> bool
+where
+    DefaultAllocator: Allocator<Q>,
+{
+    d.iter().all(|&p| p.is_finite() && p > T::EPSILON) && all_finite(qdd)
 }
 
 /// `gamma - 2 alpha (Phi_q qd + Phi_t) - beta^2 Phi` from the given `Phi_q`

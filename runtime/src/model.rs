@@ -147,6 +147,30 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
         false
     }
 
+    /// Optional forward dynamics with its exact derivatives, as one
+    /// program: `qdd` and `d` as [`Model::forward_dynamics`] writes them,
+    /// `qdd_q = d qdd/dq`, `qdd_qd = d qdd/dqd` at the generalized forces
+    /// `f`, and `qdd_f = d qdd/df = M^-1`, every solve on the factors of
+    /// `M`; valid where `forward_dynamics` is. Generated for unconstrained
+    /// scenes of at most 40 coordinates that ask for
+    /// `dynamics_derivatives`; the default returns `false`.
+    #[allow(clippy::too_many_arguments)]
+    fn forward_dynamics_derivatives(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        f: &SVector<T, NQ>,
+        t: T,
+        qdd: &mut SVector<T, NQ>,
+        d: &mut SVector<T, NQ>,
+        qdd_q: &mut SMatrix<T, NQ, NQ>,
+        qdd_qd: &mut SMatrix<T, NQ, NQ>,
+        qdd_f: &mut SMatrix<T, NQ, NQ>,
+    ) -> bool {
+        let _ = (q, qd, f, t, qdd, d, qdd_q, qdd_qd, qdd_f);
+        false
+    }
+
     /// Names of the runtime parameters (fields of the model struct), in order.
     const PARAMETERS: &'static [&'static str] = &[];
 
@@ -700,6 +724,24 @@ where
         let _ = (q, qd, f, t, qdd, d);
         false
     }
+    /// [`Model::forward_dynamics_derivatives`] (`false`, not provided, by
+    /// default).
+    #[allow(clippy::too_many_arguments)]
+    fn forward_dynamics_derivatives(
+        &self,
+        q: &OVector<T, Q>,
+        qd: &OVector<T, Q>,
+        f: &OVector<T, Q>,
+        t: T,
+        qdd: &mut OVector<T, Q>,
+        d: &mut OVector<T, Q>,
+        qdd_q: &mut OMatrix<T, Q, Q>,
+        qdd_qd: &mut OMatrix<T, Q, Q>,
+        qdd_f: &mut OMatrix<T, Q, Q>,
+    ) -> bool {
+        let _ = (q, qd, f, t, qdd, d, qdd_q, qdd_qd, qdd_f);
+        false
+    }
     /// [`Model::constraints_and_jacobian`].
     fn constraints_and_jacobian(
         &self,
@@ -830,6 +872,21 @@ where
         d: &mut SVector<T, NQ>,
     ) -> bool {
         Model::forward_dynamics(self, q, qd, f, t, qdd, d)
+    }
+    #[inline]
+    fn forward_dynamics_derivatives(
+        &self,
+        q: &SVector<T, NQ>,
+        qd: &SVector<T, NQ>,
+        f: &SVector<T, NQ>,
+        t: T,
+        qdd: &mut SVector<T, NQ>,
+        d: &mut SVector<T, NQ>,
+        qdd_q: &mut SMatrix<T, NQ, NQ>,
+        qdd_qd: &mut SMatrix<T, NQ, NQ>,
+        qdd_f: &mut SMatrix<T, NQ, NQ>,
+    ) -> bool {
+        Model::forward_dynamics_derivatives(self, q, qd, f, t, qdd, d, qdd_q, qdd_qd, qdd_f)
     }
     #[inline]
     fn constraints_and_jacobian(

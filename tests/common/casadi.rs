@@ -28,9 +28,7 @@ pub struct Suite {
     /// names them: the function's, or a marker's `markers.<name>.<term>`,
     /// first the one holding the coefficient). The validation must fail on
     /// exactly those terms: the fused `dynamics_terms` and every other
-    /// function are emitted from their own programs and stay right (the
-    /// forward dynamics' derivatives are computed from the inverse
-    /// dynamics' ones, and fail with them).
+    /// function are emitted from their own programs and stay right.
     pub negative: &'static [(&'static str, &'static [&'static str])],
 }
 

@@ -1016,6 +1016,7 @@ fn robots(c: &mut Criterion<ThreadCpuTime>) {
     compare::<talos::Talos, { talos::NQ }>(c, "talos");
     compare_derivatives::<ur5::Ur5, { ur5::NQ }>(c, "ur5");
     compare_derivatives::<panda::Panda, { panda::NQ }>(c, "panda");
+    compare_derivatives::<talos::Talos, { talos::NQ }>(c, "talos");
     compare_marker::<ur5::Ur5, { ur5::NQ }>(c, "ur5", "tool0");
     compare_marker::<panda::Panda, { panda::NQ }>(c, "panda", "panda_hand");
 }

@@ -89,6 +89,12 @@ pub struct Equations {
     /// its diagonal entry of `M`; set after the
     /// prune stage by [`crate::solve::forward_dynamics`].
     pub forward_dynamics: Option<(Vec<Id>, Vec<Id>)>,
+    /// Derivatives of that forward dynamics, `(d qdd/dq, d qdd/dqd, d
+    /// qdd/df = M^-1)`, for an unconstrained scene that asks for
+    /// `dynamics_derivatives`: `-M^-1 d ID/dx` with the inverse dynamics'
+    /// derivatives taken at `qdd`, solved on the same factors; set with
+    /// `forward_dynamics`.
+    pub forward_dynamics_derivatives: Option<(Matrix, Matrix, Matrix)>,
     /// Total kinetic energy.
     pub kinetic_energy: Id,
     /// Total potential energy.
@@ -382,6 +388,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         inverse_dynamics_derivatives,
         constraint_acceleration_derivatives,
         forward_dynamics: None,
+        forward_dynamics_derivatives: None,
         kinetic_energy,
         potential_energy,
         phi,

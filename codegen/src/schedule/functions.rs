@@ -467,6 +467,37 @@ table! {
                 .map(|(qdd, d)| Terms::Nodes(vec![column(qdd), column(d)]))
         },
     },
+    /// `forward_dynamics_derivatives`: `forward_dynamics` with the
+    /// derivatives of `qdd` (unconstrained scenes that ask for
+    /// `dynamics_derivatives`).
+    ForwardDynamicsDerivatives => Spec {
+        name: "forward_dynamics_derivatives",
+        doc: "Forward dynamics of an unconstrained scene with its exact derivatives, as one program: `qdd = M^-1 (f - h)` and the relative pivots `d` as `forward_dynamics` writes them, `qdd_q = d qdd/dq` and `qdd_qd = d qdd/dqd` at the generalized forces `f` (`-M^-1 d tau/dx` of the inverse dynamics at `qdd`), and `qdd_f = d qdd/df = M^-1` (entry `(i, j)` is `d qdd_i / d x_j`), every solve on the factors of `M = L^T D L`. Valid where `forward_dynamics` is.",
+        inputs: Inputs::Forces,
+        outputs: &[
+            vector("qdd", NQ),
+            vector("d", NQ),
+            matrix("qdd_q", NQ, false),
+            matrix("qdd_qd", NQ, false),
+            matrix("qdd_f", NQ, true),
+        ],
+        optional: true,
+        per_marker: false,
+        terms: |_, eq| {
+            let (qdd, d) = eq.forward_dynamics.as_ref()?;
+            eq.forward_dynamics_derivatives
+                .as_ref()
+                .map(|(qdd_q, qdd_qd, qdd_f)| {
+                    Terms::Nodes(vec![
+                        column(qdd),
+                        column(d),
+                        qdd_q.clone(),
+                        qdd_qd.clone(),
+                        qdd_f.clone(),
+                    ])
+                })
+        },
+    },
     /// `marker_pose`: a marker's position (3) and rotation (3 x 3).
     MarkerPose => Spec {
         name: "marker_pose",
