@@ -2,8 +2,9 @@
 //! `flexdyn eval --scene` (the interpreter, no rebuild), compared with
 //! Pinocchio (`crba`, `nonLinearEffects`, `rnea`) at 1000 seeded random
 //! states by `tests/pinocchio/validate.py`: UR5, Panda (arm joints; the
-//! fingers held fixed), Baxter (a tree with prismatic joints), xArm7 and
-//! Unitree Z1, to 1e-12
+//! fingers held fixed), Baxter (a tree with prismatic joints), xArm7,
+//! Unitree Z1, and the humanoids Romeo (inertias that break the triangle
+//! inequality, as published) and iCub, to 1e-12
 //! of each term's scale, with the kinematics of a marker at every link
 //! (position, rotation, `LOCAL_WORLD_ALIGNED` Jacobian, velocity, classical
 //! acceleration) against Pinocchio's frames; and `flexdyn inverse` with every joint of Baxter
@@ -56,7 +57,15 @@ fn a_perturbed_inertia_fails_the_comparison() {
     };
     println!("{text}");
     assert_eq!(code, Some(1), "expected the comparison to fail:\n{text}");
-    for robot in ["ur5", "panda", "baxter", "xarm7", "z1"] {
+    for robot in [
+        "ur5",
+        "panda",
+        "baxter",
+        "xarm7",
+        "z1",
+        "romeo_small",
+        "icub",
+    ] {
         for term in ["M", "marker position"] {
             assert!(
                 text.lines()

@@ -411,7 +411,9 @@ fn an_unphysical_inertia_is_accepted_only_where_no_energy_depends_on_it() {
     );
     let scene = import(&tool).unwrap();
     assert!(
-        scene.contains("# link \"tool\"'s own inertia tensor is not physical; the combined one is"),
+        scene.contains("# link \"tool\"'s own inertia tensor is not physical (the inertia")
+            && scene.contains("# the combined one is physical")
+            && !scene.contains("allow_unphysical_inertia"),
         "{scene}"
     );
     load(&scene);
@@ -426,4 +428,123 @@ fn an_unphysical_inertia_is_accepted_only_where_no_energy_depends_on_it() {
             && e.contains("so is the body it is merged into (upper, tool)"),
         "{e}"
     );
+}
+
+/// One revolute joint about `z`, its child link of 0.5 kg with its centre
+/// of mass at `com`, the tensor `inertia` (`ixx="..." ... izz="..."`) and
+/// the joint's `limit`: the tensor is on line 7, the limit on line 13.
+fn one_joint(inertia: &str, com: &str, limit: &str) -> String {
+    format!(
+        r#"<robot name="r">
+  <link name="base"/>
+  <link name="arm">
+    <inertial>
+      <origin xyz="{com}"/>
+      <mass value="0.5"/>
+      <inertia {inertia}/>
+    </inertial>
+  </link>
+  <joint name="j" type="revolute">
+    <parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/>
+    <limit {limit}/>
+  </joint>
+</robot>
+"#
+    )
+}
+
+/// `M` of a one-coordinate scene: twice its kinetic energy at `qd = 1`.
+fn one_mass(scene: &str) -> f64 {
+    2.0 * energies(&load(scene), &[0.3], &[1.0], &[]).0
+}
+
+const LIMIT: &str = r#"lower="-2" upper="2" velocity="3" effort="1""#;
+
+#[test]
+fn a_tensor_that_breaks_the_triangle_inequality_imports_as_published() {
+    // As Romeo's arm links: positive semi-definite, no mass distribution's.
+    let text = one_joint(
+        r#"ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.0065""#,
+        "0.1 0 0",
+        LIMIT,
+    );
+    let scene = import(&text).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        scene.contains("allow_unphysical_inertia = true")
+            && scene.contains("breaks the triangle inequality")
+            && scene.contains("kept as published"),
+        "{scene}"
+    );
+    // `izz + m |c|^2` about the joint's axis: the tensor as written.
+    let want = 0.0065 + 0.5 * 0.1 * 0.1;
+    assert!((one_mass(&scene) - want).abs() < 1e-15 * want, "{scene}");
+    // Without the flag the scene is refused, and the error names the flag.
+    let bare = scene.replace("allow_unphysical_inertia = true\n", "");
+    let e = Model::from_source(&Source::new(Path::new("scene.toml"), bare))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("triangle inequality") && e.contains("allow_unphysical_inertia"),
+        "{e}"
+    );
+}
+
+#[test]
+fn rounding_noise_in_a_tensor_is_zero_next_to_the_body() {
+    // iCub's head: only `ixz` written, at 2.4e-35; 0.5 kg 0.11 m off.
+    let noise = r#"ixx="0" ixy="0" ixz="2.40741e-35" iyy="0" iyz="0" izz="0""#;
+    let scene =
+        import(&one_joint(noise, "0.0185 -0.1108 0", LIMIT)).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!scene.contains("allow_unphysical_inertia"), "{scene}");
+    let want = 0.5 * (0.0185f64.powi(2) + 0.1108f64.powi(2));
+    assert!((one_mass(&scene) - want).abs() < 1e-15 * want);
+    // At the frame's origin the body has no other scale: the same tensor is
+    // then refused, at its `<inertia>`.
+    let e = import(&one_joint(noise, "0 0 0", LIMIT))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("robot.urdf:7:") && e.contains("not positive semi-definite"),
+        "{e}"
+    );
+}
+
+#[test]
+fn an_indefinite_tensor_on_a_moving_link_is_refused_where_it_is_written() {
+    let text = one_joint(
+        r#"ixx="0.003" ixy="0.004" ixz="0" iyy="0.001" iyz="0" izz="0.002""#,
+        "0.1 0 0",
+        LIMIT,
+    );
+    let e = import(&text).unwrap_err().to_string();
+    assert!(
+        e.contains("robot.urdf:7:")
+            && e.contains("link `arm`")
+            && e.contains("not positive semi-definite"),
+        "{e}"
+    );
+}
+
+#[test]
+fn limits_beyond_any_scale_mean_no_limit() {
+    let inertia = r#"ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001""#;
+    // As the Iris quadrotor's rotors: `1e+16` for "no limit".
+    let scene = import(&one_joint(
+        inertia,
+        "0 0 0",
+        r#"lower="-1e+16" upper="1e+16" velocity="1e16" effort="0""#,
+    ))
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        !scene.contains("range = ") && !scene.contains("velocity_range"),
+        "{scene}"
+    );
+    let scene = import(&one_joint(inertia, "0 0 0", LIMIT)).unwrap();
+    assert!(scene.contains("range = [-2"), "{scene}");
+    // Not a number is still an error, where it is written.
+    let e = import(&one_joint(inertia, "0 0 0", r#"lower="nan" upper="1""#))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("robot.urdf:13:") && e.contains("`lower`"), "{e}");
 }

@@ -79,6 +79,12 @@ ROBOTS = [
     # Two more arms the derivation was not tuned on (7 and 6 joints).
     ("xarm7", "xarm_description/urdf/xarm7.urdf", [], False),
     ("z1", "z1_description/urdf/z1.urdf", [], False),
+    # Two humanoids with inertias as published: Romeo's arm links break the
+    # triangle inequality (imported with `allow_unphysical_inertia`), iCub's
+    # tensors include rounding noise (`ixz = 2.4e-35`, all else zero) that
+    # the body's own scale absorbs.
+    ("romeo_small", "romeo_description/urdf/romeo_small.urdf", [], False),
+    ("icub", "icub_description/robots/icub.urdf", [], False),
 ]
 
 # Robots whose generated derivatives (`--output dynamics_derivatives`) are

@@ -210,6 +210,9 @@ pub struct ComponentDef {
     /// Orientation `[roll, pitch, yaw]` of the inertia's axes in the frame
     /// (`rigid_body`; URDF convention `R = Rz(yaw) Ry(pitch) Rx(roll)`).
     pub inertia_rpy: Option<Spanned<Vec<SScalar>>>,
+    /// Accept a positive semi-definite inertia tensor that breaks the
+    /// triangle inequality (`rigid_body`; as some URDF files publish).
+    pub allow_unphysical_inertia: Option<Spanned<bool>>,
     /// Stiffness of a spring.
     pub stiffness: Option<SScalar>,
     /// Damping coefficient of a damper.

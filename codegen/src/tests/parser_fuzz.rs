@@ -790,6 +790,7 @@ const COMPONENT_FIELDS: &[&str] = &[
     "end_stiffness",
     "damping_ratio",
     "geometric_stiffening",
+    "allow_unphysical_inertia",
     "colour",
 ];
 
@@ -877,7 +878,7 @@ fn component_field(g: &mut Gen, field: &str, names: &[String], frames: &[String]
                 g.pick(&["0.01", "0.02", "[0.01, 0.02]"]).to_owned()
             }
         }
-        "geometric_stiffening" => if junk {
+        "geometric_stiffening" | "allow_unphysical_inertia" => if junk {
             g.pick(&["1", "\"yes\""])
         } else {
             g.pick(&["true", "false"])
@@ -1021,7 +1022,13 @@ fn scene_document(g: &mut Gen) -> String {
             "energy" => &["kinetic", "potential", "dissipation"],
             "point_mass" => &["mass", "position", "frame"],
             "rod" => &["mass", "from", "to", "frame"],
-            "rigid_body" => &["mass", "frame", "position", "inertia"],
+            "rigid_body" => &[
+                "mass",
+                "frame",
+                "position",
+                "inertia",
+                "allow_unphysical_inertia",
+            ],
             "spring" => &["stiffness", "expression", "rest"],
             "damper" => &["damping", "expression"],
             "flexible_link" => &[

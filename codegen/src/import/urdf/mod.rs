@@ -30,6 +30,7 @@ mod write;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Source};
+use crate::inertia::Unphysical;
 use read::read_robot;
 use tree::Tree;
 use write::write_scene;
@@ -92,8 +93,9 @@ struct Inertial {
     inertia: [f64; 6],
     /// What is wrong with the tensor, if anything, and where its
     /// `<inertia>` is (a byte offset): an error only where the link's
-    /// body carries energy and its combined inertia is wrong too.
-    problem: Option<(usize, String)>,
+    /// body carries energy and its inertia (combined with the body's other
+    /// links) is not positive semi-definite.
+    problem: Option<(usize, Unphysical)>,
 }
 
 #[derive(Debug, Clone)]

@@ -5,7 +5,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use super::tree::tensor;
 use super::{at, Inertial, Joint, Kind, Link, Origin, UrdfOptions, ABSURD, MAX_LINKS};
 use crate::error::{Error, Source};
-use crate::inertia::inertia_problem;
+use crate::inertia::{inertia_problem, parallel_axis_scale};
 
 /// A required attribute.
 fn attribute<'a>(
@@ -69,6 +69,16 @@ fn optional_number(
     node.attribute(name)
         .map(|t| numbers::<1>(source, node, name, t).map(|v| v[0]))
         .transpose()
+}
+
+/// A joint limit, `None` where it is absent or beyond [`ABSURD`] in
+/// magnitude (infinite included): files write `1e16` for "no limit".
+fn limit_value(source: &Source, node: roxmltree::Node, name: &str) -> Result<Option<f64>, Error> {
+    match node.attribute(name) {
+        None => Ok(None),
+        Some(t) if t.trim().parse::<f64>().is_ok_and(|v| v.abs() > ABSURD) => Ok(None),
+        Some(t) => numbers::<1>(source, node, name, t).map(|v| Some(v[0])),
+    }
 }
 
 fn child<'a, 'i>(node: roxmltree::Node<'a, 'i>, tag: &str) -> Option<roxmltree::Node<'a, 'i>> {
@@ -213,8 +223,8 @@ pub(super) fn read_robot(
         };
         let (mut limit, mut velocity) = (None, None);
         if let Some(l) = child(node, "limit") {
-            let lower = optional_number(source, l, "lower")?;
-            let upper = optional_number(source, l, "upper")?;
+            let lower = limit_value(source, l, "lower")?;
+            let upper = limit_value(source, l, "upper")?;
             if let (Some(lo), Some(hi)) = (lower, upper) {
                 if lo > hi {
                     return Err(at(
@@ -225,7 +235,7 @@ pub(super) fn read_robot(
                 }
                 limit = (lo < hi).then_some([lo, hi]);
             }
-            velocity = optional_number(source, l, "velocity")?.filter(|&v| v > 0.0);
+            velocity = limit_value(source, l, "velocity")?.filter(|&v| v > 0.0);
         }
         let damping = match child(node, "dynamics") {
             Some(d) => optional_number(source, d, "damping")?.unwrap_or(0.0),
@@ -286,10 +296,11 @@ fn read_inertial(
     {
         inertia[k] = number(source, i, name)?;
     }
-    let problem =
-        inertia_problem(&tensor(&inertia)).map(|p| (i.range().start, format!("{ctx}: {p}")));
+    let origin = origin(source, node, keep_angles)?;
+    let floor = parallel_axis_scale(mass, &origin.xyz.into());
+    let problem = inertia_problem(&tensor(&inertia), floor).map(|p| (i.range().start, p));
     Ok(Inertial {
-        origin: origin(source, node, keep_angles)?,
+        origin,
         mass,
         inertia,
         problem,

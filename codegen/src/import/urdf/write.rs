@@ -6,7 +6,7 @@ use std::fmt::Write;
 use super::tree::{combine, Tree};
 use super::{Inertial, Joint, Kind, Link, Pose};
 use crate::error::{Error, Source};
-use crate::inertia::inertia_problem;
+use crate::inertia::{inertia_problem, parallel_axis_scale, Unphysical};
 use crate::load::parse::RESERVED;
 
 /// A scene identifier from a URDF name: letters, digits and `_` (others
@@ -315,9 +315,11 @@ pub(super) fn write_scene(
 
 /// One `rigid_body` per moving body. A link's inertia tensor that is not
 /// physical (see [`Inertial::problem`]) is accepted, with a comment, where
-/// the link is fixed to the world (it carries no energy) or merged into a
-/// body whose combined tensor is physical; otherwise it is an error at the
-/// link's `<inertia>`.
+/// the link is fixed to the world (it carries no energy), where its body's
+/// tensor (the link's own, or combined with the body's other links) is
+/// physical, and where that tensor only breaks the triangle inequality
+/// (`allow_unphysical_inertia`, as Pinocchio loads it); a body tensor that
+/// is not positive semi-definite is an error at the link's `<inertia>`.
 fn write_bodies(
     w: &mut String,
     source: &Source,
@@ -329,7 +331,12 @@ fn write_bodies(
     let problem = |l: usize| links[l].inertial.as_ref().and_then(|i| i.problem.as_ref());
     let refuse = |l: usize, also: &str| {
         let (at, problem) = problem(l).expect("a link with a problem");
-        source.error_at(*at, None, format!("{problem}{also}"))
+        let link = &links[l].name;
+        source.error_at(
+            *at,
+            None,
+            format!("link `{link}`: {}{also}", problem.message()),
+        )
     };
     // Links of each body (by the body's frame link), with their poses in it.
     let mut bodies: BTreeMap<usize, Vec<(Pose, usize)>> = BTreeMap::new();
@@ -379,11 +386,19 @@ fn write_bodies(
                 let _ = writeln!(w, "\n# Body {} is massless.", quoted(body_name));
             }
             [(_, l)] => {
-                if problem(*l).is_some() {
+                if let Some((_, Unphysical::Indefinite { .. })) = problem(*l) {
                     return Err(refuse(*l, ""));
                 }
                 let i = links[*l].inertial.as_ref().expect("filtered above");
                 let _ = writeln!(w, "\n[[components]]");
+                if let Some((_, p)) = problem(*l) {
+                    let _ = writeln!(
+                        w,
+                        "# link {}: {}; kept as published",
+                        quoted(&names.link[*l]),
+                        p.message()
+                    );
+                }
                 let _ = writeln!(w, "name = {}", quoted(&format!("{}_body", names.link[*l])));
                 let _ = writeln!(w, "type = \"rigid_body\"");
                 let _ = writeln!(w, "frame = {}", quoted(&names.link[*l]));
@@ -406,6 +421,9 @@ fn write_bodies(
                 if i.origin.rpy != [0.0; 3] {
                     let _ = writeln!(w, "inertia_rpy = {}", vector(&i.origin.rpy));
                 }
+                if problem(*l).is_some() {
+                    let _ = writeln!(w, "allow_unphysical_inertia = true");
+                }
             }
             many => {
                 let merged: Vec<String> =
@@ -420,24 +438,36 @@ fn write_bodies(
                     .map(|&(_, l)| l)
                     .filter(|&l| problem(l).is_some())
                     .collect();
-                if let Some(&l) = odd.first() {
-                    if let Some(p) = inertia_problem(&b.tensor) {
-                        return Err(refuse(
-                            l,
-                            &format!(
-                                ", and so is the body it is merged into ({}): {p}",
-                                merged.join(", ")
-                            ),
-                        ));
-                    }
+                let combined = inertia_problem(&b.tensor, parallel_axis_scale(b.mass, &b.com));
+                if let Some(p @ Unphysical::Indefinite { .. }) = &combined {
+                    let also = format!(
+                        ", and so is the body it is merged into ({}): {}",
+                        merged.join(", "),
+                        p.message()
+                    );
+                    return Err(match odd.first() {
+                        Some(&l) => refuse(l, &also),
+                        None => source.error(format!("body {body_name}: {}", p.message())),
+                    });
                 }
                 let _ = writeln!(w, "\n[[components]]");
                 for &l in &odd {
                     let _ = writeln!(
                         w,
-                        "# link {}'s own inertia tensor is not physical; the combined one is",
-                        quoted(&names.link[l])
+                        "# link {}'s own inertia tensor is not physical ({})",
+                        quoted(&names.link[l]),
+                        problem(l).expect("odd").1.message()
                     );
+                }
+                match &combined {
+                    Some(p) => {
+                        let _ =
+                            writeln!(w, "# the combined one: {}; kept as published", p.message());
+                    }
+                    None if !odd.is_empty() => {
+                        let _ = writeln!(w, "# the combined one is physical");
+                    }
+                    None => {}
                 }
                 let _ = writeln!(
                     w,
@@ -452,6 +482,9 @@ fn write_bodies(
                 let t = b.tensor;
                 let row = |i: usize| vector(&[t[(i, 0)], t[(i, 1)], t[(i, 2)]]);
                 let _ = writeln!(w, "inertia = [{}, {}, {}]", row(0), row(1), row(2));
+                if combined.is_some() {
+                    let _ = writeln!(w, "allow_unphysical_inertia = true");
+                }
             }
         }
     }

@@ -225,7 +225,7 @@ pub(super) fn required<'c, T>(
 
 fn check_fields(cx: &Context, c: &ComponentDef, allowed: &[&str], ctx: &str) -> Result<(), Error> {
     let span = |s: &Option<SScalar>| s.as_ref().map(|s| s.span().start);
-    let present: [(&str, Option<usize>); 27] = [
+    let present: [(&str, Option<usize>); 28] = [
         ("kinetic", c.kinetic.as_ref().map(|s| s.span().start)),
         ("potential", c.potential.as_ref().map(|s| s.span().start)),
         (
@@ -241,6 +241,10 @@ fn check_fields(cx: &Context, c: &ComponentDef, allowed: &[&str], ctx: &str) -> 
         (
             "inertia_rpy",
             c.inertia_rpy.as_ref().map(|s| s.span().start),
+        ),
+        (
+            "allow_unphysical_inertia",
+            c.allow_unphysical_inertia.as_ref().map(|s| s.span().start),
         ),
         ("stiffness", c.stiffness.as_ref().map(|s| s.span().start)),
         ("damping", c.damping.as_ref().map(|s| s.span().start)),

@@ -5,7 +5,11 @@
 //! `inertia_rpy` (the URDF convention; identity by default). The mass may be
 //! zero and the tensor singular (massless and point-like bodies): the mass
 //! must be non-negative and `I0` symmetric positive semi-definite, its
-//! principal moments obeying the triangle inequality.
+//! principal moments obeying the triangle inequality, unless
+//! `allow_unphysical_inertia = true` (kept for tensors published that way,
+//! which URDF files have: positive semi-definite still required). The
+//! tolerances are relative to the body's scale
+//! ([`crate::inertia::inertia_problem`]).
 
 use toml::Spanned;
 
@@ -13,14 +17,21 @@ use super::{required, Energies, Kind, Terms};
 use crate::error::Error;
 use crate::expr::Id;
 use crate::geometry::{Frame, Point};
-use crate::inertia::inertia_problem;
+use crate::inertia::{inertia_problem, parallel_axis_scale, Unphysical};
 use crate::load::scene::{ComponentDef, InertiaEntry, SScalar, Scalar};
 use crate::model::context::Context;
 use crate::model::{Attachment, Body};
 
 pub(super) const KIND: Kind = Kind {
     name: "rigid_body",
-    fields: &["mass", "position", "frame", "inertia", "inertia_rpy"],
+    fields: &[
+        "mass",
+        "position",
+        "frame",
+        "inertia",
+        "inertia_rpy",
+        "allow_unphysical_inertia",
+    ],
     adds_coordinates: false,
     read,
 };
@@ -31,6 +42,7 @@ struct RigidBody {
     position: Option<Spanned<Vec<SScalar>>>,
     inertia: Spanned<Vec<Spanned<InertiaEntry>>>,
     inertia_rpy: Option<Spanned<Vec<SScalar>>>,
+    allow_unphysical: bool,
 }
 
 fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn Energies>, Error> {
@@ -40,6 +52,10 @@ fn read(cx: &Context, c: &ComponentDef, _: &str, ctx: &str) -> Result<Box<dyn En
         position: c.position.clone(),
         inertia: required(cx, c, &c.inertia, ctx, "inertia")?.clone(),
         inertia_rpy: c.inertia_rpy.clone(),
+        allow_unphysical: c
+            .allow_unphysical_inertia
+            .as_ref()
+            .is_some_and(|b| *b.get_ref()),
     }))
 }
 
@@ -48,7 +64,8 @@ impl Energies for RigidBody {
         let m = cx.positive(&self.mass, ctx, "mass", false)?;
         let frame = cx.lookup_frame(&self.frame, ctx)?;
         let com = centre_of_mass(cx, &self.frame, &frame, self.position.as_ref(), ctx)?;
-        let inertia = inertia(cx, &self.inertia, ctx)?;
+        let floor = body_scale(cx, m, &com);
+        let inertia = inertia(cx, &self.inertia, floor, self.allow_unphysical, ctx)?;
         let inertia = match &self.inertia_rpy {
             Some(rpy) => rotated(cx, &inertia, rpy, ctx)?,
             None => inertia,
@@ -114,11 +131,29 @@ pub(super) fn body_terms(
     }
 }
 
+/// The body's moment about its frame's origin from its mass, at nominal
+/// values ([`parallel_axis_scale`]; zero where the centre moves in the
+/// frame).
+fn body_scale(cx: &Context, m: Id, com: &Point) -> f64 {
+    let value = |id: Id| cx.nominal_value(id, 0, "", "").ok();
+    let centre = com.local.map(value);
+    match (value(m), centre) {
+        (Some(m), [Some(x), Some(y), Some(z)]) => {
+            parallel_axis_scale(m, &nalgebra::Vector3::new(x, y, z))
+        }
+        _ => 0.0,
+    }
+}
+
 /// The inertia tensor, full (three rows) or diagonal (three values):
-/// parameter-only, symmetric, positive semi-definite.
+/// parameter-only, symmetric, positive semi-definite and, unless
+/// `allow_unphysical`, a tensor some mass distribution has; `floor` is the
+/// body's scale for the tolerances.
 fn inertia(
     cx: &mut Context,
     entries: &Spanned<Vec<Spanned<InertiaEntry>>>,
+    floor: f64,
+    allow_unphysical: bool,
     ctx: &str,
 ) -> Result<[[Id; 3]; 3], Error> {
     let at = entries.span().start;
@@ -172,8 +207,20 @@ fn inertia(
     if asymmetric {
         return Err(cx.err(at, Some(ctx), "inertia tensor is not symmetric"));
     }
-    if let Some(problem) = inertia_problem(&nalgebra::Matrix3::from_fn(|i, j| val[i][j])) {
-        return Err(cx.err(at, Some(ctx), problem));
+    match inertia_problem(&nalgebra::Matrix3::from_fn(|i, j| val[i][j]), floor) {
+        None => {}
+        Some(Unphysical::Triangle { .. }) if allow_unphysical => {}
+        Some(problem @ Unphysical::Triangle { .. }) => {
+            return Err(cx.err(
+                at,
+                Some(ctx),
+                format!(
+                    "{} (`allow_unphysical_inertia = true` keeps such a tensor)",
+                    problem.message()
+                ),
+            ))
+        }
+        Some(problem) => return Err(cx.err(at, Some(ctx), problem.message())),
     }
     Ok(ids)
 }
