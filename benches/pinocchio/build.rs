@@ -17,64 +17,141 @@ use std::process::Command;
 
 /// A robot compared.
 struct Robot {
-    /// Module name.
-    name: &'static str,
-    /// URDF relative to example-robot-data's `robots/` folder.
-    urdf: &'static str,
+    /// Module name (a lower-case identifier).
+    name: String,
+    /// URDF: absolute, or relative to example-robot-data's `robots/` folder.
+    urdf: String,
     /// Joints held fixed, as `dump_model.py` takes them: comma-separated, or
     /// `only:` and the joints that keep moving.
-    locked: &'static str,
+    locked: String,
     /// Link whose frame Jacobian is compared (a marker of the import).
-    link: Option<&'static str>,
+    link: Option<String>,
     /// Whether the derivatives are compared (generated with
     /// `outputs = ["dynamics_derivatives"]`).
     derivatives: bool,
 }
 
-const ROBOTS: &[Robot] = &[
-    Robot {
-        name: "ur5",
-        urdf: "ur_description/urdf/ur5_robot.urdf",
-        locked: "",
-        link: Some("tool0"),
-        derivatives: true,
-    },
-    Robot {
-        name: "panda",
-        urdf: "panda_description/urdf/panda.urdf",
-        locked: "panda_finger_joint1,panda_finger_joint2",
-        link: Some("panda_hand"),
-        derivatives: true,
-    },
+/// The robots compared by default (`FLEXDYN_BENCH_ROBOTS` unset or
+/// `default` in it): name, URDF, locked joints, link, derivatives.
+const DEFAULT_ROBOTS: &[(&str, &str, &str, Option<&str>, bool)] = &[
+    (
+        "ur5",
+        "ur_description/urdf/ur5_robot.urdf",
+        "",
+        Some("tool0"),
+        true,
+    ),
+    (
+        "panda",
+        "panda_description/urdf/panda.urdf",
+        "panda_finger_joint1,panda_finger_joint2",
+        Some("panda_hand"),
+        true,
+    ),
     // Torso, arm and head; as published (quarter turns written as
     // `1.57079632679`, 1e-6 kg antennas with inertias that are not positive
     // semi-definite).
-    Robot {
-        name: "tiago",
-        urdf: "tiago_description/robots/tiago.urdf",
-        locked: "only:torso_lift_joint,arm_1_joint,arm_2_joint,arm_3_joint,arm_4_joint,\
-                 arm_5_joint,arm_6_joint,arm_7_joint,head_1_joint,head_2_joint",
-        link: None,
-        derivatives: false,
-    },
+    (
+        "tiago",
+        "tiago_description/robots/tiago.urdf",
+        "only:torso_lift_joint,arm_1_joint,arm_2_joint,arm_3_joint,arm_4_joint,\
+         arm_5_joint,arm_6_joint,arm_7_joint,head_1_joint,head_2_joint",
+        None,
+        false,
+    ),
     // Legs on a fixed base.
-    Robot {
-        name: "solo",
-        urdf: "solo_description/robots/solo12.urdf",
-        locked: "",
-        link: None,
-        derivatives: false,
-    },
+    (
+        "solo",
+        "solo_description/robots/solo12.urdf",
+        "",
+        None,
+        false,
+    ),
     // Fixed base, grippers held: 30 joints. Its derivatives are generated
     // to C too: about 150,000 operations, some 8 minutes of gcc -O3.
-    Robot {
-        name: "talos",
-        urdf: "talos_data/robots/talos_reduced.urdf",
-        locked: "gripper_left_joint,gripper_right_joint",
-        link: None,
-        derivatives: true,
-    },
+    (
+        "talos",
+        "talos_data/robots/talos_reduced.urdf",
+        "gripper_left_joint,gripper_right_joint",
+        None,
+        true,
+    ),
 ];
+
+/// The robots of `FLEXDYN_BENCH_ROBOTS`, white-space separated entries
+/// `NAME=URDF[;fix=J1,J2|;only=J1,J2][;link=LINK][;derivatives]` (`default`
+/// for the default five), or the default five when it is unset: any robot
+/// imported from URDF as published, compared on the same terms.
+fn robots() -> Vec<Robot> {
+    let defaults = || {
+        DEFAULT_ROBOTS
+            .iter()
+            .map(|&(name, urdf, locked, link, derivatives)| Robot {
+                name: name.into(),
+                urdf: urdf.into(),
+                locked: locked.into(),
+                link: link.map(String::from),
+                derivatives,
+            })
+    };
+    let Ok(list) = std::env::var("FLEXDYN_BENCH_ROBOTS") else {
+        return defaults().collect();
+    };
+    let mut robots: Vec<Robot> = Vec::new();
+    for entry in list.split_whitespace() {
+        if entry == "default" {
+            robots.extend(defaults());
+            continue;
+        }
+        let bad = |why: &str| -> ! {
+            fail(&format!(
+                "FLEXDYN_BENCH_ROBOTS entry {entry:?}: {why} (expected \
+                 NAME=URDF[;fix=J1,J2|;only=J1,J2][;link=LINK][;derivatives])"
+            ))
+        };
+        let (name, rest) = entry.split_once('=').unwrap_or_else(|| bad("no `=`"));
+        let named = name.starts_with(|c: char| c.is_ascii_lowercase())
+            && name
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+        if !named {
+            bad("NAME must be a lower-case identifier");
+        }
+        let mut parts = rest.split(';');
+        let mut robot = Robot {
+            name: name.into(),
+            urdf: parts.next().unwrap_or_default().into(),
+            locked: String::new(),
+            link: None,
+            derivatives: false,
+        };
+        for part in parts {
+            match part.split_once('=') {
+                Some(("fix", joints)) => robot.locked = joints.into(),
+                Some(("only", joints)) => robot.locked = format!("only:{joints}"),
+                Some(("link", link)) => robot.link = Some(link.into()),
+                None if part == "derivatives" => robot.derivatives = true,
+                _ => bad(&format!("unknown option {part:?}")),
+            }
+        }
+        if robot.urdf.is_empty() {
+            bad("no URDF");
+        }
+        robots.push(robot);
+    }
+    if robots.is_empty() {
+        fail("FLEXDYN_BENCH_ROBOTS names no robot");
+    }
+    for (i, robot) in robots.iter().enumerate() {
+        if robots[..i].iter().any(|r| r.name == robot.name) {
+            fail(&format!(
+                "FLEXDYN_BENCH_ROBOTS: robot {} named twice",
+                robot.name
+            ));
+        }
+    }
+    robots
+}
 
 /// Pinocchio's functions generated to C per robot, in the order of the
 /// table's fields (`benches/compare.rs`), the frame last and optional.
@@ -95,6 +172,7 @@ fn main() {
     let out = PathBuf::from(std::env::var("OUT_DIR").unwrap());
     println!("cargo:rerun-if-env-changed=FLEXDYN_PINOCCHIO_PYTHON");
     println!("cargo:rerun-if-env-changed=FLEXDYN_NATIVE");
+    println!("cargo:rerun-if-env-changed=FLEXDYN_BENCH_ROBOTS");
     for file in [
         "src/shim.cpp",
         "src/model.hpp",
@@ -116,9 +194,12 @@ fn main() {
     let mut builder = flexdyn_codegen::Builder::new()
         .out_dir(out.join("flexdyn"))
         .emit_rerun_if_changed(true);
-    let mut list = String::from("pub const ROBOTS: &[(&str, &[Joint])] = &[\n");
-    for robot in ROBOTS {
-        let urdf = robots_dir.join(robot.urdf);
+    let robots = robots();
+    let mut list =
+        String::from("pub const ROBOTS: &[(&str, &[Joint], &[(&str, &str)], f64)] = &[\n");
+    for robot in &robots {
+        let urdf = robots_dir.join(&robot.urdf);
+        println!("cargo:rerun-if-changed={}", urdf.display());
         let text = std::fs::read_to_string(&urdf)
             .unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", urdf.display())));
         let dump = dump_model(&python, &here.join("dump_model.py"), &urdf, robot);
@@ -136,19 +217,26 @@ fn main() {
         let scene =
             flexdyn_codegen::import_urdf(&flexdyn_codegen::Source::new(&urdf, text), &options)
                 .unwrap_or_else(|e| fail(&e.to_string()));
+        // Named after the robot's module, not the URDF's `<robot name>`.
+        let scene = renamed(&scene, &robot.name);
         let file = out.join(format!("{}.toml", robot.name));
-        std::fs::write(&file, scene)
+        std::fs::write(&file, &scene)
             .unwrap_or_else(|e| fail(&format!("cannot write {}: {e}", file.display())));
         builder = builder.scene(file);
         list.push_str(&format!("    ({:?}, &[\n", robot.name));
         for joint in &dump.joints {
             list.push_str(&format!("        {joint},\n"));
         }
-        list.push_str("    ]),\n");
+        list.push_str(&format!(
+            "    ], &{:?}, {:?}),\n",
+            urdf_joints(&scene),
+            largest_snap(&scene)
+        ));
     }
     list.push_str("];\n");
     std::fs::write(out.join("robots.rs"), list).unwrap_or_else(|e| fail(&e.to_string()));
-    builder.generate().unwrap_or_else(|e| fail(&e.to_string()));
+    let report = builder.generate().unwrap_or_else(|e| fail(&e.to_string()));
+    write_robot_list(&robots, &report, &out.join("robot_list.rs"));
 
     let native = std::env::var_os("FLEXDYN_NATIVE").is_some();
     let include = prefix.join("include");
@@ -167,12 +255,120 @@ fn main() {
     println!("cargo:rustc-link-lib=static=pinocchio_shim");
     println!("cargo:rustc-link-lib=stdc++");
     generate_c(
+        &robots,
         &include,
         &casadi,
         &models,
         native,
         &out.join("pinocchio_c.rs"),
     );
+}
+
+/// Each coordinate of an imported scene with the URDF joint it comes from:
+/// the importer writes `# URDF joint "NAME"` above a coordinate whose name
+/// is not the joint's (docs/urdf-import.md).
+fn urdf_joints(scene: &str) -> Vec<(String, String)> {
+    let mut pairs = Vec::new();
+    let mut urdf = None;
+    let mut in_coordinate = false;
+    for line in scene.lines() {
+        if line.starts_with("[[") {
+            in_coordinate = line == "[[coordinates]]";
+            urdf = None;
+        } else if let Some(quoted) = line.strip_prefix("# URDF joint ") {
+            urdf = Some(unquoted(quoted));
+        } else if let (true, Some(name)) = (in_coordinate, line.strip_prefix("name = ")) {
+            let name = unquoted(name);
+            pairs.push((name.clone(), urdf.take().unwrap_or(name)));
+        }
+    }
+    pairs
+}
+
+/// The largest change (rad) the import's snapping made to an angle, from
+/// the scene's header (`(largest change 3.7e-6 rad; ...`), 0 if none.
+fn largest_snap(scene: &str) -> f64 {
+    scene
+        .lines()
+        .take_while(|l| l.starts_with('#'))
+        .find_map(|l| {
+            l.split_once("(largest change ")?
+                .1
+                .split_once(" rad")?
+                .0
+                .parse()
+                .ok()
+        })
+        .unwrap_or(0.0)
+}
+
+/// The text of a TOML basic string (`"..."`, escapes `\"` and `\\`).
+fn unquoted(s: &str) -> String {
+    let inner = s.trim().trim_start_matches('"').trim_end_matches('"');
+    inner.replace("\\\"", "\"").replace("\\\\", "\\")
+}
+
+/// The scene text `scene` with its name set to `name` (its first
+/// `name = ...` line).
+fn renamed(scene: &str, name: &str) -> String {
+    let mut done = false;
+    let lines: Vec<String> = scene
+        .lines()
+        .map(|l| {
+            if !done && l.starts_with("name = ") {
+                done = true;
+                format!("name = {name:?}")
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect();
+    if !done {
+        fail(&format!("the imported scene of {name} has no name"));
+    }
+    lines.join("\n") + "\n"
+}
+
+/// `robot_list.rs`, included by `benches/compare.rs`: the flexdyn module of
+/// every robot (`flexdyn_modules!`) and `robots`, which compares them all.
+fn write_robot_list(robots: &[Robot], report: &flexdyn_codegen::Report, path: &Path) {
+    let types: Vec<String> = robots
+        .iter()
+        .map(|r| {
+            report
+                .scenes
+                .iter()
+                .find(|g| g.name == r.name)
+                .unwrap_or_else(|| fail(&format!("no module generated for {}", r.name)))
+                .struct_name()
+        })
+        .collect();
+    let mut text = String::from("flexdyn_modules!(");
+    text += &robots
+        .iter()
+        .map(|r| r.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ");
+    text += ");\n\n/// Every robot's comparisons.\nfn robots(c: &mut Criterion<ThreadCpuTime>) {\n";
+    let call = |f: &str, r: &Robot, ty: &str, extra: &str| {
+        format!(
+            "    {f}::<{0}::{ty}, {{ {0}::NQ }}>(c, {0:?}{extra});\n",
+            r.name
+        )
+    };
+    for (r, ty) in robots.iter().zip(&types) {
+        text += &call("compare", r, ty, "");
+    }
+    for (r, ty) in robots.iter().zip(&types).filter(|(r, _)| r.derivatives) {
+        text += &call("compare_derivatives", r, ty, "");
+    }
+    for (r, ty) in robots.iter().zip(&types) {
+        if let Some(link) = &r.link {
+            text += &call("compare_marker", r, ty, &format!(", {link:?}"));
+        }
+    }
+    text += "}\n";
+    std::fs::write(path, text).unwrap_or_else(|e| fail(&e.to_string()));
 }
 
 /// Runs `build` unless the stamp `<name>.stamp` in `out` says it ran on
@@ -235,7 +431,14 @@ fn pinocchio_build(include: &Path) -> cc::Build {
 /// writes at -O3 (`-march=native` too when `native`) and writes the Rust
 /// table of the functions (`pinocchio_c.rs`: declarations, operation
 /// counts, work sizes) to `table`.
-fn generate_c(include: &Path, casadi: &Path, models: &Path, native: bool, table: &Path) {
+fn generate_c(
+    robots: &[Robot],
+    include: &Path,
+    casadi: &Path,
+    models: &Path,
+    native: bool,
+    table: &Path,
+) {
     let generator = models.join("generate_c");
     let source = PathBuf::from("src/generate_c.cpp");
     unless_built(
@@ -263,14 +466,9 @@ fn generate_c(include: &Path, casadi: &Path, models: &Path, native: bool, table:
         },
     );
 
-    let mut build = cc::Build::new();
-    build.opt_level(3).warnings(false);
-    if native {
-        build.flag("-march=native");
-    }
     let mut declarations = String::new();
     let mut entries = String::new();
-    for robot in ROBOTS {
+    for robot in robots {
         let c_file = models.join(format!("{}.c", robot.name));
         let stdout = run(
             Command::new(&generator)
@@ -280,7 +478,20 @@ fn generate_c(include: &Path, casadi: &Path, models: &Path, native: bool, table:
                 .args(robot.derivatives.then_some("derivatives")),
             &format!("generating Pinocchio's C for {}", robot.name),
         );
-        build.file(&c_file);
+        // The C changes only with Pinocchio's model and CasADi, not with
+        // flexdyn's generator: compiled again only when its text changes
+        // (TALOS's derivatives take minutes of gcc -O3), one library per
+        // robot so that adding a robot compiles its C alone.
+        let library = format!("pinocchio_c_{}", robot.name);
+        unless_built(models, &library, &[c_file.as_path()], &[], native, || {
+            let mut build = cc::Build::new();
+            build.opt_level(3).warnings(false);
+            if native {
+                build.flag("-march=native");
+            }
+            build.cargo_metadata(false).file(&c_file).compile(&library);
+        });
+        println!("cargo:rustc-link-lib=static={library}");
         let mut fields = Vec::new();
         for function in C_FUNCTIONS {
             let symbol = format!("pin_{}_{function}", robot.name);
@@ -321,20 +532,8 @@ fn generate_c(include: &Path, casadi: &Path, models: &Path, native: bool, table:
         )
         .unwrap();
     }
-    // The C changes only with Pinocchio's models and CasADi, not with
-    // flexdyn's generator: compiled again only when its text changes
-    // (TALOS's derivatives take minutes of gcc -O3).
-    let c_files: Vec<PathBuf> = ROBOTS
-        .iter()
-        .map(|r| models.join(format!("{}.c", r.name)))
-        .collect();
-    let c_files: Vec<&Path> = c_files.iter().map(PathBuf::as_path).collect();
-    unless_built(models, "c", &c_files, &[], native, || {
-        build.cargo_metadata(false).compile("pinocchio_c");
-    });
     let out = std::env::var("OUT_DIR").unwrap();
     println!("cargo:rustc-link-search=native={out}");
-    println!("cargo:rustc-link-lib=static=pinocchio_c");
     let text = format!(
         "extern \"C\" {{\n{declarations}}}\n\
          pub const GENERATED: &[(&str, Generated)] = &[\n{entries}];\n"
@@ -369,8 +568,8 @@ struct Dump {
 /// run by `python`.
 fn dump_model(python: &Path, script: &Path, urdf: &Path, robot: &Robot) -> Dump {
     let mut command = Command::new(python);
-    command.arg(script).arg(urdf).arg(robot.locked);
-    if let Some(link) = robot.link {
+    command.arg(script).arg(urdf).arg(&robot.locked);
+    if let Some(link) = &robot.link {
         command.arg(link);
     }
     let text = run(

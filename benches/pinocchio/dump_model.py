@@ -16,7 +16,8 @@ One record per line, tab-separated, its type first:
 
 * `locked`, the comma-separated names of the locked joints (the first line);
 * `joint`, per joint: name, Pinocchio's joint type (`JointModelRZ`, ...),
-  parent joint index, axis (3 numbers; the joint's own axis for the
+  parent joint index (a continuous joint written as the revolute joint of
+  its angle), axis (3 numbers; the joint's own axis for the
   unaligned types, zeros otherwise), placement in the parent joint's frame
   (rotation row by row, 9 numbers, then translation, 3), the inertia of
   everything attached to the joint (mass, centre of mass, 3, rotational
@@ -30,6 +31,16 @@ Numbers are written by `repr`, which reads back exactly.
 import sys
 
 import pinocchio as pin
+
+
+# Pinocchio's unbounded revolute joints and the revolute joints written for
+# them.
+UNBOUNDED = {
+    "JointModelRUBX": "JointModelRX",
+    "JointModelRUBY": "JointModelRY",
+    "JointModelRUBZ": "JointModelRZ",
+    "JointModelRevoluteUnboundedUnaligned": "JointModelRevoluteUnaligned",
+}
 
 
 def flat(placement):
@@ -63,7 +74,12 @@ def main() -> int:
     for j in range(1, model.njoints):
         joint = model.joints[j]
         kind = joint.shortname()
-        if joint.nq != 1 or joint.nv != 1:
+        # A continuous joint (unbounded revolute, configuration cos and sin)
+        # has the dynamics of a revolute joint about the same axis in its
+        # angle, which is what flexdyn's coordinate is.
+        unbounded = kind in UNBOUNDED
+        kind = UNBOUNDED.get(kind, kind)
+        if joint.nq != (2 if unbounded else 1) or joint.nv != 1:
             print(
                 f"joint {model.names[j]} in {urdf} is a {kind} with {joint.nq} "
                 f"configuration and {joint.nv} velocity numbers; the benchmark "

@@ -15,7 +15,9 @@ Each build has its own target directory (``target/pinbench``,
 of each compiles Pinocchio's templates twice (over double for the shim,
 over ``casadi::SX`` for the generator of C: minutes, about 3 GB). The load
 average before and after each run is printed with it, and the lines of the
-run that give agreement and operation counts. Stdlib only.
+run that give agreement and operation counts. The robots are those of the
+run (``FLEXDYN_BENCH_ROBOTS``, see ``build.rs``; the default five when it
+is unset). Stdlib only.
 
 Usage (from the repository root):
 
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -39,9 +42,11 @@ BUILDS = [
     ("native", REPO / "target/pinbench-native",
      {"FLEXDYN_NATIVE": "1", "RUSTFLAGS": "-C target-cpu=native"}),
 ]
-ROBOTS = [("ur5", "UR5 (6)"), ("panda", "Panda (7, arm)"),
-          ("tiago", "TIAGo (10, torso, arm, head; as published)"),
-          ("solo", "Solo12 (12, fixed base)"), ("talos", "TALOS (30, fixed base)")]
+# Labels of the default robots; others (`FLEXDYN_BENCH_ROBOTS`, see
+# `build.rs`) are labelled by their module name, after these.
+LABELS = {"ur5": "UR5 (6)", "panda": "Panda (7, arm)",
+          "tiago": "TIAGo (10, torso, arm, head; as published)",
+          "solo": "Solo12 (12, fixed base)", "talos": "TALOS (30, fixed base)"}
 # flexdyn's function, Pinocchio's templated one, Pinocchio's generated C.
 TERMS = [("flexdyn inverse_dynamics", "pinocchio rnea", "pinocchio C rnea"),
          ("flexdyn dynamics_terms", "pinocchio crba + nonLinearEffects",
@@ -80,6 +85,7 @@ def main() -> int:
         return 2
     extra = sys.argv[2:]
     results = {}
+    compared = set()
     for build, target, env in builds:
         print(f"{build}: load average before {load()}", flush=True)
         run = subprocess.run(
@@ -89,6 +95,9 @@ def main() -> int:
         for line in run.stdout.splitlines():
             if "largest relative difference" in line or "operations" in line:
                 print(f"{build}: {line}")
+            robot = re.match(r"(\w+): \d+ joints;", line)
+            if robot:
+                compared.add(robot.group(1))
         if run.returncode != 0:
             print(f"error: the {build} run failed:\n{run.stderr[-4000:]}", file=sys.stderr)
             return 1
@@ -100,7 +109,9 @@ def main() -> int:
                    "vs C"]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))
-    for robot, label in ROBOTS:
+    robots = [r for r in LABELS if r in compared] + sorted(compared - set(LABELS))
+    for robot in robots:
+        label = LABELS.get(robot, robot)
         for build, _, _ in builds:
             cells = []
             for names in TERMS:

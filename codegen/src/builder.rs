@@ -127,6 +127,11 @@ pub struct Generated {
 }
 
 impl Generated {
+    /// The name of the module's model type (`Ur5` for the scene `ur5`).
+    pub fn struct_name(&self) -> String {
+        struct_name(&self.name)
+    }
+
     /// Operations of all emitted functions.
     pub fn total_ops(&self) -> OpCount {
         let mut t = OpCount::default();

@@ -357,6 +357,10 @@ fn angles_within_their_written_precision_of_a_multiple_of_pi_over_twelve_are_sna
         .replace(
             r#"rpy="-1.5707963267948966 0 0""#,
             r#"rpy="-1.570796325 1.57 5.4949E-05""#,
+        )
+        .replace(
+            r#"<origin xyz="0 0 0.5"/>"#,
+            r#"<origin xyz="0 0 0.5" rpy="-1.67685e-15 -1.86264e-08 0"/>"#,
         );
     let snapped = import(&urdf).unwrap();
     // Written to 1e-11 and 1e-7 (truncated): pi/2 and pi exactly.
@@ -366,12 +370,14 @@ fn angles_within_their_written_precision_of_a_multiple_of_pi_over_twelve_are_sna
     );
     assert!(snapped.contains("angle = 3.141592653589793 }"), "{snapped}");
     // 1.8e-9 from pi/2 but written to 1e-9; 8e-4 from pi/2 (beyond 1e-5);
-    // 5.5e-5 from zero written to 1e-9: as written.
-    for kept in ["-1.570796325", "angle = 1.57 ", "5.4949e-5"] {
+    // 5.5e-5 and 1.9e-8 from zero written to finer digits: as written.
+    for kept in ["-1.570796325", "angle = 1.57 ", "5.4949e-5", "-1.86264e-8"] {
         assert!(snapped.contains(kept), "{kept} kept in\n{snapped}");
     }
+    // 1.7e-15 from zero, below 1e-12 rad: zero, however written.
+    assert!(!snapped.contains("1.67685"), "{snapped}");
     assert!(
-        snapped.contains("# 2 rpy angles agreeing with a multiple of pi/12"),
+        snapped.contains("# 3 rpy angles agreeing with a multiple of pi/12"),
         "{snapped}"
     );
     assert!(snapped.contains("largest change 5.4e-8 rad"), "{snapped}");

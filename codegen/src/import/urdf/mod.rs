@@ -43,7 +43,8 @@ pub struct UrdfOptions {
     pub fix: Vec<String>,
     /// Keep every angle as written: by default an `rpy` angle that agrees
     /// with a multiple of `pi/12` to within one unit of its last written
-    /// digit (and at most [`SNAP_LIMIT`] rad) is taken to be that multiple.
+    /// digit (and at most [`SNAP_LIMIT`] rad), or to within [`SNAP_NOISE`],
+    /// is taken to be that multiple.
     pub keep_angles: bool,
     /// Optional outputs the scene asks for (its `outputs` list: names of
     /// [`crate::model::OUTPUTS`]).
@@ -54,6 +55,11 @@ pub struct UrdfOptions {
 /// seconds of arc): an angle written as `1.5708` (3.7e-6 from `pi/2`) is
 /// snapped, `1.57` (8e-4) is kept as written.
 pub const SNAP_LIMIT: f64 = 1e-5;
+
+/// How close to a multiple of `pi/12` an angle is snapped whatever its
+/// written digits, rad: `-1.67685e-15` and `2.78e-29`, rounding noise that
+/// CAD exporters write, are zero; `-1.86264e-08` is kept.
+pub const SNAP_NOISE: f64 = 1e-12;
 
 /// Largest magnitude accepted for a length, mass, inertia, angle or rate.
 const ABSURD: f64 = 1e9;

@@ -114,7 +114,9 @@ fn origin(source: &Source, parent: roxmltree::Node, keep_angles: bool) -> Result
 /// (4.9e-12 from `pi/2`, written to 1e-11), `1.5708` and `3.1415926`
 /// (truncated) become `pi/2` and `pi`; `1.570796325` (1.8e-9 away, written to
 /// 1e-9), `1.57` and zero's neighbours (`5.5e-5`, `-1.9e-8`, written to finer
-/// digits) stay as written.
+/// digits) stay as written. An angle within [`super::SNAP_NOISE`] of such a
+/// multiple is snapped however it is written (`-1.67685e-15`: rounding
+/// noise of an exporter).
 pub(super) fn snap_angle(text: &str, value: f64) -> f64 {
     use std::f64::consts::PI;
     let n = (value * 12.0 / PI).round();
@@ -125,7 +127,7 @@ pub(super) fn snap_angle(text: &str, value: f64) -> f64 {
     };
     let decimals = mantissa.find('.').map_or(0, |k| mantissa.len() - k - 1) as i32;
     let unit = 10f64.powi(exponent - decimals);
-    match (value - exact).abs() <= unit.min(super::SNAP_LIMIT) {
+    match (value - exact).abs() <= unit.clamp(super::SNAP_NOISE, super::SNAP_LIMIT) {
         true => exact,
         false => value,
     }
