@@ -39,8 +39,9 @@ pub struct UrdfArgs {
     pub fix: Vec<String>,
     /// Keep every `rpy` angle as written. By default an angle that agrees
     /// with a multiple of pi/12 to within one unit of its last written digit
-    /// (and 1e-5 rad) is taken as exact: `1.57079632679` as pi/2, which
-    /// keeps `cos` of it an exact zero in the generated code.
+    /// (and 1e-5 rad), or to within 1e-12 rad however written, is taken as
+    /// exact: `1.57079632679` as pi/2, which keeps `cos` of it an exact zero
+    /// in the generated code.
     #[arg(long)]
     pub keep_angles: bool,
     /// An optional output for the scene to generate (its `outputs` list,

@@ -177,9 +177,9 @@ pub(super) fn write_scene(
         let largest = changes.iter().fold(0.0f64, |m, d| m.max(d.abs()));
         let _ = writeln!(
             w,
-            "# {} rpy angles agreeing with a multiple of pi/12 to their last written digit are \
-             taken as\n# exact (largest change {largest:.1e} rad; `--keep-angles` keeps them as \
-             written).",
+            "# {} rpy angles agreeing with a multiple of pi/12 to their last written digit (or \
+             within 1e-12\n# rad) are taken as exact (largest change {largest:.1e} rad; \
+             `--keep-angles` keeps them as written).",
             changes.len()
         );
     }
