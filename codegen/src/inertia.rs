@@ -6,11 +6,11 @@ use nalgebra::{Matrix3, Vector3};
 /// How far, relative to the body's scale (see [`inertia_problem`]), an
 /// inertia tensor's largest principal moment may exceed the sum of the
 /// other two (moments written with six digits, as URDF files often are).
-pub(crate) const TRIANGLE_TOLERANCE: f64 = 1e-6;
+const TRIANGLE_TOLERANCE: f64 = 1e-6;
 
 /// How far below zero, relative to the body's scale, a principal moment
 /// may be (rounding of a tensor written as zeros and a stray `1e-35`).
-pub(crate) const DEFINITE_TOLERANCE: f64 = 1e-12;
+const DEFINITE_TOLERANCE: f64 = 1e-12;
 
 /// Why an inertia tensor is no body's.
 #[derive(Debug, Clone, PartialEq)]

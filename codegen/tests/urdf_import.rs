@@ -507,9 +507,7 @@ fn rounding_noise_in_a_tensor_is_zero_next_to_the_body() {
     assert!((one_mass(&scene) - want).abs() < 1e-15 * want);
     // At the frame's origin the body has no other scale: the same tensor is
     // then refused, at its `<inertia>`.
-    let e = import(&one_joint(noise, "0 0 0", LIMIT))
-        .unwrap_err()
-        .to_string();
+    let e = error(&one_joint(noise, "0 0 0", LIMIT));
     assert!(
         e.contains("robot.urdf:7:") && e.contains("not positive semi-definite"),
         "{e}"
@@ -523,7 +521,7 @@ fn an_indefinite_tensor_on_a_moving_link_is_refused_where_it_is_written() {
         "0.1 0 0",
         LIMIT,
     );
-    let e = import(&text).unwrap_err().to_string();
+    let e = error(&text);
     assert!(
         e.contains("robot.urdf:7:")
             && e.contains("link `arm`")
@@ -549,8 +547,6 @@ fn limits_beyond_any_scale_mean_no_limit() {
     let scene = import(&one_joint(inertia, "0 0 0", LIMIT)).unwrap();
     assert!(scene.contains("range = [-2"), "{scene}");
     // Not a number is still an error, where it is written.
-    let e = import(&one_joint(inertia, "0 0 0", r#"lower="nan" upper="1""#))
-        .unwrap_err()
-        .to_string();
+    let e = error(&one_joint(inertia, "0 0 0", r#"lower="nan" upper="1""#));
     assert!(e.contains("robot.urdf:13:") && e.contains("`lower`"), "{e}");
 }
