@@ -89,18 +89,38 @@ impl Graph {
 
     /// `R v`.
     pub(crate) fn rotate(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
-        std::array::from_fn(|i| {
-            let terms: Vec<Id> = (0..3).map(|k| self.mul(r[i][k], v[k])).collect();
-            self.sum(&terms)
-        })
+        std::array::from_fn(|i| self.row_dot(r[i], v))
     }
 
     /// `R^T v`.
     pub(crate) fn rotate_transpose(&mut self, r: &[[Id; 3]; 3], v: [Id; 3]) -> [Id; 3] {
-        std::array::from_fn(|i| {
-            let terms: Vec<Id> = (0..3).map(|k| self.mul(r[k][i], v[k])).collect();
-            self.sum(&terms)
-        })
+        std::array::from_fn(|i| self.row_dot([r[0][i], r[1][i], r[2][i]], v))
+    }
+
+    /// `a . v`, numeric entries of `a` as the coefficients of one sum. A
+    /// row of three non-zero entries (a turn about no axis of the frame: a
+    /// tilt) keeps the sums of more than two terms it scales as terms: each
+    /// of the three rows would otherwise repeat every term of the vector's
+    /// components (measured: the Unitree G1's inverse dynamics, with its
+    /// shoulders tilted, 5,983 operations opened, 5,038 kept), where a turn
+    /// about an axis of the frame mixes two components and opening lets
+    /// their terms collect (keeping them cost the flexible robots 0.5 %).
+    fn row_dot(&mut self, a: [Id; 3], v: [Id; 3]) -> Id {
+        let mut terms: Vec<(Id, f64)> = Vec::with_capacity(3);
+        for k in 0..3 {
+            match self.as_const(a[k]) {
+                Some(c) => terms.push((v[k], c)),
+                None => {
+                    let p = self.mul(a[k], v[k]);
+                    terms.push((p, 1.0));
+                }
+            }
+        }
+        if terms.iter().all(|t| t.1 != 0.0) {
+            self.linear_opening(&terms, 0.0, 2)
+        } else {
+            self.linear(&terms, 0.0)
+        }
     }
 
     /// `A B`.

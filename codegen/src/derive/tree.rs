@@ -382,11 +382,26 @@ fn add_wrench(g: &mut Graph, (f, m): Wrench, (f2, m2): Wrench) -> Wrench {
     )
 }
 
+/// The placement's rotation as matrices applied in turn, `R = R_1 R_2 ..`,
+/// consecutive constant ones composed into one (a tilt written as three
+/// angles turns a vector once, not three times).
+fn turns(g: &mut Graph, p: &Placement) -> Vec<[[Id; 3]; 3]> {
+    let mut out: Vec<([[Id; 3]; 3], bool)> = Vec::with_capacity(p.rotations.len());
+    for &(axis, angle) in &p.rotations {
+        let r = g.axis_rotation(axis, angle);
+        let constant = g.as_const(angle).is_some();
+        match out.last_mut() {
+            Some((last, true)) if constant => *last = g.matmul(last, &r),
+            _ => out.push((r, constant)),
+        }
+    }
+    out.into_iter().map(|(r, _)| r).collect()
+}
+
 /// A child's inertia tensor in its parent's axes: `R I R^T`.
 fn rotate_inertia(g: &mut Graph, p: &Placement, mut inertia: [[Id; 3]; 3]) -> [[Id; 3]; 3] {
-    for &(axis, angle) in p.rotations.iter().rev() {
-        let r = g.axis_rotation(axis, angle);
-        let ri = g.matmul(&r, &inertia);
+    for r in turns(g, p).iter().rev() {
+        let ri = g.matmul(r, &inertia);
         for a in 0..3 {
             for b in a..3 {
                 let terms: Vec<Id> = (0..3).map(|k| g.mul(ri[a][k], r[b][k])).collect();
@@ -401,9 +416,8 @@ fn rotate_inertia(g: &mut Graph, p: &Placement, mut inertia: [[Id; 3]; 3]) -> [[
 
 /// A child's vector in its parent's axes: `R y`.
 fn rotate_into_parent(g: &mut Graph, p: &Placement, mut y: [Id; 3]) -> [Id; 3] {
-    for &(axis, angle) in p.rotations.iter().rev() {
-        let r = g.axis_rotation(axis, angle);
-        y = g.rotate(&r, y);
+    for r in turns(g, p).iter().rev() {
+        y = g.rotate(r, y);
     }
     y
 }
@@ -411,9 +425,8 @@ fn rotate_into_parent(g: &mut Graph, p: &Placement, mut y: [Id; 3]) -> [Id; 3] {
 /// A parent's vector in a child's axes: `R^T y`, the rotations undone in
 /// turn.
 fn rotate_back(g: &mut Graph, p: &Placement, mut y: [Id; 3]) -> [Id; 3] {
-    for &(axis, angle) in &p.rotations {
-        let r = g.axis_rotation(axis, angle);
-        y = g.rotate_transpose(&r, y);
+    for r in &turns(g, p) {
+        y = g.rotate_transpose(r, y);
     }
     y
 }

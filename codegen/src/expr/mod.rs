@@ -9,7 +9,8 @@
 //!   added to another is merged into it, a long one (more than
 //!   `FLATTEN_MAX_TERMS`, 8, terms) stays one term, a shared partial sum,
 //!   unless it has a term in common with the rest (then it is opened, so
-//!   that `a + b - a` is still `b`) or is only scaled;
+//!   that `a + b - a` is still `b`) or is only scaled
+//!   ([`Graph::linear_opening`] keeps scaled short sums too);
 //! * products are flat lists of `base ^ integer exponent`, sorted by base,
 //!   with equal bases merged; numeric factors move to the enclosing sum;
 //! * operations on constants are folded.
@@ -317,6 +318,17 @@ impl Graph {
 
     /// Linear combination `constant + sum(c * term)` in canonical form.
     pub fn linear(&mut self, terms: &[(Id, f64)], constant: f64) -> Id {
+        self.linear_opening(terms, constant, FLATTEN_MAX_TERMS)
+    }
+
+    /// [`Self::linear`], but a short sum added with a coefficient other than
+    /// `+-1` is opened only when it has at most `scaled` terms (it still is
+    /// when it shares a term with the rest or is the only term). Opening
+    /// `c (a + b + d)` costs a multiplication per term where keeping it
+    /// costs one, and when several such sums share their terms (the three
+    /// components of a vector turned by a tilt) opening them all spreads
+    /// each term into every user.
+    pub fn linear_opening(&mut self, terms: &[(Id, f64)], constant: f64, scaled: usize) -> Id {
         // Constants added up, with the sum of their magnitudes for the
         // cancellation rule ([`exact::cancel`]).
         let mut constant = constant;
@@ -337,7 +349,11 @@ impl Graph {
                     constant += c * k.get();
                     magnitude += (c * k.get()).abs();
                 }
-                Node::Sum(ts, k) if single || ts.len() <= FLATTEN_MAX_TERMS => {
+                Node::Sum(ts, k)
+                    if single
+                        || (ts.len() <= FLATTEN_MAX_TERMS
+                            && (c.abs() == 1.0 || ts.len() <= scaled)) =>
+                {
                     open_sum(ts, *k, c, &mut constant, &mut magnitude, &mut flat);
                 }
                 _ => flat.push((id, c)),

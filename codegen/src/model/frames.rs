@@ -6,7 +6,7 @@ use super::components::station_frame;
 use super::context::Context;
 use super::Placement;
 use crate::error::Error;
-use crate::expr::Id;
+use crate::expr::{exact, Id};
 use crate::geometry::Frame;
 use crate::load::check_ident;
 use crate::load::scene::FrameDef;
@@ -34,13 +34,35 @@ impl Context<'_> {
             for r in &f.rotation {
                 let axis = self.axis(&r.axis, &ctx)?;
                 let angle = self.scalar(&r.angle, Some(&ctx), false)?;
-                rotations.push((axis, angle));
+                match rotations.last_mut() {
+                    Some((last, before)) if *last == axis && self.merges(*before, angle) => {
+                        *before = self.graph.add(*before, angle);
+                    }
+                    _ => rotations.push((axis, angle)),
+                }
             }
             let frame = self.child_frame(&parent, translation, &rotations);
             self.check_overflow(f.name.span().start, Some(&ctx), "the frame")?;
             self.frames.insert(f.name.get_ref().clone(), frame);
         }
         Ok(())
+    }
+
+    /// Whether two turns about one axis, in turn, are written as one turn
+    /// by their sum: when both are constant, or one is and is no multiple
+    /// of a quarter turn (`R(c) R(q) = R(c + q)` costs one addition, where
+    /// the constant rotation would mix every vector it turns; a quarter
+    /// turn only permutes and negates, for free).
+    fn merges(&self, a: Id, b: Id) -> bool {
+        let quarter = |x: f64| {
+            let (s, c) = exact::sin_cos(x);
+            s == 0.0 || c == 0.0
+        };
+        match (self.graph.as_const(a), self.graph.as_const(b)) {
+            (Some(_), Some(_)) => true,
+            (Some(x), None) | (None, Some(x)) => !quarter(x),
+            (None, None) => false,
+        }
     }
 
     /// The frame placed in `parent` as [`crate::geometry::Graph::child_frame`]
