@@ -203,8 +203,7 @@ where
         return Ok(generated);
     }
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
-    let b = eval::actuator_map(model, t)?;
-    let f = b * tau - h;
+    let f = eval::actuator_forces(model, tau, t)? - h;
     let c = stabilised_rhs(model, &config.baumgarte, q, qd, t, &phi_q, gamma)?;
     let kkt = Kkt::new(m, &phi_q, config.max_condition, t)?;
     let (qdd, lambda) = kkt.solve(&f, &c);
@@ -245,7 +244,7 @@ where
     if nc.value() != 0 {
         return Ok(None);
     }
-    let f = eval::actuator_map(model, t)? * tau;
+    let f = eval::actuator_forces(model, tau, t)?;
     let mut qdd = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
     let mut d = qdd.clone();
     let valid = model.forward_dynamics(q, qd, &f, t, &mut qdd, &mut d) && solved(&qdd, &d);

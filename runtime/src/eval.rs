@@ -166,6 +166,29 @@ where
     Ok(b)
 }
 
+/// `B tau`, formed where it is used (no copy of `B` returned); `B` is
+/// checked only when the forces are not finite, to name it if it is the
+/// cause (a non-finite entry of `B` makes its row's force non-finite
+/// whatever `tau` is).
+pub(crate) fn actuator_forces<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
+    model: &M,
+    tau: &OVector<T, U>,
+    t: T,
+) -> Result<OVector<T, Q>, Error>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, _, nu) = model.sizes();
+    let mut b = OMatrix::<T, Q, U>::zeros_generic(nq, nu);
+    model.actuator_map(&mut b);
+    let f = &b * tau;
+    if !all_finite(&f) {
+        check(&b, Quantity::ActuatorMap, t)?;
+    }
+    Ok(f)
+}
+
 /// `Phi(q, t)`.
 pub(crate) fn constraints<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,

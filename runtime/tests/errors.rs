@@ -181,6 +181,26 @@ fn non_finite_model_output() {
 }
 
 #[test]
+fn non_finite_actuator_map() {
+    // Named as the actuator map, not as the accelerations it spoils, with
+    // the input zero (NaN times zero is NaN) or not.
+    let faulty = Faulty {
+        nan_actuation: true,
+        ..Faulty::new(Pendulum::default())
+    };
+    for tau in [0.0, 1.0] {
+        all_integrators(&faulty, pendulum_state(), &V::<1>::new(tau), 1e-3, |e| {
+            assert_eq!(
+                e.kind,
+                ErrorKind::NonFiniteModelOutput {
+                    quantity: Quantity::ActuatorMap
+                }
+            )
+        });
+    }
+}
+
+#[test]
 fn non_finite_result_from_overflow() {
     // Finite inputs and model outputs whose solve overflows: tiny mass, large
     // torque. (The adaptive integrator first retries with smaller steps,

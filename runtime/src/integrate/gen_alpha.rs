@@ -285,8 +285,7 @@ where
         let t1 = t0 + h;
         let tau1 = input.at(t1);
         eval::check_input(&tau1, t1)?;
-        let b = eval::actuator_map(model, t1)?;
-        let f_ext = b * tau1;
+        let f_ext = eval::actuator_forces(model, &tau1, t1)?;
         let (am, af, beta, gamma) = Self::coefficients(cfg.rho_inf);
         let one = T::one();
         let k = one / (one - am);

@@ -847,6 +847,8 @@ pub struct Faulty<M> {
     pub bias_scale: f64,
     /// Return a zero actuator map.
     pub zero_actuation: bool,
+    /// Return NaN in the actuator map.
+    pub nan_actuation: bool,
 }
 
 impl<M> Faulty<M> {
@@ -857,6 +859,7 @@ impl<M> Faulty<M> {
             nan_bias: false,
             bias_scale: 1.0,
             zero_actuation: false,
+            nan_actuation: false,
         }
     }
 }
@@ -894,6 +897,9 @@ impl<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize> Mo
         self.inner.actuator_map(b);
         if self.zero_actuation {
             b.fill(0.0);
+        }
+        if self.nan_actuation {
+            b[(0, 0)] = f64::NAN;
         }
     }
     fn kinetic_energy(&self, q: &V<NQ>, qd: &V<NQ>, t: f64) -> f64 {
