@@ -323,26 +323,26 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
     ) -> bool {
         match marker {
             0 => {
-                let [(v0, v1), (v3, v4), (v5, v6)] = math::sin_cos_array([
-                    q[0],
-                    -0.07947271729524634 * q[2] - 0.27603677047285613 * q[4],
-                    0.07947271729564057 * q[1] + 0.2760367704728977 * q[3],
-                ]);
+                let [(v0, v1)] = math::sin_cos_array([q[0]]);
                 let v2 = 0.5773512568465301 * q[1] + 0.5773883287383333 * q[3];
-                let v7 = v1 * v4;
-                let v8 = v0 * v4;
+                let v3 = -0.07947271729524634 * q[2] - 0.27603677047285613 * q[4];
+                let v4 = 0.07947271729564057 * q[1] + 0.2760367704728977 * q[3];
+                let (v5, v6) = math::sin_cos(v3);
+                let (v7, v8) = math::sin_cos(v4);
+                let v9 = v1 * v6;
+                let v10 = v0 * v6;
                 position[0] = 10.0 * v1 - v0 * v2;
                 position[1] = 10.0 * v0 + v1 * v2;
                 position[2] = 0.5773512568456358 * q[2] + 0.5773883287390812 * q[4];
-                rotation[(0, 0)] = v6 * v7 - v0 * v5;
-                rotation[(0, 1)] = -v5 * v7 - v0 * v6;
-                rotation[(0, 2)] = v1 * v3;
-                rotation[(1, 0)] = v6 * v8 + v1 * v5;
-                rotation[(1, 1)] = v1 * v6 - v5 * v8;
-                rotation[(1, 2)] = v0 * v3;
-                rotation[(2, 0)] = -v3 * v6;
-                rotation[(2, 1)] = v3 * v5;
-                rotation[(2, 2)] = v4;
+                rotation[(0, 0)] = v8 * v9 - v0 * v7;
+                rotation[(0, 1)] = -v7 * v9 - v0 * v8;
+                rotation[(0, 2)] = v1 * v5;
+                rotation[(1, 0)] = v8 * v10 + v1 * v7;
+                rotation[(1, 1)] = v1 * v8 - v7 * v10;
+                rotation[(1, 2)] = v0 * v5;
+                rotation[(2, 0)] = -v5 * v8;
+                rotation[(2, 1)] = v5 * v7;
+                rotation[(2, 2)] = v6;
             }
             _ => return false,
         }
@@ -361,50 +361,50 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
     ) -> bool {
         match marker {
             0 => {
-                let [(v0, v1), (v5, v6), (v9, v10)] = math::sin_cos_array([
-                    q[0],
-                    -0.07947271729524634 * q[2] - 0.27603677047285613 * q[4],
-                    0.07947271729564057 * q[1] + 0.2760367704728977 * q[3],
-                ]);
+                let [(v0, v1)] = math::sin_cos_array([q[0]]);
                 let v2 = 0.5773512568465301 * q[1] + 0.5773883287383333 * q[3];
-                let v3 = 10.0 * v1 - v0 * v2;
-                let v4 = v1 * v2;
-                let v7 = v1 * v5;
-                let v8 = v0 * v5;
-                let v11 = v1 * v6;
-                let v12 = v0 * v6;
+                let v3 = -0.07947271729524634 * q[2] - 0.27603677047285613 * q[4];
+                let v4 = 0.07947271729564057 * q[1] + 0.2760367704728977 * q[3];
+                let v5 = 10.0 * v1 - v0 * v2;
+                let v6 = v1 * v2;
+                let (v7, v8) = math::sin_cos(v3);
+                let v9 = v1 * v7;
+                let v10 = v0 * v7;
+                let (v11, v12) = math::sin_cos(v4);
+                let v13 = v1 * v8;
+                let v14 = v0 * v8;
                 *jacobian = SMatrix::zeros();
-                position[0] = v3;
-                position[1] = 10.0 * v0 + v4;
+                position[0] = v5;
+                position[1] = 10.0 * v0 + v6;
                 position[2] = 0.5773512568456358 * q[2] + 0.5773883287390812 * q[4];
-                rotation[(0, 0)] = v10 * v11 - v0 * v9;
-                rotation[(0, 1)] = -v9 * v11 - v0 * v10;
-                rotation[(0, 2)] = v7;
-                rotation[(1, 0)] = v10 * v12 + v1 * v9;
-                rotation[(1, 1)] = v1 * v10 - v9 * v12;
-                rotation[(1, 2)] = v8;
-                rotation[(2, 0)] = -v5 * v10;
-                rotation[(2, 1)] = v5 * v9;
-                rotation[(2, 2)] = v6;
-                jacobian[(0, 0)] = -10.0 * v0 - v4;
+                rotation[(0, 0)] = v12 * v13 - v0 * v11;
+                rotation[(0, 1)] = -v11 * v13 - v0 * v12;
+                rotation[(0, 2)] = v9;
+                rotation[(1, 0)] = v12 * v14 + v1 * v11;
+                rotation[(1, 1)] = v1 * v12 - v11 * v14;
+                rotation[(1, 2)] = v10;
+                rotation[(2, 0)] = -v7 * v12;
+                rotation[(2, 1)] = v7 * v11;
+                rotation[(2, 2)] = v8;
+                jacobian[(0, 0)] = -10.0 * v0 - v6;
                 jacobian[(0, 1)] = -0.5773512568465301 * v0;
                 jacobian[(0, 3)] = -0.5773883287383333 * v0;
-                jacobian[(1, 0)] = v3;
+                jacobian[(1, 0)] = v5;
                 jacobian[(1, 1)] = 0.5773512568465301 * v1;
                 jacobian[(1, 3)] = 0.5773883287383333 * v1;
                 jacobian[(2, 2)] = 0.5773512568456358;
                 jacobian[(2, 4)] = 0.5773883287390812;
-                jacobian[(3, 1)] = 0.07947271729564057 * v7;
+                jacobian[(3, 1)] = 0.07947271729564057 * v9;
                 jacobian[(3, 2)] = 0.07947271729524634 * v0;
-                jacobian[(3, 3)] = 0.2760367704728977 * v7;
+                jacobian[(3, 3)] = 0.2760367704728977 * v9;
                 jacobian[(3, 4)] = 0.27603677047285613 * v0;
-                jacobian[(4, 1)] = 0.07947271729564057 * v8;
+                jacobian[(4, 1)] = 0.07947271729564057 * v10;
                 jacobian[(4, 2)] = -0.07947271729524634 * v1;
-                jacobian[(4, 3)] = 0.2760367704728977 * v8;
+                jacobian[(4, 3)] = 0.2760367704728977 * v10;
                 jacobian[(4, 4)] = -0.27603677047285613 * v1;
                 jacobian[(5, 0)] = 1.0;
-                jacobian[(5, 1)] = 0.07947271729564057 * v6;
-                jacobian[(5, 3)] = 0.2760367704728977 * v6;
+                jacobian[(5, 1)] = 0.07947271729564057 * v8;
+                jacobian[(5, 3)] = 0.2760367704728977 * v8;
             }
             _ => return false,
         }
@@ -423,35 +423,34 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
     ) -> bool {
         match marker {
             0 => {
-                let [(v0, v1), (v4, v5)] = math::sin_cos_array([
-                    q[0],
-                    -0.07947271729524634 * q[2] - 0.27603677047285613 * q[4],
-                ]);
+                let [(v0, v1)] = math::sin_cos_array([q[0]]);
                 let v2 = 0.5773512568465301 * q[1] + 0.5773883287383333 * q[3];
-                let v3 = 0.5773512568465301 * qd[1] + 0.5773883287383333 * qd[3];
-                let v6 = -0.07947271729524634 * qd[2] - 0.27603677047285613 * qd[4];
-                let v7 = 0.07947271729564057 * qd[1] + 0.2760367704728977 * qd[3];
-                let v8 = v0 * v3;
-                let v9 = v1 * v3;
-                let v10 = v4 * v7;
-                let v11 = qd[0] * v0;
-                let v12 = qd[0] * v1;
-                let v13 = v5 * v6;
-                let v14 = v7 * v13;
-                velocity[0] = -qd[0] * (10.0 * v0 + v1 * v2) - v8;
-                velocity[1] = qd[0] * (10.0 * v1 - v0 * v2) + v9;
+                let v3 = -0.07947271729524634 * q[2] - 0.27603677047285613 * q[4];
+                let v4 = 0.5773512568465301 * qd[1] + 0.5773883287383333 * qd[3];
+                let (v5, v6) = math::sin_cos(v3);
+                let v7 = -0.07947271729524634 * qd[2] - 0.27603677047285613 * qd[4];
+                let v8 = 0.07947271729564057 * qd[1] + 0.2760367704728977 * qd[3];
+                let v9 = v0 * v4;
+                let v10 = v1 * v4;
+                let v11 = v5 * v8;
+                let v12 = qd[0] * v0;
+                let v13 = qd[0] * v1;
+                let v14 = v6 * v7;
+                let v15 = v8 * v14;
+                velocity[0] = -qd[0] * (10.0 * v0 + v1 * v2) - v9;
+                velocity[1] = qd[0] * (10.0 * v1 - v0 * v2) + v10;
                 velocity[2] = 0.5773512568456358 * qd[2] + 0.5773883287390812 * qd[4];
-                velocity[3] = v1 * v10 - v0 * v6;
-                velocity[4] = v1 * v6 + v0 * v10;
-                velocity[5] = qd[0] + v5 * v7;
-                acceleration_bias[0] = -qd[0] * (v9 + 10.0 * v1 * qd[0] - v2 * v11)
-                    - v3 * v12;
-                acceleration_bias[1] = qd[0] * (-v8 - 10.0 * v0 * qd[0] - v2 * v12)
-                    - v3 * v11;
+                velocity[3] = v1 * v11 - v0 * v7;
+                velocity[4] = v1 * v7 + v0 * v11;
+                velocity[5] = qd[0] + v6 * v8;
+                acceleration_bias[0] = -qd[0] * (v10 + 10.0 * v1 * qd[0] - v2 * v12)
+                    - v4 * v13;
+                acceleration_bias[1] = qd[0] * (-v9 - 10.0 * v0 * qd[0] - v2 * v13)
+                    - v4 * v12;
                 acceleration_bias[2] = 0.0;
-                acceleration_bias[3] = v1 * v14 - v6 * v12 - v10 * v11;
-                acceleration_bias[4] = v10 * v12 + v0 * v14 - v6 * v11;
-                acceleration_bias[5] = -v6 * v10;
+                acceleration_bias[3] = v1 * v15 - v7 * v13 - v11 * v12;
+                acceleration_bias[4] = v11 * v13 + v0 * v15 - v7 * v12;
+                acceleration_bias[5] = -v7 * v11;
             }
             _ => return false,
         }

@@ -49,14 +49,6 @@ pub(super) fn eliminate(graph: &Graph, outputs: &[Id]) -> (Vec<Stmt>, Vec<Code>,
         }
     }
     let paired: HashSet<Id> = sines.intersection(&cosines).copied().collect();
-    // One `sin_cos` reads the argument of a pair once: an argument read by
-    // nothing else stays inline (and joins the batch of sines and cosines
-    // when it reads inputs only, e.g. a joint angle plus a constant).
-    for a in &paired {
-        if let Some(n) = uses.get_mut(a) {
-            *n -= 1;
-        }
-    }
 
     let mut s = Scheduler {
         graph,
