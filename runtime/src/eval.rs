@@ -159,14 +159,25 @@ where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
-    let (nq, _, nu) = model.sizes();
-    let mut b = OMatrix::<T, Q, U>::zeros_generic(nq, nu);
-    model.actuator_map(&mut b);
+    let b = written_actuator_map(model);
     check(&b, Quantity::ActuatorMap, t)?;
     Ok(b)
 }
 
-/// `B tau`, formed where it is used (no copy of `B` returned); `B` is
+/// `B` as the model writes it, unchecked (inlined: built where it is used).
+#[inline(always)]
+fn written_actuator_map<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(model: &M) -> OMatrix<T, Q, U>
+where
+    M: Equations<Q, C, U, T> + ?Sized,
+    DefaultAllocator: Sizes<Q, C, U>,
+{
+    let (nq, _, nu) = model.sizes();
+    let mut b = OMatrix::<T, Q, U>::zeros_generic(nq, nu);
+    model.actuator_map(&mut b);
+    b
+}
+
+/// `B tau`, `B` formed where it is used (not returned, which copied it); `B` is
 /// checked only when the forces are not finite, to name it if it is the
 /// cause (a non-finite entry of `B` makes its row's force non-finite
 /// whatever `tau` is).
@@ -179,9 +190,7 @@ where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
-    let (nq, _, nu) = model.sizes();
-    let mut b = OMatrix::<T, Q, U>::zeros_generic(nq, nu);
-    model.actuator_map(&mut b);
+    let b = written_actuator_map(model);
     let f = &b * tau;
     if !all_finite(&f) {
         check(&b, Quantity::ActuatorMap, t)?;
