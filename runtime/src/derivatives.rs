@@ -26,6 +26,7 @@
 use crate::dynamics::{solved, Kkt};
 use crate::error::{invalid_configuration, Error, Quantity};
 use crate::eval;
+use crate::linalg::mul_sparse_acc;
 use crate::model::{Equations, Sizes};
 use crate::scalar::Scalar;
 use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector};
@@ -91,10 +92,27 @@ where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
-    if let Some(derivatives) = generated(model, q, qd, t, tau)? {
-        return Ok(derivatives);
-    }
     let (nq, nc, nu) = model.sizes();
+    if nc.value() == 0 {
+        // Written in place: these matrices are large enough that moving
+        // them between functions showed in profiles (TALOS: 6 % of the
+        // time in `memcpy`).
+        let mut out = ForwardDerivativesOf {
+            qdd: OVector::<T, Q>::zeros_generic(nq, Const::<1>),
+            lambda: OVector::<T, C>::zeros_generic(nc, Const::<1>),
+            qdd_q: OMatrix::<T, Q, Q>::zeros_generic(nq, nq),
+            qdd_qd: OMatrix::<T, Q, Q>::zeros_generic(nq, nq),
+            qdd_tau: OMatrix::<T, Q, U>::zeros_generic(nq, nu),
+            lambda_q: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
+            lambda_qd: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
+            lambda_tau: OMatrix::<T, C, U>::zeros_generic(nc, nu),
+            velocity_constraint_q: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
+            condition: T::one(),
+        };
+        if generated(model, q, qd, t, tau, &mut out)? {
+            return Ok(out);
+        }
+    }
     let eval::Terms { m, h, phi_q, gamma } = eval::dynamics_terms(model, q, qd, t)?;
     let b = eval::actuator_map(model, t)?;
     let kkt = Kkt::new(m, &phi_q, T::KKT_MAX_CONDITION, t)?;
@@ -187,54 +205,38 @@ where
 /// [`forward_dynamics_derivatives`] of an unconstrained model from its
 /// generated program ([`crate::Model::forward_dynamics_derivatives`]:
 /// `qdd`, `d qdd/dq`, `d qdd/dqd` and `M^-1` on the generated factors of
-/// `M`), `d qdd/d tau = M^-1 B`; `None` where the model has no such program
-/// or its pivots say the solve does not hold (then the factorisation of the
-/// other paths reports why).
+/// `M`), `d qdd/d tau = M^-1 B`, written into `out` (zeros on entry);
+/// `false` where the model has no such program or its pivots say the solve
+/// does not hold (then the factorisation of the other paths reports why).
 fn generated<M, T: Scalar, Q: Dim, C: Dim, U: Dim>(
     model: &M,
     q: &OVector<T, Q>,
     qd: &OVector<T, Q>,
     t: T,
     tau: &OVector<T, U>,
-) -> Result<Option<ForwardDerivativesOf<T, Q, C, U>>, Error>
+    out: &mut ForwardDerivativesOf<T, Q, C, U>,
+) -> Result<bool, Error>
 where
     M: Equations<Q, C, U, T> + ?Sized,
     DefaultAllocator: Sizes<Q, C, U>,
 {
-    let (nq, nc, nu) = model.sizes();
-    if nc.value() != 0 {
-        return Ok(None);
-    }
+    let (nq, _, _) = model.sizes();
     let b = eval::actuator_map(model, t)?;
     let f = &b * tau;
-    let mut qdd = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
-    let mut d = qdd.clone();
-    let mut qdd_q = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
-    let mut qdd_qd = qdd_q.clone();
-    let mut inverse = qdd_q.clone();
-    let (dq, dqd, inv) = (&mut qdd_q, &mut qdd_qd, &mut inverse);
-    if !(model.forward_dynamics_derivatives(q, qd, &f, t, &mut qdd, &mut d, dq, dqd, inv)
-        && solved(&qdd, &d))
+    let mut d = OVector::<T, Q>::zeros_generic(nq, Const::<1>);
+    let mut inverse = OMatrix::<T, Q, Q>::zeros_generic(nq, nq);
+    let (dq, dqd, qdd) = (&mut out.qdd_q, &mut out.qdd_qd, &mut out.qdd);
+    if !(model.forward_dynamics_derivatives(q, qd, &f, t, qdd, &mut d, dq, dqd, &mut inverse)
+        && solved(&out.qdd, &d))
     {
-        return Ok(None);
+        return Ok(false);
     }
-    let qdd_tau = inverse * b;
-    for m in [&qdd_q, &qdd_qd] {
+    mul_sparse_acc(&inverse, &b, &mut out.qdd_tau);
+    for m in [&out.qdd_q, &out.qdd_qd] {
         eval::check_result(m, Quantity::Acceleration, t)?;
     }
-    eval::check_result(&qdd_tau, Quantity::Acceleration, t)?;
-    Ok(Some(ForwardDerivativesOf {
-        qdd,
-        lambda: OVector::<T, C>::zeros_generic(nc, Const::<1>),
-        qdd_q,
-        qdd_qd,
-        qdd_tau,
-        lambda_q: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
-        lambda_qd: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
-        lambda_tau: OMatrix::<T, C, U>::zeros_generic(nc, nu),
-        velocity_constraint_q: OMatrix::<T, C, Q>::zeros_generic(nc, nq),
-        condition: T::one(),
-    }))
+    eval::check_result(&out.qdd_tau, Quantity::Acceleration, t)?;
+    Ok(true)
 }
 
 /// The error for a model without the generated derivatives.

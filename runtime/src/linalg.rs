@@ -80,6 +80,38 @@ where
     }
 }
 
+/// `out += a b` with the zero entries of `b` skipped: each non-zero
+/// `b[(k, j)]` adds `b[(k, j)]` times column `k` of `a` to column `j` of
+/// `out`. For the actuator map (one non-zero per actuator in every
+/// generated model: its gain on its coordinate) that is `R U`
+/// multiplications where the dense product is `R Q U`. Equal to the dense
+/// product up to the order of its sums (the skipped terms are zeros),
+/// except that a non-finite entry of `a` against a zero of `b` gives no
+/// `NaN`.
+pub(crate) fn mul_sparse_acc<T: Scalar, R: Dim, Q: Dim, U: Dim>(
+    a: &OMatrix<T, R, Q>,
+    b: &OMatrix<T, Q, U>,
+    out: &mut OMatrix<T, R, U>,
+) where
+    DefaultAllocator: Allocator<R, Q> + Allocator<Q, U> + Allocator<R, U>,
+{
+    let n = a.nrows().max(1);
+    let q = b.nrows().max(1);
+    for (out_col, b_col) in out
+        .as_mut_slice()
+        .chunks_exact_mut(n)
+        .zip(b.as_slice().chunks_exact(q))
+    {
+        for (a_col, &bk) in a.as_slice().chunks_exact(n).zip(b_col) {
+            if bk != T::zero() {
+                for (o, e) in out_col.iter_mut().zip(a_col) {
+                    *o += *e * bk;
+                }
+            }
+        }
+    }
+}
+
 /// `out += a^T x` for a slice `x` of length `R` and `out` of length `C`:
 /// one dot product per (contiguous) column.
 pub(crate) fn tr_mul_vec_acc<T: Scalar, R: Dim, C: Dim>(
@@ -864,6 +896,44 @@ mod tests {
             assert_eq!(x.column(j), alone.column(0), "column {j}");
             assert!((a * alone - b.column(j)).norm() < 1e-14);
         }
+    }
+
+    /// The product skipping `b`'s zeros adds the dense one, at fixed and
+    /// run-time sizes (an actuator map with one gain per column, a map with
+    /// two actuators on one coordinate and an empty column, empty sizes).
+    #[test]
+    fn products_skipping_zeros_equal_the_dense_products() {
+        let a = SMatrix::<f64, 4, 3>::from_fn(|i, j| (0.4 + 1.3 * i as f64 - 0.7 * j as f64).cos());
+        let b = SMatrix::<f64, 3, 4>::from_row_slice(&[
+            2.0, 0.0, 0.0, -0.5, 0.0, 0.0, 1.5, 0.0, 0.0, 0.0, 0.0, 3.0,
+        ]);
+        let product = |a, b| {
+            let mut out = SMatrix::<f64, 4, 4>::zeros();
+            mul_sparse_acc(a, b, &mut out);
+            out
+        };
+        let got = product(&a, &b);
+        assert!((got - a * b).abs().max() <= 1e-15, "{got} vs {}", a * b);
+        #[cfg(feature = "alloc")]
+        {
+            let dyn_a = nalgebra::DMatrix::from_column_slice(4, 3, a.as_slice());
+            let dyn_b = nalgebra::DMatrix::from_column_slice(3, 4, b.as_slice());
+            let mut out = nalgebra::DMatrix::zeros(4, 4);
+            mul_sparse_acc(&dyn_a, &dyn_b, &mut out);
+            assert_eq!(out.as_slice(), got.as_slice());
+            let empty = nalgebra::DMatrix::<f64>::zeros(4, 0);
+            let none = nalgebra::DMatrix::<f64>::zeros(0, 2);
+            let mut out = nalgebra::DMatrix::from_element(4, 2, 1.0);
+            mul_sparse_acc(&empty, &none, &mut out);
+            assert_eq!(out, nalgebra::DMatrix::from_element(4, 2, 1.0));
+        }
+        let mut out = SMatrix::<f64, 4, 2>::from_element(1.0);
+        mul_sparse_acc(
+            &SMatrix::<f64, 4, 0>::zeros(),
+            &SMatrix::<f64, 0, 2>::zeros(),
+            &mut out,
+        );
+        assert_eq!(out, SMatrix::<f64, 4, 2>::from_element(1.0));
     }
 
     #[test]
