@@ -9,6 +9,7 @@
 //   constraints_and_jacobian                      8      0      0      3
 //   dynamics_terms                               18     28      0      3
 //   inverse_dynamics                             17     35      0      3
+//   actuator_forces                               0      0      0      0
 //   kinetic_energy                                8     18      0      2
 //   potential_energy                              2      3      0      3
 //   coriolis_forces                               8     20      0      2
@@ -239,6 +240,14 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v1 = math::sin(q[2]);
         let v2 = math::sin(q[1]);
         14.715 * v0 + 4.905 * v1 + 4.905 * v2
+    }
+    ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
+    #[inline]
+    fn actuator_forces(&self, tau: &SVector<f64, 1>, f: &mut SVector<f64, 3>) -> bool {
+        f[0] = tau[0];
+        f[1] = 0.0;
+        f[2] = 0.0;
+        true
     }
     ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
     #[inline]

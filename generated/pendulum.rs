@@ -9,6 +9,7 @@
 //   constraints_and_jacobian                      0      0      0      0
 //   dynamics_terms                                1      5      0      1
 //   inverse_dynamics                              2      6      0      1
+//   actuator_forces                               0      0      0      0
 //   kinetic_energy                                0      5      0      0
 //   potential_energy                              1      3      0      1
 //   coriolis_forces                               0      0      0      0
@@ -174,6 +175,12 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
             "m" => self.m = value,
             _ => return false,
         }
+        true
+    }
+    ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
+    #[inline]
+    fn actuator_forces(&self, tau: &SVector<f64, 1>, f: &mut SVector<f64, 1>) -> bool {
+        f[0] = tau[0];
         true
     }
     ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).

@@ -9,6 +9,7 @@
 //   constraints_and_jacobian                      6      8      0      2
 //   dynamics_terms                               15     36      0      2
 //   inverse_dynamics                             16     42      0      2
+//   actuator_forces                               0      0      0      0
 //   kinetic_energy                                8     22      0      2
 //   potential_energy                              1      2      0      2
 //   coriolis_forces                               7     24      0      2
@@ -232,6 +233,14 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let v0 = math::sin(q[0]);
         let v1 = math::sin(q[1]);
         1.0300500000000001 * v0 - 1.1772 * v1
+    }
+    ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
+    #[inline]
+    fn actuator_forces(&self, tau: &SVector<f64, 1>, f: &mut SVector<f64, 3>) -> bool {
+        f[0] = tau[0];
+        f[1] = 0.0;
+        f[2] = 0.0;
+        true
     }
     ///Coriolis/centrifugal forces `C(q, qd) qd` (with explicit time terms).
     #[inline]

@@ -147,6 +147,14 @@ pub trait DynModel {
     fn actuator_map(&self, b: &mut [f64]) {
         core(self, Function::ActuatorMap, At::q(&[], 0.0), &mut [b])
     }
+    /// The actuators' generalized forces `B tau` (`nq`) for the inputs
+    /// `tau` (`nu`, in the place of the accelerations); `false` where the
+    /// model does not compute them itself (an interpreted one: the runtime
+    /// forms `B tau` from the actuator map).
+    fn actuator_forces(&self, tau: &[f64], f: &mut [f64]) -> bool {
+        let at = At::qdd(&[], &[], tau, 0.0);
+        self.call(Function::ActuatorForces, None, at, &mut [f])
+    }
     /// Kinetic energy.
     fn kinetic_energy(&self, q: &[f64], qd: &[f64], t: f64) -> f64 {
         let mut v = [0.0];
@@ -485,6 +493,10 @@ where
                 m.actuator_map(&mut b);
                 put(outs, &[b.as_slice()])
             }
+            Function::ActuatorForces => {
+                let mut f = vector();
+                m.actuator_forces(&fixed::<NU>(at.qdd), &mut f) && put(outs, &[f.as_slice()])
+            }
             Function::KineticEnergy => put(outs, &[&[m.kinetic_energy(&q(), &qd(), t)]]),
             Function::PotentialEnergy => put(outs, &[&[m.potential_energy(&q(), t)]]),
             Function::CoriolisForces => {
@@ -593,6 +605,9 @@ impl Equations<Dyn, Dyn, Dyn> for dyn DynModel + '_ {
     }
     fn actuator_map(&self, b: &mut DMatrix<f64>) {
         DynModel::actuator_map(self, b.as_mut_slice())
+    }
+    fn actuator_forces(&self, tau: &DVector<f64>, f: &mut DVector<f64>) -> bool {
+        DynModel::actuator_forces(self, tau.as_slice(), f.as_mut_slice())
     }
     fn kinetic_energy(&self, q: &DVector<f64>, qd: &DVector<f64>, t: f64) -> f64 {
         DynModel::kinetic_energy(self, q.as_slice(), qd.as_slice(), t)

@@ -287,7 +287,8 @@ impl Emitter<'_> {
     }
 
     /// An input as a function reading `inputs` reads it (`Symbol::Qdd` is
-    /// the forces `f` of a function of [`Inputs::Forces`]).
+    /// the forces `f` of a function of [`Inputs::Forces`] and the actuator
+    /// inputs `tau` of one of [`Inputs::Actuation`]).
     fn input(&self, s: Symbol, inputs: Inputs) -> TokenStream {
         match s {
             Symbol::Q(i) => {
@@ -300,10 +301,10 @@ impl Emitter<'_> {
             }
             Symbol::Qdd(i) => {
                 let i = usize_lit(i as usize);
-                if inputs == Inputs::Forces {
-                    quote!(f[#i])
-                } else {
-                    quote!(qdd[#i])
+                match inputs {
+                    Inputs::Forces => quote!(f[#i]),
+                    Inputs::Actuation => quote!(tau[#i]),
+                    _ => quote!(qdd[#i]),
                 }
             }
             Symbol::Time => quote!(t),
@@ -399,8 +400,13 @@ impl Emitter<'_> {
         } else {
             quote!()
         };
+        let nu = usize_lit(self.model.actuators.len());
         let inputs = match spec.inputs {
             Inputs::Constant => quote!(),
+            Inputs::Actuation => {
+                let tau = argument("tau", read.iter().any(|s| matches!(s, Symbol::Qdd(_))));
+                quote!(#tau: &SVector<#real, #nu>,)
+            }
             Inputs::Positions => quote!(#q: #vector, #t: #real,),
             Inputs::Velocities => quote!(#q: #vector, #qd: #vector, #t: #real,),
             Inputs::Accelerations => quote!(#q: #vector, #qd: #vector, #qdd: #vector, #t: #real,),

@@ -90,11 +90,17 @@ impl Wrapped {
     fn inputs(&self) -> &'static [&'static str] {
         match self.spec.inputs {
             Inputs::Constant => &[],
+            Inputs::Actuation => &["tau"],
             Inputs::Positions => &["q"],
             Inputs::Velocities => &["q", "qd"],
             Inputs::Accelerations => &["q", "qd", "qdd"],
             Inputs::Forces => &["q", "qd", "f"],
         }
+    }
+
+    /// Whether it takes the time `t` (every function that reads a state).
+    fn timed(&self) -> bool {
+        !matches!(self.spec.inputs, Inputs::Constant | Inputs::Actuation)
     }
 
     /// Whether it returns one value (written to `out`).
@@ -265,19 +271,18 @@ impl CInterface {
     ) -> TokenStream {
         let cname = format_ident!("{}_{}", self.prefix, f.spec.name);
         let method = format_ident!("{}", f.spec.name);
-        let nq = n(self.nq);
         let doc = format!(" {} C: `{}`.", f.spec.doc, self.c_signature(f));
-        let arrays = "`q`, `qd`, `qdd`: NQ; each output its size";
+        let arrays = "`q`, `qd`, `qdd`, `f`: NQ; `tau`: NU; each output its size";
         // The arrays the function reads, in order, then its time.
         let inputs: Vec<proc_macro2::Ident> = f
             .inputs()
             .iter()
             .map(|name| format_ident!("{}", name))
             .collect();
-        let time = if inputs.is_empty() {
-            (quote!(), quote!())
-        } else {
+        let time = if f.timed() {
             (quote!(t: f64,), quote!(t,))
+        } else {
+            (quote!(), quote!())
         };
         let (t_arg, t_pass) = time;
         let outputs: Vec<(proc_macro2::Ident, usize)> = if f.is_scalar() {
@@ -299,7 +304,13 @@ impl CInterface {
                 return C_NULL_POINTER;
             })
         };
-        let reads = quote!(#(let #inputs = unsafe { c_read::<#nq>(#inputs) };)*);
+        let reads: TokenStream = inputs
+            .iter()
+            .map(|input| {
+                let len = n(if input == "tau" { self.nu } else { self.nq });
+                quote!(let #input = unsafe { c_read::<#len>(#input) };)
+            })
+            .collect();
         let (marker_arg, marker_pass) = if f.spec.per_marker {
             (quote!(marker: usize,), quote!(marker,))
         } else {
@@ -443,7 +454,7 @@ impl CInterface {
                 .iter()
                 .map(|name| format!("const double *{name}")),
         );
-        if !f.inputs().is_empty() {
+        if f.timed() {
             args.push("double t".into());
         }
         if f.is_scalar() {

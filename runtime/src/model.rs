@@ -59,6 +59,16 @@ pub trait Model<const NQ: usize, const NC: usize, const NU: usize, T: Scalar = f
     /// generalized forces.
     fn actuator_map(&self, b: &mut SMatrix<T, NQ, NU>);
 
+    /// Optional generalized forces of the actuators, `f = B tau`, written
+    /// from the non-zero entries of `B` (generated: one product per
+    /// actuator, where forming `B` and multiplying costs `NQ NU`); returns
+    /// `true`. The default returns `false` (the solvers then form `B tau`
+    /// from [`Model::actuator_map`]).
+    fn actuator_forces(&self, tau: &SVector<T, NU>, f: &mut SVector<T, NQ>) -> bool {
+        let _ = (tau, f);
+        false
+    }
+
     /// Kinetic energy `T(q, qd, t)`.
     fn kinetic_energy(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T) -> T;
 
@@ -414,6 +424,13 @@ macro_rules! forward_model {
         fn actuator_map(&self, b: &mut $crate::nalgebra::SMatrix<$T, $NQ, $NU>) {
             self.$inner.actuator_map(b)
         }
+        fn actuator_forces(
+            &self,
+            tau: &$crate::nalgebra::SVector<$T, $NU>,
+            f: &mut $crate::nalgebra::SVector<$T, $NQ>,
+        ) -> bool {
+            self.$inner.actuator_forces(tau, f)
+        }
         fn kinetic_energy(
             &self,
             q: &$crate::nalgebra::SVector<$T, $NQ>,
@@ -454,7 +471,8 @@ macro_rules! forward_model {
 /// Inside an `impl Equations<Q, C, U, T> for Wrapper` block, forwards to
 /// the wrapped model in field `$inner` what a wrapper that changes only the
 /// bias forces leaves alone: `sizes`, `mass_matrix`, the constraint terms
-/// with `constraints_and_jacobian`, `actuator_map` and the two energies.
+/// with `constraints_and_jacobian`, `actuator_map` with `actuator_forces`
+/// and the two energies.
 macro_rules! forward_equations {
     ($inner:ident, $Q:ty, $C:ty, $U:ty, $T:ty) => {
         fn sizes(&self) -> ($Q, $C, $U) {
@@ -503,6 +521,13 @@ macro_rules! forward_equations {
         }
         fn actuator_map(&self, b: &mut nalgebra::OMatrix<$T, $Q, $U>) {
             self.$inner.actuator_map(b)
+        }
+        fn actuator_forces(
+            &self,
+            tau: &nalgebra::OVector<$T, $U>,
+            f: &mut nalgebra::OVector<$T, $Q>,
+        ) -> bool {
+            self.$inner.actuator_forces(tau, f)
         }
         fn kinetic_energy(
             &self,
@@ -667,6 +692,11 @@ where
     );
     /// [`Model::actuator_map`].
     fn actuator_map(&self, b: &mut OMatrix<T, Q, U>);
+    /// [`Model::actuator_forces`] (`false`, not provided, by default).
+    fn actuator_forces(&self, tau: &OVector<T, U>, f: &mut OVector<T, Q>) -> bool {
+        let _ = (tau, f);
+        false
+    }
     /// [`Model::kinetic_energy`].
     fn kinetic_energy(&self, q: &OVector<T, Q>, qd: &OVector<T, Q>, t: T) -> T;
     /// [`Model::potential_energy`].
@@ -816,6 +846,10 @@ where
     #[inline]
     fn actuator_map(&self, b: &mut SMatrix<T, NQ, NU>) {
         Model::actuator_map(self, b)
+    }
+    #[inline]
+    fn actuator_forces(&self, tau: &SVector<T, NU>, f: &mut SVector<T, NQ>) -> bool {
+        Model::actuator_forces(self, tau, f)
     }
     #[inline]
     fn kinetic_energy(&self, q: &SVector<T, NQ>, qd: &SVector<T, NQ>, t: T) -> T {

@@ -109,6 +109,10 @@ pub struct Equations {
     pub gamma: Vec<Id>,
     /// Actuator map, `actuator_map[i][j]`: force on coordinate `i` per unit input `j`.
     pub actuator_map: Vec<Vec<f64>>,
+    /// The generalized forces of the actuators, `B tau`, with the inputs
+    /// `tau` read from `Symbol::Qdd` (the inputs of a function of
+    /// `Inputs::Actuation`).
+    pub actuator_forces: Vec<Id>,
     /// Kinematics of each marker, in scene order.
     pub markers: Vec<MarkerTerms>,
 }
@@ -375,6 +379,18 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
     for (j, a) in model.actuators.iter().enumerate() {
         actuator_map[a.coordinate][j] += a.gain;
     }
+    let actuator_forces = actuator_map
+        .iter()
+        .map(|row| {
+            let terms: Vec<(Id, f64)> = row
+                .iter()
+                .enumerate()
+                .filter(|&(_, &b)| b != 0.0)
+                .map(|(j, &b)| (g.symbol(Symbol::Qdd(j as u32)), b))
+                .collect();
+            g.linear(&terms, 0.0)
+        })
+        .collect();
 
     Ok(Equations {
         mass,
@@ -396,6 +412,7 @@ pub fn derive(model: &mut Model) -> Result<Equations, DeriveError> {
         phi_t,
         gamma,
         actuator_map,
+        actuator_forces,
         markers,
     })
 }

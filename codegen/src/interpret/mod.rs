@@ -23,7 +23,7 @@ use std::path::Path;
 use crate::derive::Equations;
 use crate::error::{Error, Source};
 use crate::model::Model;
-use crate::schedule::{functions, lower};
+use crate::schedule::{functions, lower, Inputs};
 
 pub use crate::schedule::Function;
 pub use tape::{Scratch, Tape, LANES};
@@ -61,8 +61,11 @@ impl Interpreted {
     pub(crate) fn new(model: &Model, eq: &Equations) -> Interpreted {
         let (nq, nc) = (model.nq(), model.constraints.len());
         let params = model.runtime_parameters.len();
+        // Not `actuator_forces`: a tape reads inputs of NQ entries, and the
+        // runtime forms `B tau` from the actuator map for these models.
         let tapes = functions(model, eq)
             .iter()
+            .filter(|f| f.function.spec().inputs != Inputs::Actuation)
             .enumerate()
             .map(|(index, f)| {
                 let mut tape = assemble::assemble(&lower(f, true), nq, params);
@@ -200,7 +203,9 @@ mod tests {
                 // its entries column-major.
                 let mut cases = Vec::new();
                 for &f in Function::ALL {
-                    let Some(terms) = f.spec().terms(&model, &eq) else {
+                    // (No tape for the actuators' forces, above.)
+                    let interpreted = f.spec().inputs != Inputs::Actuation;
+                    let Some(terms) = f.spec().terms(&model, &eq).filter(|_| interpreted) else {
                         assert!(it.tape(f).is_none(), "{name} {}", f.name());
                         continue;
                     };

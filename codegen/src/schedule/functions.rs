@@ -84,6 +84,8 @@ pub struct OutputSpec {
 pub enum Inputs {
     /// None: a constant (the actuator map).
     Constant,
+    /// The actuator inputs `tau` (NU) only (the graph's `Symbol::Qdd`).
+    Actuation,
     /// `q` and `t`.
     Positions,
     /// `q`, `qd` and `t`.
@@ -339,6 +341,16 @@ table! {
         optional: false,
         per_marker: false,
         terms: |_, eq| Some(Terms::Constants(vec![eq.actuator_map.clone()])),
+    },
+    /// `actuator_forces`: `B tau` (nq), reads the actuator inputs.
+    ActuatorForces => Spec {
+        name: "actuator_forces",
+        doc: "The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).",
+        inputs: Inputs::Actuation,
+        outputs: &[vector("f", NQ)],
+        optional: true,
+        per_marker: false,
+        terms: |_, eq| nodes(vec![column(&eq.actuator_forces)]),
     },
     /// `kinetic_energy`: `T` (one value).
     KineticEnergy => Spec {

@@ -9,6 +9,7 @@
 //   constraints_and_jacobian                     46     68      0      9
 //   dynamics_terms                              147    294      0      9
 //   inverse_dynamics                            118    210      0      9
+//   actuator_forces                               0      0      0      0
 //   kinetic_energy                               53    123      0      9
 //   potential_energy                              9     13      0      9
 //   total                                       566   1127      0     90
@@ -884,5 +885,22 @@ impl flexdyn_runtime::Model<12, 9, 3, f32> for ParallelRobotRigid {
         10.9872 * v0 + 1.61865 * v1 + 10.9872 * v2 + 1.61865 * v3 + 10.9872 * v4
             + 1.61865 * v5 + 5.886 * v1 * v6 + 5.886 * v3 * v7 + 5.886 * v5 * v8
             + 25.506 * q[11]
+    }
+    ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
+    #[inline]
+    fn actuator_forces(&self, tau: &SVector<f32, 3>, f: &mut SVector<f32, 12>) -> bool {
+        f[0] = tau[0];
+        f[1] = 0.0;
+        f[2] = 0.0;
+        f[3] = tau[1];
+        f[4] = 0.0;
+        f[5] = 0.0;
+        f[6] = tau[2];
+        f[7] = 0.0;
+        f[8] = 0.0;
+        f[9] = 0.0;
+        f[10] = 0.0;
+        f[11] = 0.0;
+        true
     }
 }

@@ -9,6 +9,7 @@
 //   constraints_and_jacobian                      6      8      0      1
 //   dynamics_terms                               24     52      0      1
 //   inverse_dynamics                             35     62      0      0
+//   actuator_forces                               0      0      0      0
 //   kinetic_energy                               15     33      0      0
 //   potential_energy                              3      8      0      0
 //   marker_pose (tip)                            13     26      0      3
@@ -275,6 +276,16 @@ impl flexdyn_runtime::Model<5, 1, 1, f32> for SpinUpBeam {
             "phase" => self.phase = value,
             _ => return false,
         }
+        true
+    }
+    ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
+    #[inline]
+    fn actuator_forces(&self, tau: &SVector<f32, 1>, f: &mut SVector<f32, 5>) -> bool {
+        f[0] = tau[0];
+        f[1] = 0.0;
+        f[2] = 0.0;
+        f[3] = 0.0;
+        f[4] = 0.0;
         true
     }
     ///World position of marker `marker` and its rotation (marker axes to world axes).
