@@ -70,10 +70,13 @@ static void print(const char *name, const double *x, int n) {
         double q[U##_NQ], qd[U##_NQ], m[U##_NQ * U##_NQ], h[U##_NQ];                 \
         double phi_q[U##_NC * U##_NQ + 1], gamma[U##_NC + 1], b[U##_NQ * U##_NU + 1]; \
         double m2[U##_NQ * U##_NQ], h2[U##_NQ], phi_q2[U##_NC * U##_NQ + 1];          \
-        double gamma2[U##_NC + 1], e;                                                \
+        double gamma2[U##_NC + 1], e, tau[U##_NU + 1], f[U##_NQ];                    \
         for (int i = 0; i < U##_NQ; i++) {                                           \
             q[i] = 0.1 * (i + 1) - 0.3;                                              \
             qd[i] = 0.05 * i - 0.2;                                                  \
+        }                                                                            \
+        for (int j = 0; j < U##_NU; j++) {                                           \
+            tau[j] = 0.7 * j - 0.4;                                                  \
         }                                                                            \
         int s = P##_mass_matrix(PARAMS, q, 0.3, m);                                  \
         s |= P##_bias(PARAMS, q, qd, 0.3, h);                                        \
@@ -85,6 +88,8 @@ static void print(const char *name, const double *x, int n) {
         print(#P ".constraint_jacobian", phi_q, U##_NC * U##_NQ);                    \
         print(#P ".constraint_rhs", gamma, U##_NC);                                  \
         print(#P ".actuator_map", b, U##_NQ * U##_NU);                               \
+        s |= P##_actuator_forces(PARAMS, tau, f);                                    \
+        print(#P ".actuator_forces", f, U##_NQ);                                     \
         s |= P##_dynamics_terms(PARAMS, q, qd, 0.3, m2, h2, phi_q2, gamma2);         \
         print(#P ".dynamics_terms.m", m2, U##_NQ * U##_NQ);                          \
         print(#P ".dynamics_terms.h", h2, U##_NQ);                                   \
@@ -180,6 +185,10 @@ fn terms<M: Model<NQ, NC, NU>, const NQ: usize, const NC: usize, const NU: usize
     print(&format!("{p}.constraint_jacobian"), &phi_q);
     print(&format!("{p}.constraint_rhs"), &gamma);
     print(&format!("{p}.actuator_map"), &b);
+    let tau = SVector::<f64, NU>::from_fn(|j, _| 0.7 * j as f64 - 0.4);
+    let mut f = SVector::<f64, NQ>::zeros();
+    assert!(model.actuator_forces(&tau, &mut f), "{p}: actuator_forces generated");
+    print(&format!("{p}.actuator_forces"), &f);
     model.dynamics_terms(&q, &qd, 0.3, &mut m, &mut h, &mut phi_q, &mut gamma);
     print(&format!("{p}.dynamics_terms.m"), &m);
     print(&format!("{p}.dynamics_terms.h"), &h);
