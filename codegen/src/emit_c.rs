@@ -30,7 +30,7 @@ use quote::{format_ident, quote};
 
 use crate::emit::struct_name;
 use crate::model::Model;
-use crate::schedule::{Inputs, OutputSpec, Scheduled, Shape, Spec};
+use crate::schedule::{Dim, Inputs, OutputSpec, Scheduled, Shape, Spec};
 
 /// Status codes, their names after the prefix and their meaning.
 const STATUS: [(&str, i32, &str); 5] = [
@@ -86,15 +86,18 @@ struct Wrapped {
 }
 
 impl Wrapped {
-    /// The arrays the function reads: `q`, `qd`, `qdd` as it takes them.
-    fn inputs(&self) -> &'static [&'static str] {
+    /// The arrays the function reads, in order, with their lengths: `q`,
+    /// `qd` and `qdd` or the forces `f` (NQ), the actuator inputs `tau` (NU).
+    fn inputs(&self) -> &'static [(&'static str, Dim)] {
+        const Q: (&str, Dim) = ("q", Dim::Coordinates);
+        const QD: (&str, Dim) = ("qd", Dim::Coordinates);
         match self.spec.inputs {
             Inputs::Constant => &[],
-            Inputs::Actuation => &["tau"],
-            Inputs::Positions => &["q"],
-            Inputs::Velocities => &["q", "qd"],
-            Inputs::Accelerations => &["q", "qd", "qdd"],
-            Inputs::Forces => &["q", "qd", "f"],
+            Inputs::Actuation => &[("tau", Dim::Actuators)],
+            Inputs::Positions => &[Q],
+            Inputs::Velocities => &[Q, QD],
+            Inputs::Accelerations => &[Q, QD, ("qdd", Dim::Coordinates)],
+            Inputs::Forces => &[Q, QD, ("f", Dim::Coordinates)],
         }
     }
 
@@ -277,7 +280,7 @@ impl CInterface {
         let inputs: Vec<proc_macro2::Ident> = f
             .inputs()
             .iter()
-            .map(|name| format_ident!("{}", name))
+            .map(|(name, _)| format_ident!("{}", name))
             .collect();
         let time = if f.timed() {
             (quote!(t: f64,), quote!(t,))
@@ -304,10 +307,12 @@ impl CInterface {
                 return C_NULL_POINTER;
             })
         };
+        let dims = (self.nq, self.nc, self.nu);
         let reads: TokenStream = inputs
             .iter()
-            .map(|input| {
-                let len = n(if input == "tau" { self.nu } else { self.nq });
+            .zip(f.inputs())
+            .map(|(input, (_, dim))| {
+                let len = n(dim.size(dims));
                 quote!(let #input = unsafe { c_read::<#len>(#input) };)
             })
             .collect();
@@ -452,7 +457,7 @@ impl CInterface {
         args.extend(
             f.inputs()
                 .iter()
-                .map(|name| format!("const double *{name}")),
+                .map(|(name, _)| format!("const double *{name}")),
         );
         if f.timed() {
             args.push("double t".into());

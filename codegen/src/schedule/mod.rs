@@ -20,7 +20,7 @@ mod share;
 pub use code::{Code, OpCount, Program, Stmt};
 #[cfg(test)]
 pub use functions::Terms;
-pub use functions::{functions, Function, Inputs, OutputSpec, Scheduled, Shape, Spec};
+pub use functions::{functions, Dim, Function, Inputs, OutputSpec, Scheduled, Shape, Spec};
 pub use lower::{lower, Binary, Lowered, Op, Operand, Value};
 
 use crate::expr::{Graph, Id};
