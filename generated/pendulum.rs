@@ -75,7 +75,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         h: &mut SVector<f64, 1>,
     ) {
         let v0 = math::sin(q[0]);
-        h[0] = 9.81 * self.m * self.l * v0 + qd[0] * self.c;
+        h[0] = math::mul_add(qd[0], self.c, 9.81 * self.m * self.l * v0);
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
@@ -129,7 +129,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         let v0 = math::sin(q[0]);
         let v1 = self.l * self.m;
         m[(0, 0)] = self.l * v1;
-        h[0] = 9.81 * v0 * v1 + qd[0] * self.c;
+        h[0] = math::mul_add(qd[0], self.c, 9.81 * v0 * v1);
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
@@ -143,7 +143,11 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
     ) {
         let v0 = math::sin(q[0]);
         let v1 = self.l * self.m;
-        tau[0] = 9.81 * v0 * v1 + qd[0] * self.c + self.l * qdd[0] * v1;
+        tau[0] = math::mul_add(
+            self.l * qdd[0],
+            v1,
+            math::mul_add(qd[0], self.c, 9.81 * v0 * v1),
+        );
     }
     ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
@@ -231,8 +235,11 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         d: &mut SVector<f64, 1>,
     ) -> bool {
         let v0 = math::sin(q[0]);
-        qdd[0] = (f[0] - 9.81 * self.m * self.l * v0 - qd[0] * self.c)
-            / (self.m * self.l * self.l);
+        qdd[0] = (math::mul_add(
+            -qd[0],
+            self.c,
+            math::mul_add(-(9.81 * self.m * self.l), v0, f[0]),
+        )) / (self.m * self.l * self.l);
         d[0] = 1.0;
         true
     }

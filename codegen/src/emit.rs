@@ -166,6 +166,11 @@ struct Printer<'e, 'a> {
     /// The text of each intermediate (taken by its one reader) and its
     /// binding strength.
     texts: Vec<Option<(TokenStream, u8)>>,
+    /// The factors' texts of each intermediate that is a product, and the
+    /// first factor's negated, for an addition that reads it to print
+    /// `math::mul_add` (in `f64` modules: `f32` ones compute the same on
+    /// every target, so they never fuse).
+    factors: Vec<Option<[TokenStream; 3]>>,
     /// `let ` in flat programs, nothing where variables are declared first.
     bind: TokenStream,
 }
@@ -174,6 +179,11 @@ impl Printer<'_, '_> {
     /// An operand's text, parenthesised where the lowering asks for it or
     /// where it binds less strongly than `need`.
     fn operand(&mut self, o: Operand, need: u8) -> TokenStream {
+        self.operands(o, &[need]).remove(0)
+    }
+
+    /// An operand's text for each binding strength of `needs`.
+    fn operands(&mut self, o: Operand, needs: &[u8]) -> Vec<TokenStream> {
         let (text, strength) = match o.value {
             Value::Var(v) => {
                 let v = var(v);
@@ -188,11 +198,49 @@ impl Printer<'_, '_> {
                 .take()
                 .expect("an intermediate is read once, after it is written"),
         };
-        if o.paren || strength < need {
-            quote!((#text))
-        } else {
-            text
+        needs
+            .iter()
+            .map(|&need| {
+                if o.paren || strength < need {
+                    quote!((#text))
+                } else {
+                    text.clone()
+                }
+            })
+            .collect()
+    }
+
+    /// The factors of an operand that is a product, and the first negated.
+    fn product(&self, o: Operand) -> Option<&[TokenStream; 3]> {
+        match o.value {
+            Value::Temp(t) => self.factors[t as usize].as_ref(),
+            _ => None,
         }
+    }
+
+    /// `a + b` or `a - b`, one of them a product `x * y`, as
+    /// `math::mul_add(x, y, c)` (`a - x * y` as `math::mul_add(-x, y, a)`,
+    /// `x * y - b` as `math::mul_add(x, y, -b)`): the same two roundings as
+    /// written, or one fused operation where the target has it.
+    fn mul_add(&mut self, op: Binary, a: Operand, b: Operand) -> TokenStream {
+        let fused_b = self.product(b).is_some();
+        let (product, other) = if fused_b { (b, a) } else { (a, b) };
+        let Value::Temp(t) = product.value else {
+            unreachable!("a product is an intermediate")
+        };
+        self.texts[t as usize] = None;
+        let [x, y, minus_x] = self.factors[t as usize]
+            .take()
+            .expect("a product is read once");
+        let (x, c) = match (op, fused_b) {
+            (Binary::Sub, true) => (minus_x, self.operand(other, SUM)),
+            (Binary::Sub, false) => {
+                let c = self.operand(other, ATOM);
+                (x, quote!(-#c))
+            }
+            _ => (x, self.operand(other, SUM)),
+        };
+        quote!(math::mul_add(#x, #y, #c))
     }
 
     fn set(&mut self, dst: u32, text: TokenStream, strength: u8) {
@@ -204,6 +252,15 @@ impl Printer<'_, '_> {
     fn op(&mut self, op: &Op, out: &mut TokenStream, tail: &mut TokenStream) {
         let bind = self.bind.clone();
         match op {
+            Op::Binary {
+                dst,
+                op: op @ (Binary::Add | Binary::Sub),
+                a,
+                b,
+            } if self.product(*a).is_some() || self.product(*b).is_some() => {
+                let text = self.mul_add(*op, *a, *b);
+                self.set(*dst, text, ATOM);
+            }
             Op::Binary { dst, op, a, b } => {
                 let (level, sign) = match op {
                     Binary::Add => (SUM, quote!(+)),
@@ -211,9 +268,19 @@ impl Printer<'_, '_> {
                     Binary::Mul => (PRODUCT, quote!(*)),
                     Binary::Div => (PRODUCT, quote!(/)),
                 };
-                let a = self.operand(*a, level);
-                let b = self.operand(*b, level + 1);
-                self.set(*dst, quote!(#a #sign #b), level);
+                let [x, atom]: [TokenStream; 2] = self
+                    .operands(*a, &[level, ATOM])
+                    .try_into()
+                    .expect("two texts");
+                let y = self.operand(*b, level + 1);
+                if *op == Binary::Mul && self.emitter.model.precision == Precision::F64 {
+                    let minus_x = match a.value {
+                        Value::Literal(v) => self.emitter.lit(-v),
+                        _ => quote!(-#atom),
+                    };
+                    self.factors[*dst as usize] = Some([x.clone(), y.clone(), minus_x]);
+                }
+                self.set(*dst, quote!(#x #sign #y), level);
             }
             Op::Neg { dst, a } => {
                 let a = self.operand(*a, UNARY);
@@ -474,6 +541,7 @@ impl Emitter<'_> {
             inputs: lowered.function.spec().inputs,
             names: names.to_vec(),
             texts: vec![None; lowered.temps as usize],
+            factors: vec![None; lowered.temps as usize],
             bind: if flat { quote!(let) } else { quote!() },
         };
         for op in &lowered.ops {

@@ -291,6 +291,24 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     sc
 }
 
+/// `a * b + c`, as the generated modules write a product added to a value:
+/// one fused multiply-add (one rounding) where the build targets a
+/// processor that has it and may use `std` (`-C target-cpu=native` on a
+/// recent x86-64: what a C compiler contracts `a * b + c` to at
+/// `-march=native`), else the multiplication and the addition as written
+/// (two roundings; bitwise what the interpreter computes).
+#[inline(always)]
+pub fn mul_add(a: f64, b: f64, c: f64) -> f64 {
+    #[cfg(all(feature = "std", target_feature = "fma"))]
+    {
+        a.mul_add(b, c)
+    }
+    #[cfg(not(all(feature = "std", target_feature = "fma")))]
+    {
+        a * b + c
+    }
+}
+
 /// The same functions in `f32`, for modules generated with
 /// `precision = "f32"` (which import them as `math`), the same with or
 /// without `std` so that an `f32` model computes the same on a host as on a
