@@ -57,7 +57,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
         *m = SMatrix::zeros();
         m[(0, 0)] = 1.3333333333333333;
-        m[(0, 2)] = math::mul_add(0.5 * v1, v3, 0.5 * v0 * v2);
+        m[(0, 2)] = math::add_mul(0.5 * v0 * v2, 0.5 * v1, v3);
         m[(2, 0)] = m[(0, 2)];
         m[(1, 1)] = 0.3333333333333333;
         m[(2, 2)] = 0.3333333333333333;
@@ -75,22 +75,22 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v4 = math::cos(q[1]);
         let v7 = qd[0] * qd[0];
         let v8 = qd[2] * qd[2];
-        let v5 = math::mul_add(-v3, v8, -v1 * v7);
-        let v6 = math::mul_add(-v2, v8, -v0 * v7);
-        h[0] = math::mul_add(-(0.5 * v0), v5, math::mul_add(0.5 * v1, v6, 14.715 * v1));
+        let v5 = math::sub_mul(-v1 * v7, v3, v8);
+        let v6 = math::sub_mul(-v0 * v7, v2, v8);
+        h[0] = math::sub_mul(math::add_mul(14.715 * v1, 0.5 * v1, v6), 0.5 * v0, v5);
         h[1] = 4.905 * v4;
-        h[2] = math::mul_add(
-            -(0.3333333333333333 * v2),
-            v5,
-            math::mul_add(
-                -(0.16666666666666666 * v0 * v3),
-                v7,
-                math::mul_add(
+        h[2] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    math::add_mul(4.905 * v3, 0.16666666666666666 * v1 * v2, v7),
                     0.3333333333333333 * v3,
                     v6,
-                    math::mul_add(0.16666666666666666 * v1 * v2, v7, 4.905 * v3),
                 ),
+                0.16666666666666666 * v0 * v3,
+                v7,
             ),
+            0.3333333333333333 * v2,
+            v5,
         );
     }
     ///Constraint residuals `Phi(q, t)`.
@@ -140,8 +140,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v6 = qd[0] * qd[0];
         let v7 = qd[2] * qd[2];
         let v8 = qd[1] * qd[1];
-        gamma[0] = math::mul_add(-v5, v8, math::mul_add(v3, v7, v1 * v6));
-        gamma[1] = math::mul_add(-v4, v8, math::mul_add(v2, v7, v0 * v6));
+        gamma[0] = math::sub_mul(math::add_mul(v1 * v6, v3, v7), v5, v8);
+        gamma[1] = math::sub_mul(math::add_mul(v0 * v6, v2, v7), v4, v8);
     }
     ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
     #[inline]
@@ -186,28 +186,24 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v14 = qd[1] * qd[1];
         *m = SMatrix::zeros();
         m[(0, 0)] = 1.3333333333333333;
-        m[(0, 2)] = math::mul_add(0.5 * v1, v3, 0.5 * v0 * v2);
+        m[(0, 2)] = math::add_mul(0.5 * v0 * v2, 0.5 * v1, v3);
         m[(2, 0)] = m[(0, 2)];
         m[(1, 1)] = 0.3333333333333333;
         m[(2, 2)] = 0.3333333333333333;
-        h[0] = math::mul_add(
-            -(0.5 * v0),
-            v10,
-            math::mul_add(0.5 * v1, v11, 14.715 * v1),
-        );
+        h[0] = math::sub_mul(math::add_mul(14.715 * v1, 0.5 * v1, v11), 0.5 * v0, v10);
         h[1] = 4.905 * v5;
-        h[2] = math::mul_add(
-            -(0.3333333333333333 * v2),
-            v10,
-            math::mul_add(
-                -(0.16666666666666666 * v3),
-                v7,
-                math::mul_add(
+        h[2] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    math::add_mul(4.905 * v3, 0.16666666666666666 * v2, v6),
                     0.3333333333333333 * v3,
                     v11,
-                    math::mul_add(0.16666666666666666 * v2, v6, 4.905 * v3),
                 ),
+                0.16666666666666666 * v3,
+                v7,
             ),
+            0.3333333333333333 * v2,
+            v10,
         );
         phi_q[(0, 0)] = -v0;
         phi_q[(0, 1)] = v4;
@@ -215,8 +211,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         phi_q[(1, 0)] = v1;
         phi_q[(1, 1)] = -v5;
         phi_q[(1, 2)] = v3;
-        gamma[0] = math::mul_add(-v5, v14, -v10);
-        gamma[1] = math::mul_add(-v4, v14, -v11);
+        gamma[0] = math::mul_sub(-v5, v14, v10);
+        gamma[1] = math::mul_sub(-v4, v14, v11);
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
@@ -232,46 +228,46 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v4 = math::cos(q[1]);
         let v7 = qd[0] * qd[0];
         let v8 = qd[2] * qd[2];
-        let v5 = math::mul_add(
-            -v2,
+        let v5 = math::sub_mul(
+            math::sub_mul(math::sub_mul(-v1 * v7, v3, v8), v0, qdd[0]),
+            v2,
             qdd[2],
-            math::mul_add(-v0, qdd[0], math::mul_add(-v3, v8, -v1 * v7)),
         );
-        let v6 = math::mul_add(
-            -v2,
+        let v6 = math::sub_mul(
+            math::sub_mul(math::add_mul(v1 * qdd[0], v3, qdd[2]), v0, v7),
+            v2,
             v8,
-            math::mul_add(-v0, v7, math::mul_add(v3, qdd[2], v1 * qdd[0])),
         );
-        tau[0] = math::mul_add(
-            -(0.5 * v0),
-            v5,
-            math::mul_add(
+        tau[0] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(14.715 * v1, 0.8333333333333333, qdd[0]),
                 0.5 * v1,
                 v6,
-                math::mul_add(0.8333333333333333, qdd[0], 14.715 * v1),
             ),
-        );
-        tau[1] = math::mul_add(0.3333333333333333, qdd[1], 4.905 * v4);
-        tau[2] = math::mul_add(
-            -(0.3333333333333333 * v2),
+            0.5 * v0,
             v5,
-            math::mul_add(
-                -(0.16666666666666666 * v0 * v3),
-                v7,
-                math::mul_add(
-                    0.3333333333333333 * v3,
-                    v6,
-                    math::mul_add(
-                        0.16666666666666666 * v1 * v3,
-                        qdd[0],
-                        math::mul_add(
+        );
+        tau[1] = math::add_mul(4.905 * v4, 0.3333333333333333, qdd[1]);
+        tau[2] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    math::add_mul(
+                        math::add_mul(
+                            math::add_mul(4.905 * v3, 0.16666666666666666 * v1 * v2, v7),
                             0.16666666666666666 * v0 * v2,
                             qdd[0],
-                            math::mul_add(0.16666666666666666 * v1 * v2, v7, 4.905 * v3),
                         ),
+                        0.16666666666666666 * v1 * v3,
+                        qdd[0],
                     ),
+                    0.3333333333333333 * v3,
+                    v6,
                 ),
+                0.16666666666666666 * v0 * v3,
+                v7,
             ),
+            0.3333333333333333 * v2,
+            v5,
         );
     }
     ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
@@ -284,28 +280,28 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
     #[inline]
     fn kinetic_energy(&self, q: &SVector<f64, 3>, qd: &SVector<f64, 3>, _t: f64) -> f64 {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
-        let v4 = math::mul_add(-v2, qd[2], -v0 * qd[0]);
-        let v5 = math::mul_add(v3, qd[2], v1 * qd[0]);
-        math::mul_add(
-            -(0.16666666666666666 * v0 * qd[0]),
-            v4,
-            math::mul_add(
-                0.16666666666666666 * v5,
-                v5,
-                math::mul_add(
-                    0.16666666666666666 * v4,
-                    v4,
-                    math::mul_add(
-                        0.16666666666666666 * v1 * qd[0],
-                        v5,
-                        math::mul_add(
+        let v4 = math::sub_mul(-v0 * qd[0], v2, qd[2]);
+        let v5 = math::add_mul(v1 * qd[0], v3, qd[2]);
+        math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        math::add_mul(
+                            0.3333333333333333 * qd[0] * qd[0],
                             0.16666666666666666 * qd[1],
                             qd[1],
-                            0.3333333333333333 * qd[0] * qd[0],
                         ),
+                        0.16666666666666666 * v1 * qd[0],
+                        v5,
                     ),
+                    0.16666666666666666 * v4,
+                    v4,
                 ),
+                0.16666666666666666 * v5,
+                v5,
             ),
+            0.16666666666666666 * v0 * qd[0],
+            v4,
         )
     }
     ///Potential energy `V` (gravity and elastic).
@@ -314,7 +310,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v0 = math::sin(q[0]);
         let v1 = math::sin(q[2]);
         let v2 = math::sin(q[1]);
-        math::mul_add(4.905, v2, math::mul_add(4.905, v1, 14.715 * v0))
+        math::add_mul(math::add_mul(14.715 * v0, 4.905, v1), 4.905, v2)
     }
     ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
     #[inline]
@@ -336,22 +332,22 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[2] * qd[2];
-        let v4 = math::mul_add(-v3, v7, -v1 * v6);
-        let v5 = math::mul_add(-v2, v7, -v0 * v6);
-        out[0] = math::mul_add(-(0.5 * v0), v4, 0.5 * v1 * v5);
+        let v4 = math::sub_mul(-v1 * v6, v3, v7);
+        let v5 = math::sub_mul(-v0 * v6, v2, v7);
+        out[0] = math::sub_mul(0.5 * v1 * v5, 0.5 * v0, v4);
         out[1] = 0.0;
-        out[2] = math::mul_add(
-            -(0.3333333333333333 * v2),
-            v4,
-            math::mul_add(
-                -(0.16666666666666666 * v0 * v3),
-                v6,
-                math::mul_add(
+        out[2] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    0.16666666666666666 * v1 * v2 * v6,
                     0.3333333333333333 * v3,
                     v5,
-                    0.16666666666666666 * v1 * v2 * v6,
                 ),
+                0.16666666666666666 * v0 * v3,
+                v6,
             ),
+            0.3333333333333333 * v2,
+            v4,
         );
         true
     }
@@ -399,8 +395,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
             0 => {
                 let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
                 *rotation = SMatrix::zeros();
-                position[0] = math::mul_add(0.5, v3, v1);
-                position[1] = math::mul_add(0.5, v2, v0);
+                position[0] = math::add_mul(v1, 0.5, v3);
+                position[1] = math::add_mul(v0, 0.5, v2);
                 position[2] = 0.0;
                 rotation[(0, 0)] = v3;
                 rotation[(0, 1)] = -v2;
@@ -428,8 +424,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
                 let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
                 *rotation = SMatrix::zeros();
                 *jacobian = SMatrix::zeros();
-                position[0] = math::mul_add(0.5, v3, v1);
-                position[1] = math::mul_add(0.5, v2, v0);
+                position[0] = math::add_mul(v1, 0.5, v3);
+                position[1] = math::add_mul(v0, 0.5, v2);
                 position[2] = 0.0;
                 rotation[(0, 0)] = v3;
                 rotation[(0, 1)] = -v2;
@@ -462,14 +458,14 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
                 let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[2]]);
                 let v4 = qd[0] * qd[0];
                 let v5 = qd[2] * qd[2];
-                velocity[0] = math::mul_add(-(0.5 * v2), qd[2], -v0 * qd[0]);
-                velocity[1] = math::mul_add(0.5 * v3, qd[2], v1 * qd[0]);
+                velocity[0] = math::sub_mul(-v0 * qd[0], 0.5 * v2, qd[2]);
+                velocity[1] = math::add_mul(v1 * qd[0], 0.5 * v3, qd[2]);
                 velocity[2] = 0.0;
                 velocity[3] = 0.0;
                 velocity[4] = 0.0;
                 velocity[5] = qd[2];
-                acceleration_bias[0] = math::mul_add(-(0.5 * v3), v5, -v1 * v4);
-                acceleration_bias[1] = math::mul_add(-(0.5 * v2), v5, -v0 * v4);
+                acceleration_bias[0] = math::sub_mul(-v1 * v4, 0.5 * v3, v5);
+                acceleration_bias[1] = math::sub_mul(-v0 * v4, 0.5 * v2, v5);
                 acceleration_bias[2] = 0.0;
                 acceleration_bias[3] = 0.0;
                 acceleration_bias[4] = 0.0;

@@ -80,99 +80,99 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v23 = v10 * v21;
         *m = SMatrix::zeros();
         m[(0, 0)] = 0.3946666666666667;
-        m[(0, 1)] = math::mul_add(
+        m[(0, 1)] = math::add_mul(
+            v1 * (math::add_mul(0.06600000000000002 * v3, 0.24000000000000005, v14)),
             v0,
-            (math::mul_add(0.24000000000000005, v15, 0.06600000000000002 * v2)),
-            v1 * (math::mul_add(0.24000000000000005, v14, 0.06600000000000002 * v3)),
+            (math::add_mul(0.06600000000000002 * v2, 0.24000000000000005, v15)),
         );
         m[(1, 0)] = m[(0, 1)];
-        m[(0, 2)] = math::mul_add(
-            -(0.24000000000000005 * v1 * v2),
-            v12,
+        m[(0, 2)] = math::sub_mul(
             0.24000000000000005 * v0 * v3 * v12,
+            0.24000000000000005 * v1 * v2,
+            v12,
         );
         m[(2, 0)] = m[(0, 2)];
-        m[(1, 1)] = math::mul_add(
-            v2,
-            (math::mul_add(0.06000000000000001, v15, 0.016000000000000004 * v2)),
-            math::mul_add(
-                v3,
-                (math::mul_add(0.06000000000000001, v14, 0.016000000000000004 * v3)),
-                math::mul_add(
-                    v2 * v13,
-                    (math::mul_add(0.32000000000000006, v15, 0.06000000000000001 * v2)),
+        m[(1, 1)] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
                     v3 * v13
-                        * (math::mul_add(
+                        * (math::add_mul(
+                            0.06000000000000001 * v3,
                             0.32000000000000006,
                             v14,
-                            0.06000000000000001 * v3,
                         )),
+                    v2 * v13,
+                    (math::add_mul(0.06000000000000001 * v2, 0.32000000000000006, v15)),
                 ),
+                v3,
+                (math::add_mul(0.016000000000000004 * v3, 0.06000000000000001, v14)),
             ),
+            v2,
+            (math::add_mul(0.016000000000000004 * v2, 0.06000000000000001, v15)),
         );
         m[(2, 2)] = 0.32000000000000006;
         m[(3, 3)] = 0.3946666666666667;
-        m[(3, 4)] = math::mul_add(
+        m[(3, 4)] = math::add_mul(
+            v5 * (math::add_mul(0.06600000000000002 * v7, 0.24000000000000005, v18)),
             v4,
-            (math::mul_add(0.24000000000000005, v19, 0.06600000000000002 * v6)),
-            v5 * (math::mul_add(0.24000000000000005, v18, 0.06600000000000002 * v7)),
+            (math::add_mul(0.06600000000000002 * v6, 0.24000000000000005, v19)),
         );
         m[(4, 3)] = m[(3, 4)];
-        m[(3, 5)] = math::mul_add(
-            -(0.24000000000000005 * v5 * v6),
-            v16,
+        m[(3, 5)] = math::sub_mul(
             0.24000000000000005 * v4 * v7 * v16,
+            0.24000000000000005 * v5 * v6,
+            v16,
         );
         m[(5, 3)] = m[(3, 5)];
-        m[(4, 4)] = math::mul_add(
-            v6,
-            (math::mul_add(0.06000000000000001, v19, 0.016000000000000004 * v6)),
-            math::mul_add(
-                v7,
-                (math::mul_add(0.06000000000000001, v18, 0.016000000000000004 * v7)),
-                math::mul_add(
-                    v6 * v17,
-                    (math::mul_add(0.32000000000000006, v19, 0.06000000000000001 * v6)),
+        m[(4, 4)] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
                     v7 * v17
-                        * (math::mul_add(
+                        * (math::add_mul(
+                            0.06000000000000001 * v7,
                             0.32000000000000006,
                             v18,
-                            0.06000000000000001 * v7,
                         )),
+                    v6 * v17,
+                    (math::add_mul(0.06000000000000001 * v6, 0.32000000000000006, v19)),
                 ),
+                v7,
+                (math::add_mul(0.016000000000000004 * v7, 0.06000000000000001, v18)),
             ),
+            v6,
+            (math::add_mul(0.016000000000000004 * v6, 0.06000000000000001, v19)),
         );
         m[(5, 5)] = 0.32000000000000006;
         m[(6, 6)] = 0.3946666666666667;
-        m[(6, 7)] = math::mul_add(
+        m[(6, 7)] = math::add_mul(
+            v9 * (math::add_mul(0.06600000000000002 * v11, 0.24000000000000005, v22)),
             v8,
-            (math::mul_add(0.24000000000000005, v23, 0.06600000000000002 * v10)),
-            v9 * (math::mul_add(0.24000000000000005, v22, 0.06600000000000002 * v11)),
+            (math::add_mul(0.06600000000000002 * v10, 0.24000000000000005, v23)),
         );
         m[(7, 6)] = m[(6, 7)];
-        m[(6, 8)] = math::mul_add(
-            -(0.24000000000000005 * v9 * v10),
-            v20,
+        m[(6, 8)] = math::sub_mul(
             0.24000000000000005 * v8 * v11 * v20,
+            0.24000000000000005 * v9 * v10,
+            v20,
         );
         m[(8, 6)] = m[(6, 8)];
-        m[(7, 7)] = math::mul_add(
-            v10,
-            (math::mul_add(0.06000000000000001, v23, 0.016000000000000004 * v10)),
-            math::mul_add(
-                v11,
-                (math::mul_add(0.06000000000000001, v22, 0.016000000000000004 * v11)),
-                math::mul_add(
-                    v10 * v21,
-                    (math::mul_add(0.32000000000000006, v23, 0.06000000000000001 * v10)),
+        m[(7, 7)] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
                     v11 * v21
-                        * (math::mul_add(
+                        * (math::add_mul(
+                            0.06000000000000001 * v11,
                             0.32000000000000006,
                             v22,
-                            0.06000000000000001 * v11,
                         )),
+                    v10 * v21,
+                    (math::add_mul(0.06000000000000001 * v10, 0.32000000000000006, v23)),
                 ),
+                v11,
+                (math::add_mul(0.016000000000000004 * v11, 0.06000000000000001, v22)),
             ),
+            v10,
+            (math::add_mul(0.016000000000000004 * v10, 0.06000000000000001, v23)),
         );
         m[(8, 8)] = 0.32000000000000006;
         m[(9, 9)] = 2.6;
@@ -251,227 +251,232 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v45 = v56 * v68;
         let v46 = v11 * v80;
         let v47 = v67 * v68;
-        let v69 = math::mul_add(-2.0, v43, v42);
+        let v69 = math::sub_mul(v42, 2.0, v43);
         let v81 = v44 + v69;
-        let v48 = math::mul_add(
+        let v48 = math::add_mul(
+            math::add_mul(0.24000000000000005 * v26, 0.06000000000000001, v28),
             0.32000000000000006,
             v81,
-            math::mul_add(0.06000000000000001, v28, 0.24000000000000005 * v26),
         );
-        let v70 = math::mul_add(-2.0, v37, v36);
+        let v70 = math::sub_mul(v36, 2.0, v37);
         let v82 = v38 + v70;
-        let v49 = math::mul_add(
+        let v49 = math::add_mul(
+            math::add_mul(0.24000000000000005 * v22, 0.06000000000000001, v24),
             0.32000000000000006,
             v82,
-            math::mul_add(0.06000000000000001, v24, 0.24000000000000005 * v22),
         );
-        let v71 = math::mul_add(-2.0, v31, v30);
+        let v71 = math::sub_mul(v30, 2.0, v31);
         let v83 = v32 + v71;
-        let v50 = math::mul_add(
+        let v50 = math::add_mul(
+            math::add_mul(0.24000000000000005 * v18, 0.06000000000000001, v20),
             0.32000000000000006,
             v83,
-            math::mul_add(0.06000000000000001, v20, 0.24000000000000005 * v18),
         );
-        let v72 = math::mul_add(2.0, v34, v33);
-        let v73 = math::mul_add(0.25, v21, v19);
-        let v74 = math::mul_add(2.0, v40, v39);
-        let v75 = math::mul_add(0.25, v25, v23);
-        let v76 = math::mul_add(2.0, v46, v45);
-        let v77 = math::mul_add(0.25, v29, v27);
+        let v72 = math::add_mul(v33, 2.0, v34);
+        let v73 = math::add_mul(v19, 0.25, v21);
+        let v74 = math::add_mul(v39, 2.0, v40);
+        let v75 = math::add_mul(v23, 0.25, v25);
+        let v76 = math::add_mul(v45, 2.0, v46);
+        let v77 = math::add_mul(v27, 0.25, v29);
         let v84 = v35 + v72;
         let v85 = v41 + v74;
         let v86 = v47 + v76;
-        h[0] = math::mul_add(
+        h[0] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v1,
+                v1,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v19, 0.06600000000000002, v21),
+                    0.24000000000000005,
+                    v84,
+                )),
+            ),
             v0,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v18, 0.06600000000000002, v20),
                 0.24000000000000005,
                 v83,
-                math::mul_add(0.06600000000000002, v20, 0.3946666666666667 * v18),
             )),
-            math::mul_add(
-                v1,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v84,
-                    math::mul_add(-0.06600000000000002, v21, -0.3946666666666667 * v19),
-                )),
-                10.987200000000001 * v1,
-            ),
         );
-        h[1] = math::mul_add(
-            v2,
-            (math::mul_add(
-                0.06000000000000001,
-                v83,
-                math::mul_add(0.016000000000000004, v20, 0.06600000000000002 * v18),
-            )),
-            math::mul_add(
-                v3,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v84,
-                    math::mul_add(-0.016000000000000004, v21, -0.06600000000000002 * v19),
-                )),
-                math::mul_add(
+        h[1] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v3 * (math::mul_add(5.886000000000001, v13, 1.6186500000000001)),
+                        v3 * v13,
+                        (math::sub_mul(
+                            -0.24000000000000005 * v73,
+                            0.32000000000000006,
+                            v84,
+                        )),
+                    ),
                     v50,
                     v60,
-                    math::mul_add(
-                        v3 * v13,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v84,
-                            -0.24000000000000005 * v73,
-                        )),
-                        v3 * (math::mul_add(5.886000000000001, v13, 1.6186500000000001)),
-                    ),
                 ),
+                v3,
+                (math::sub_mul(
+                    math::sub_mul(-0.06600000000000002 * v19, 0.016000000000000004, v21),
+                    0.06000000000000001,
+                    v84,
+                )),
             ),
+            v2,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v18, 0.016000000000000004, v20),
+                0.06000000000000001,
+                v83,
+            )),
         );
-        h[2] = math::mul_add(
-            -(0.32000000000000006 * v13 * v12),
-            v59,
-            math::mul_add(
-                -(5.886000000000001 * v2),
-                v12,
-                math::mul_add(
+        h[2] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    v2 * v12
+                        * (math::add_mul(
+                            0.24000000000000005 * v73,
+                            0.32000000000000006,
+                            v84,
+                        )),
                     v3 * v12,
                     v50,
-                    v2 * v12
-                        * (math::mul_add(
-                            0.32000000000000006,
-                            v84,
-                            0.24000000000000005 * v73,
-                        )),
                 ),
+                5.886000000000001 * v2,
+                v12,
             ),
+            0.32000000000000006 * v13 * v12,
+            v59,
         );
-        h[3] = math::mul_add(
+        h[3] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v5,
+                v5,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v23, 0.06600000000000002, v25),
+                    0.24000000000000005,
+                    v85,
+                )),
+            ),
             v4,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v22, 0.06600000000000002, v24),
                 0.24000000000000005,
                 v82,
-                math::mul_add(0.06600000000000002, v24, 0.3946666666666667 * v22),
             )),
-            math::mul_add(
-                v5,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v85,
-                    math::mul_add(-0.06600000000000002, v25, -0.3946666666666667 * v23),
-                )),
-                10.987200000000001 * v5,
-            ),
         );
-        h[4] = math::mul_add(
-            v6,
-            (math::mul_add(
-                0.06000000000000001,
-                v82,
-                math::mul_add(0.016000000000000004, v24, 0.06600000000000002 * v22),
-            )),
-            math::mul_add(
-                v7,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v85,
-                    math::mul_add(-0.016000000000000004, v25, -0.06600000000000002 * v23),
-                )),
-                math::mul_add(
+        h[4] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v7 * (math::mul_add(5.886000000000001, v15, 1.6186500000000001)),
+                        v7 * v15,
+                        (math::sub_mul(
+                            -0.24000000000000005 * v75,
+                            0.32000000000000006,
+                            v85,
+                        )),
+                    ),
                     v49,
                     v64,
-                    math::mul_add(
-                        v7 * v15,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v85,
-                            -0.24000000000000005 * v75,
-                        )),
-                        v7 * (math::mul_add(5.886000000000001, v15, 1.6186500000000001)),
-                    ),
                 ),
+                v7,
+                (math::sub_mul(
+                    math::sub_mul(-0.06600000000000002 * v23, 0.016000000000000004, v25),
+                    0.06000000000000001,
+                    v85,
+                )),
             ),
+            v6,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v22, 0.016000000000000004, v24),
+                0.06000000000000001,
+                v82,
+            )),
         );
-        h[5] = math::mul_add(
-            -(0.32000000000000006 * v15 * v14),
-            v63,
-            math::mul_add(
-                -(5.886000000000001 * v6),
-                v14,
-                math::mul_add(
+        h[5] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    v6 * v14
+                        * (math::add_mul(
+                            0.24000000000000005 * v75,
+                            0.32000000000000006,
+                            v85,
+                        )),
                     v7 * v14,
                     v49,
-                    v6 * v14
-                        * (math::mul_add(
-                            0.32000000000000006,
-                            v85,
-                            0.24000000000000005 * v75,
-                        )),
                 ),
+                5.886000000000001 * v6,
+                v14,
             ),
+            0.32000000000000006 * v15 * v14,
+            v63,
         );
-        h[6] = math::mul_add(
+        h[6] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v9,
+                v9,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v27, 0.06600000000000002, v29),
+                    0.24000000000000005,
+                    v86,
+                )),
+            ),
             v8,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v26, 0.06600000000000002, v28),
                 0.24000000000000005,
                 v81,
-                math::mul_add(0.06600000000000002, v28, 0.3946666666666667 * v26),
             )),
-            math::mul_add(
-                v9,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v86,
-                    math::mul_add(-0.06600000000000002, v29, -0.3946666666666667 * v27),
-                )),
-                10.987200000000001 * v9,
-            ),
         );
-        h[7] = math::mul_add(
-            v10,
-            (math::mul_add(
-                0.06000000000000001,
-                v81,
-                math::mul_add(0.016000000000000004, v28, 0.06600000000000002 * v26),
-            )),
-            math::mul_add(
-                v11,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v86,
-                    math::mul_add(-0.016000000000000004, v29, -0.06600000000000002 * v27),
-                )),
-                math::mul_add(
-                    v48,
-                    v68,
-                    math::mul_add(
+        h[7] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v11
+                            * (math::mul_add(
+                                5.886000000000001,
+                                v17,
+                                1.6186500000000001,
+                            )),
                         v11 * v17,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v86,
+                        (math::sub_mul(
                             -0.24000000000000005 * v77,
-                        )),
-                        v11 * (math::mul_add(5.886000000000001, v17, 1.6186500000000001)),
-                    ),
-                ),
-            ),
-        );
-        h[8] = math::mul_add(
-            -(0.32000000000000006 * v17 * v16),
-            v67,
-            math::mul_add(
-                -(5.886000000000001 * v10),
-                v16,
-                math::mul_add(
-                    v11 * v16,
-                    v48,
-                    v10 * v16
-                        * (math::mul_add(
                             0.32000000000000006,
                             v86,
-                            0.24000000000000005 * v77,
                         )),
+                    ),
+                    v48,
+                    v68,
                 ),
+                v11,
+                (math::sub_mul(
+                    math::sub_mul(-0.06600000000000002 * v27, 0.016000000000000004, v29),
+                    0.06000000000000001,
+                    v86,
+                )),
             ),
+            v10,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v26, 0.016000000000000004, v28),
+                0.06000000000000001,
+                v81,
+            )),
+        );
+        h[8] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    v10 * v16
+                        * (math::add_mul(
+                            0.24000000000000005 * v77,
+                            0.32000000000000006,
+                            v86,
+                        )),
+                    v11 * v16,
+                    v48,
+                ),
+                5.886000000000001 * v10,
+                v16,
+            ),
+            0.32000000000000006 * v17 * v16,
+            v67,
         );
         h[9] = 0.0;
         h[10] = 0.0;
@@ -492,40 +497,40 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        phi[0] = math::mul_add(0.8 * v3, v13, math::mul_add(0.1, v3, 0.4 * v1))
+        phi[0] = math::add_mul(math::add_mul(0.4 * v1, 0.1, v3), 0.8 * v3, v13)
             + 0.30000000000000004 - q[9];
-        phi[1] = math::mul_add(0.8, v12, -q[10]);
-        phi[2] = math::mul_add(0.8 * v2, v13, math::mul_add(0.1, v2, 0.4 * v0)) - q[11];
-        phi[3] = math::mul_add(
-            -0.8660254037844386,
-            q[10],
-            math::mul_add(
+        phi[1] = math::mul_sub(0.8, v12, q[10]);
+        phi[2] = math::add_mul(math::add_mul(0.4 * v0, 0.1, v2), 0.8 * v2, v13) - q[11];
+        phi[3] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(math::add_mul(0.4 * v5, 0.1, v7), 0.8 * v7, v15),
                 0.5,
                 q[9],
-                math::mul_add(0.8 * v7, v15, math::mul_add(0.1, v7, 0.4 * v5)),
             ) + 0.30000000000000004,
-        );
-        phi[4] = math::mul_add(
-            0.5,
-            q[10],
-            math::mul_add(0.8660254037844386, q[9], 0.8 * v14),
-        );
-        phi[5] = math::mul_add(0.8 * v6, v15, math::mul_add(0.1, v6, 0.4 * v4)) - q[11];
-        phi[6] = math::mul_add(
             0.8660254037844386,
             q[10],
-            math::mul_add(
+        );
+        phi[4] = math::add_mul(
+            math::add_mul(0.8 * v14, 0.8660254037844386, q[9]),
+            0.5,
+            q[10],
+        );
+        phi[5] = math::add_mul(math::add_mul(0.4 * v4, 0.1, v6), 0.8 * v6, v15) - q[11];
+        phi[6] = math::add_mul(
+            math::add_mul(
+                math::add_mul(math::add_mul(0.4 * v9, 0.1, v11), 0.8 * v11, v17),
                 0.5,
                 q[9],
-                math::mul_add(0.8 * v11, v17, math::mul_add(0.1, v11, 0.4 * v9)),
             ),
+            0.8660254037844386,
+            q[10],
         ) + 0.30000000000000004;
-        phi[7] = math::mul_add(
-            -0.8660254037844386,
+        phi[7] = math::sub_mul(
+            math::add_mul(0.8 * v16, 0.5, q[10]),
+            0.8660254037844386,
             q[9],
-            math::mul_add(0.5, q[10], 0.8 * v16),
         );
-        phi[8] = math::mul_add(0.8 * v10, v17, math::mul_add(0.1, v10, 0.4 * v8))
+        phi[8] = math::add_mul(math::add_mul(0.4 * v8, 0.1, v10), 0.8 * v10, v17)
             - q[11];
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
@@ -550,17 +555,17 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         ]);
         *phi_q = SMatrix::zeros();
         phi_q[(0, 0)] = -0.4 * v0;
-        phi_q[(0, 1)] = math::mul_add(-(0.8 * v2), v13, -0.1 * v2);
+        phi_q[(0, 1)] = math::sub_mul(-0.1 * v2, 0.8 * v2, v13);
         phi_q[(0, 2)] = -0.8 * v3 * v12;
         phi_q[(0, 9)] = -1.0;
         phi_q[(1, 2)] = 0.8 * v13;
         phi_q[(1, 10)] = -1.0;
         phi_q[(2, 0)] = 0.4 * v1;
-        phi_q[(2, 1)] = math::mul_add(0.8 * v3, v13, 0.1 * v3);
+        phi_q[(2, 1)] = math::add_mul(0.1 * v3, 0.8 * v3, v13);
         phi_q[(2, 2)] = -0.8 * v2 * v12;
         phi_q[(2, 11)] = -1.0;
         phi_q[(3, 3)] = -0.4 * v4;
-        phi_q[(3, 4)] = math::mul_add(-(0.8 * v6), v15, -0.1 * v6);
+        phi_q[(3, 4)] = math::sub_mul(-0.1 * v6, 0.8 * v6, v15);
         phi_q[(3, 5)] = -0.8 * v7 * v14;
         phi_q[(3, 9)] = 0.5;
         phi_q[(3, 10)] = -0.8660254037844386;
@@ -568,11 +573,11 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q[(4, 9)] = 0.8660254037844386;
         phi_q[(4, 10)] = 0.5;
         phi_q[(5, 3)] = 0.4 * v5;
-        phi_q[(5, 4)] = math::mul_add(0.8 * v7, v15, 0.1 * v7);
+        phi_q[(5, 4)] = math::add_mul(0.1 * v7, 0.8 * v7, v15);
         phi_q[(5, 5)] = -0.8 * v6 * v14;
         phi_q[(5, 11)] = -1.0;
         phi_q[(6, 6)] = -0.4 * v8;
-        phi_q[(6, 7)] = math::mul_add(-(0.8 * v10), v17, -0.1 * v10);
+        phi_q[(6, 7)] = math::sub_mul(-0.1 * v10, 0.8 * v10, v17);
         phi_q[(6, 8)] = -0.8 * v11 * v16;
         phi_q[(6, 9)] = 0.5;
         phi_q[(6, 10)] = 0.8660254037844386;
@@ -580,7 +585,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q[(7, 9)] = -0.8660254037844386;
         phi_q[(7, 10)] = 0.5;
         phi_q[(8, 6)] = 0.4 * v9;
-        phi_q[(8, 7)] = math::mul_add(0.8 * v11, v17, 0.1 * v11);
+        phi_q[(8, 7)] = math::add_mul(0.1 * v11, 0.8 * v11, v17);
         phi_q[(8, 8)] = -0.8 * v10 * v16;
         phi_q[(8, 11)] = -1.0;
     }
@@ -644,86 +649,86 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v36 = qd[1] * v21;
         let v37 = qd[4] * v27;
         let v38 = qd[7] * v33;
-        gamma[0] = math::mul_add(
-            -(1.6 * v2),
-            v36,
-            math::mul_add(
-                0.8 * v22,
-                v20,
-                math::mul_add(
+        gamma[0] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(0.4 * v1 * v18, 0.1 * v3, v19),
                     0.8 * v19,
                     v20,
-                    math::mul_add(0.1 * v3, v19, 0.4 * v1 * v18),
                 ),
+                0.8 * v22,
+                v20,
             ),
+            1.6 * v2,
+            v36,
         );
         gamma[1] = 0.8 * v12 * v22;
-        gamma[2] = math::mul_add(
-            0.8 * v22,
-            v23,
-            math::mul_add(
-                1.6 * v3,
-                v36,
-                math::mul_add(
+        gamma[2] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(0.4 * v0 * v18, 0.1 * v2, v19),
                     0.8 * v19,
                     v23,
-                    math::mul_add(0.1 * v2, v19, 0.4 * v0 * v18),
                 ),
+                1.6 * v3,
+                v36,
             ),
+            0.8 * v22,
+            v23,
         );
-        gamma[3] = math::mul_add(
-            -(1.6 * v6),
-            v37,
-            math::mul_add(
-                0.8 * v28,
-                v26,
-                math::mul_add(
+        gamma[3] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(0.4 * v5 * v24, 0.1 * v7, v25),
                     0.8 * v25,
                     v26,
-                    math::mul_add(0.1 * v7, v25, 0.4 * v5 * v24),
                 ),
+                0.8 * v28,
+                v26,
             ),
+            1.6 * v6,
+            v37,
         );
         gamma[4] = 0.8 * v14 * v28;
-        gamma[5] = math::mul_add(
-            0.8 * v28,
-            v29,
-            math::mul_add(
-                1.6 * v7,
-                v37,
-                math::mul_add(
+        gamma[5] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(0.4 * v4 * v24, 0.1 * v6, v25),
                     0.8 * v25,
                     v29,
-                    math::mul_add(0.1 * v6, v25, 0.4 * v4 * v24),
                 ),
+                1.6 * v7,
+                v37,
             ),
+            0.8 * v28,
+            v29,
         );
-        gamma[6] = math::mul_add(
-            -(1.6 * v10),
-            v38,
-            math::mul_add(
-                0.8 * v34,
-                v32,
-                math::mul_add(
+        gamma[6] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(0.4 * v9 * v30, 0.1 * v11, v31),
                     0.8 * v31,
                     v32,
-                    math::mul_add(0.1 * v11, v31, 0.4 * v9 * v30),
                 ),
+                0.8 * v34,
+                v32,
             ),
+            1.6 * v10,
+            v38,
         );
         gamma[7] = 0.8 * v16 * v34;
-        gamma[8] = math::mul_add(
-            0.8 * v34,
-            v35,
-            math::mul_add(
-                1.6 * v11,
-                v38,
-                math::mul_add(
+        gamma[8] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(0.4 * v8 * v30, 0.1 * v10, v31),
                     0.8 * v31,
                     v35,
-                    math::mul_add(0.1 * v10, v31, 0.4 * v8 * v30),
                 ),
+                1.6 * v11,
+                v38,
             ),
+            0.8 * v34,
+            v35,
         );
     }
     ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
@@ -754,52 +759,52 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v22 = v11 * v21;
         let v23 = v10 * v21;
         *phi_q = SMatrix::zeros();
-        phi[0] = math::mul_add(0.8, v14, math::mul_add(0.1, v3, 0.4 * v1))
+        phi[0] = math::add_mul(math::add_mul(0.4 * v1, 0.1, v3), 0.8, v14)
             + 0.30000000000000004 - q[9];
-        phi[1] = math::mul_add(0.8, v12, -q[10]);
-        phi[2] = math::mul_add(0.8, v15, math::mul_add(0.1, v2, 0.4 * v0)) - q[11];
-        phi[3] = math::mul_add(
-            -0.8660254037844386,
-            q[10],
-            math::mul_add(
+        phi[1] = math::mul_sub(0.8, v12, q[10]);
+        phi[2] = math::add_mul(math::add_mul(0.4 * v0, 0.1, v2), 0.8, v15) - q[11];
+        phi[3] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(math::add_mul(0.4 * v5, 0.1, v7), 0.8, v18),
                 0.5,
                 q[9],
-                math::mul_add(0.8, v18, math::mul_add(0.1, v7, 0.4 * v5)),
             ) + 0.30000000000000004,
-        );
-        phi[4] = math::mul_add(
-            0.5,
-            q[10],
-            math::mul_add(0.8660254037844386, q[9], 0.8 * v16),
-        );
-        phi[5] = math::mul_add(0.8, v19, math::mul_add(0.1, v6, 0.4 * v4)) - q[11];
-        phi[6] = math::mul_add(
             0.8660254037844386,
             q[10],
-            math::mul_add(
+        );
+        phi[4] = math::add_mul(
+            math::add_mul(0.8 * v16, 0.8660254037844386, q[9]),
+            0.5,
+            q[10],
+        );
+        phi[5] = math::add_mul(math::add_mul(0.4 * v4, 0.1, v6), 0.8, v19) - q[11];
+        phi[6] = math::add_mul(
+            math::add_mul(
+                math::add_mul(math::add_mul(0.4 * v9, 0.1, v11), 0.8, v22),
                 0.5,
                 q[9],
-                math::mul_add(0.8, v22, math::mul_add(0.1, v11, 0.4 * v9)),
             ),
+            0.8660254037844386,
+            q[10],
         ) + 0.30000000000000004;
-        phi[7] = math::mul_add(
-            -0.8660254037844386,
+        phi[7] = math::sub_mul(
+            math::add_mul(0.8 * v20, 0.5, q[10]),
+            0.8660254037844386,
             q[9],
-            math::mul_add(0.5, q[10], 0.8 * v20),
         );
-        phi[8] = math::mul_add(0.8, v23, math::mul_add(0.1, v10, 0.4 * v8)) - q[11];
+        phi[8] = math::add_mul(math::add_mul(0.4 * v8, 0.1, v10), 0.8, v23) - q[11];
         phi_q[(0, 0)] = -0.4 * v0;
-        phi_q[(0, 1)] = math::mul_add(-0.8, v15, -0.1 * v2);
+        phi_q[(0, 1)] = math::sub_mul(-0.1 * v2, 0.8, v15);
         phi_q[(0, 2)] = -0.8 * v3 * v12;
         phi_q[(0, 9)] = -1.0;
         phi_q[(1, 2)] = 0.8 * v13;
         phi_q[(1, 10)] = -1.0;
         phi_q[(2, 0)] = 0.4 * v1;
-        phi_q[(2, 1)] = math::mul_add(0.8, v14, 0.1 * v3);
+        phi_q[(2, 1)] = math::add_mul(0.1 * v3, 0.8, v14);
         phi_q[(2, 2)] = -0.8 * v2 * v12;
         phi_q[(2, 11)] = -1.0;
         phi_q[(3, 3)] = -0.4 * v4;
-        phi_q[(3, 4)] = math::mul_add(-0.8, v19, -0.1 * v6);
+        phi_q[(3, 4)] = math::sub_mul(-0.1 * v6, 0.8, v19);
         phi_q[(3, 5)] = -0.8 * v7 * v16;
         phi_q[(3, 9)] = 0.5;
         phi_q[(3, 10)] = -0.8660254037844386;
@@ -807,11 +812,11 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q[(4, 9)] = 0.8660254037844386;
         phi_q[(4, 10)] = 0.5;
         phi_q[(5, 3)] = 0.4 * v5;
-        phi_q[(5, 4)] = math::mul_add(0.8, v18, 0.1 * v7);
+        phi_q[(5, 4)] = math::add_mul(0.1 * v7, 0.8, v18);
         phi_q[(5, 5)] = -0.8 * v6 * v16;
         phi_q[(5, 11)] = -1.0;
         phi_q[(6, 6)] = -0.4 * v8;
-        phi_q[(6, 7)] = math::mul_add(-0.8, v23, -0.1 * v10);
+        phi_q[(6, 7)] = math::sub_mul(-0.1 * v10, 0.8, v23);
         phi_q[(6, 8)] = -0.8 * v11 * v20;
         phi_q[(6, 9)] = 0.5;
         phi_q[(6, 10)] = 0.8660254037844386;
@@ -819,7 +824,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q[(7, 9)] = -0.8660254037844386;
         phi_q[(7, 10)] = 0.5;
         phi_q[(8, 6)] = 0.4 * v9;
-        phi_q[(8, 7)] = math::mul_add(0.8, v22, 0.1 * v11);
+        phi_q[(8, 7)] = math::add_mul(0.1 * v11, 0.8, v22);
         phi_q[(8, 8)] = -0.8 * v10 * v20;
         phi_q[(8, 11)] = -1.0;
     }
@@ -901,338 +906,343 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v54 = v65 * v23;
         let v55 = v11 * v89;
         let v56 = v71 * v23;
-        let v72 = math::mul_add(-2.0, v52, v51);
-        let v73 = math::mul_add(0.25, v37, v35);
+        let v72 = math::sub_mul(v51, 2.0, v52);
+        let v73 = math::add_mul(v35, 0.25, v37);
         let v90 = v53 + v72;
-        let v57 = math::mul_add(0.32000000000000006, v90, 0.24000000000000005 * v73);
-        let v74 = math::mul_add(-2.0, v46, v45);
-        let v75 = math::mul_add(0.25, v33, v31);
+        let v57 = math::add_mul(0.24000000000000005 * v73, 0.32000000000000006, v90);
+        let v74 = math::sub_mul(v45, 2.0, v46);
+        let v75 = math::add_mul(v31, 0.25, v33);
         let v91 = v47 + v74;
-        let v58 = math::mul_add(0.32000000000000006, v91, 0.24000000000000005 * v75);
-        let v76 = math::mul_add(-2.0, v40, v39);
-        let v77 = math::mul_add(0.25, v29, v27);
+        let v58 = math::add_mul(0.24000000000000005 * v75, 0.32000000000000006, v91);
+        let v76 = math::sub_mul(v39, 2.0, v40);
+        let v77 = math::add_mul(v27, 0.25, v29);
         let v92 = v41 + v76;
-        let v59 = math::mul_add(0.32000000000000006, v92, 0.24000000000000005 * v77);
+        let v59 = math::add_mul(0.24000000000000005 * v77, 0.32000000000000006, v92);
         let v78 = v3 * v12;
         let v79 = v7 * v16;
         let v80 = v11 * v20;
-        let v81 = math::mul_add(2.0, v43, v42);
-        let v82 = math::mul_add(0.25, v30, v28);
-        let v83 = math::mul_add(2.0, v49, v48);
-        let v84 = math::mul_add(0.25, v34, v32);
-        let v85 = math::mul_add(2.0, v55, v54);
-        let v86 = math::mul_add(0.25, v38, v36);
+        let v81 = math::add_mul(v42, 2.0, v43);
+        let v82 = math::add_mul(v28, 0.25, v30);
+        let v83 = math::add_mul(v48, 2.0, v49);
+        let v84 = math::add_mul(v32, 0.25, v34);
+        let v85 = math::add_mul(v54, 2.0, v55);
+        let v86 = math::add_mul(v36, 0.25, v38);
         let v93 = v44 + v81;
         let v94 = v50 + v83;
         let v95 = v56 + v85;
         *m = SMatrix::zeros();
         *phi_q = SMatrix::zeros();
         m[(0, 0)] = 0.3946666666666667;
-        m[(0, 1)] = math::mul_add(
+        m[(0, 1)] = math::add_mul(
+            v1 * (math::add_mul(0.06600000000000002 * v3, 0.24000000000000005, v14)),
             v0,
-            (math::mul_add(0.24000000000000005, v15, 0.06600000000000002 * v2)),
-            v1 * (math::mul_add(0.24000000000000005, v14, 0.06600000000000002 * v3)),
+            (math::add_mul(0.06600000000000002 * v2, 0.24000000000000005, v15)),
         );
         m[(1, 0)] = m[(0, 1)];
-        m[(0, 2)] = math::mul_add(
-            -(0.24000000000000005 * v1),
-            v26,
+        m[(0, 2)] = math::sub_mul(
             0.24000000000000005 * v0 * v78,
+            0.24000000000000005 * v1,
+            v26,
         );
         m[(2, 0)] = m[(0, 2)];
-        m[(1, 1)] = math::mul_add(
-            v2,
-            (math::mul_add(0.06000000000000001, v15, 0.016000000000000004 * v2)),
-            math::mul_add(
-                v3,
-                (math::mul_add(0.06000000000000001, v14, 0.016000000000000004 * v3)),
-                math::mul_add(
-                    v2 * v13,
-                    (math::mul_add(0.32000000000000006, v15, 0.06000000000000001 * v2)),
+        m[(1, 1)] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
                     v3 * v13
-                        * (math::mul_add(
+                        * (math::add_mul(
+                            0.06000000000000001 * v3,
                             0.32000000000000006,
                             v14,
-                            0.06000000000000001 * v3,
                         )),
+                    v2 * v13,
+                    (math::add_mul(0.06000000000000001 * v2, 0.32000000000000006, v15)),
                 ),
+                v3,
+                (math::add_mul(0.016000000000000004 * v3, 0.06000000000000001, v14)),
             ),
+            v2,
+            (math::add_mul(0.016000000000000004 * v2, 0.06000000000000001, v15)),
         );
         m[(2, 2)] = 0.32000000000000006;
         m[(3, 3)] = 0.3946666666666667;
-        m[(3, 4)] = math::mul_add(
+        m[(3, 4)] = math::add_mul(
+            v5 * (math::add_mul(0.06600000000000002 * v7, 0.24000000000000005, v18)),
             v4,
-            (math::mul_add(0.24000000000000005, v19, 0.06600000000000002 * v6)),
-            v5 * (math::mul_add(0.24000000000000005, v18, 0.06600000000000002 * v7)),
+            (math::add_mul(0.06600000000000002 * v6, 0.24000000000000005, v19)),
         );
         m[(4, 3)] = m[(3, 4)];
-        m[(3, 5)] = math::mul_add(
-            -(0.24000000000000005 * v5),
-            v25,
+        m[(3, 5)] = math::sub_mul(
             0.24000000000000005 * v4 * v79,
+            0.24000000000000005 * v5,
+            v25,
         );
         m[(5, 3)] = m[(3, 5)];
-        m[(4, 4)] = math::mul_add(
-            v6,
-            (math::mul_add(0.06000000000000001, v19, 0.016000000000000004 * v6)),
-            math::mul_add(
-                v7,
-                (math::mul_add(0.06000000000000001, v18, 0.016000000000000004 * v7)),
-                math::mul_add(
-                    v6 * v17,
-                    (math::mul_add(0.32000000000000006, v19, 0.06000000000000001 * v6)),
+        m[(4, 4)] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
                     v7 * v17
-                        * (math::mul_add(
+                        * (math::add_mul(
+                            0.06000000000000001 * v7,
                             0.32000000000000006,
                             v18,
-                            0.06000000000000001 * v7,
                         )),
+                    v6 * v17,
+                    (math::add_mul(0.06000000000000001 * v6, 0.32000000000000006, v19)),
                 ),
+                v7,
+                (math::add_mul(0.016000000000000004 * v7, 0.06000000000000001, v18)),
             ),
+            v6,
+            (math::add_mul(0.016000000000000004 * v6, 0.06000000000000001, v19)),
         );
         m[(5, 5)] = 0.32000000000000006;
         m[(6, 6)] = 0.3946666666666667;
-        m[(6, 7)] = math::mul_add(
+        m[(6, 7)] = math::add_mul(
+            v9 * (math::add_mul(0.06600000000000002 * v11, 0.24000000000000005, v22)),
             v8,
-            (math::mul_add(0.24000000000000005, v23, 0.06600000000000002 * v10)),
-            v9 * (math::mul_add(0.24000000000000005, v22, 0.06600000000000002 * v11)),
+            (math::add_mul(0.06600000000000002 * v10, 0.24000000000000005, v23)),
         );
         m[(7, 6)] = m[(6, 7)];
-        m[(6, 8)] = math::mul_add(
-            -(0.24000000000000005 * v9),
-            v24,
+        m[(6, 8)] = math::sub_mul(
             0.24000000000000005 * v8 * v80,
+            0.24000000000000005 * v9,
+            v24,
         );
         m[(8, 6)] = m[(6, 8)];
-        m[(7, 7)] = math::mul_add(
-            v10,
-            (math::mul_add(0.06000000000000001, v23, 0.016000000000000004 * v10)),
-            math::mul_add(
-                v11,
-                (math::mul_add(0.06000000000000001, v22, 0.016000000000000004 * v11)),
-                math::mul_add(
-                    v10 * v21,
-                    (math::mul_add(0.32000000000000006, v23, 0.06000000000000001 * v10)),
+        m[(7, 7)] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
                     v11 * v21
-                        * (math::mul_add(
+                        * (math::add_mul(
+                            0.06000000000000001 * v11,
                             0.32000000000000006,
                             v22,
-                            0.06000000000000001 * v11,
                         )),
+                    v10 * v21,
+                    (math::add_mul(0.06000000000000001 * v10, 0.32000000000000006, v23)),
                 ),
+                v11,
+                (math::add_mul(0.016000000000000004 * v11, 0.06000000000000001, v22)),
             ),
+            v10,
+            (math::add_mul(0.016000000000000004 * v10, 0.06000000000000001, v23)),
         );
         m[(8, 8)] = 0.32000000000000006;
         m[(9, 9)] = 2.6;
         m[(10, 10)] = 2.6;
         m[(11, 11)] = 2.6;
-        h[0] = math::mul_add(
+        h[0] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v1,
+                v1,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v28, 0.06600000000000002, v30),
+                    0.24000000000000005,
+                    v93,
+                )),
+            ),
             v0,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v27, 0.06600000000000002, v29),
                 0.24000000000000005,
                 v92,
-                math::mul_add(0.06600000000000002, v29, 0.3946666666666667 * v27),
             )),
-            math::mul_add(
-                v1,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v93,
-                    math::mul_add(-0.06600000000000002, v30, -0.3946666666666667 * v28),
-                )),
-                10.987200000000001 * v1,
-            ),
         );
-        h[1] = math::mul_add(
-            v2,
-            (math::mul_add(
-                0.06000000000000001,
-                v92,
-                math::mul_add(0.016000000000000004, v29, 0.06600000000000002 * v27),
-            )),
-            math::mul_add(
-                v3,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v93,
-                    math::mul_add(-0.016000000000000004, v30, -0.06600000000000002 * v28),
-                )),
-                math::mul_add(
+        h[1] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v3 * (math::mul_add(5.886000000000001, v13, 1.6186500000000001)),
+                        v3 * v13,
+                        (math::sub_mul(
+                            -0.24000000000000005 * v82,
+                            0.32000000000000006,
+                            v93,
+                        )),
+                    ),
                     v59,
                     v15,
-                    math::mul_add(
-                        v3 * v13,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v93,
-                            -0.24000000000000005 * v82,
-                        )),
-                        v3 * (math::mul_add(5.886000000000001, v13, 1.6186500000000001)),
-                    ),
                 ),
+                v3,
+                (math::sub_mul(
+                    math::sub_mul(-0.06600000000000002 * v28, 0.016000000000000004, v30),
+                    0.06000000000000001,
+                    v93,
+                )),
             ),
+            v2,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v27, 0.016000000000000004, v29),
+                0.06000000000000001,
+                v92,
+            )),
         );
-        h[2] = math::mul_add(
-            -(0.32000000000000006 * v13 * v12),
-            v67,
-            math::mul_add(
-                -5.886000000000001,
-                v26,
-                math::mul_add(
+        h[2] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    v2 * v12
+                        * (math::add_mul(
+                            0.24000000000000005 * v82,
+                            0.32000000000000006,
+                            v93,
+                        )),
                     v59,
                     v78,
-                    v2 * v12
-                        * (math::mul_add(
-                            0.32000000000000006,
-                            v93,
-                            0.24000000000000005 * v82,
-                        )),
                 ),
+                5.886000000000001,
+                v26,
             ),
+            0.32000000000000006 * v13 * v12,
+            v67,
         );
-        h[3] = math::mul_add(
+        h[3] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v5,
+                v5,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v32, 0.06600000000000002, v34),
+                    0.24000000000000005,
+                    v94,
+                )),
+            ),
             v4,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v31, 0.06600000000000002, v33),
                 0.24000000000000005,
                 v91,
-                math::mul_add(0.06600000000000002, v33, 0.3946666666666667 * v31),
             )),
-            math::mul_add(
-                v5,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v94,
-                    math::mul_add(-0.06600000000000002, v34, -0.3946666666666667 * v32),
-                )),
-                10.987200000000001 * v5,
-            ),
         );
-        h[4] = math::mul_add(
-            v6,
-            (math::mul_add(
-                0.06000000000000001,
-                v91,
-                math::mul_add(0.016000000000000004, v33, 0.06600000000000002 * v31),
-            )),
-            math::mul_add(
-                v7,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v94,
-                    math::mul_add(-0.016000000000000004, v34, -0.06600000000000002 * v32),
-                )),
-                math::mul_add(
+        h[4] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v7 * (math::mul_add(5.886000000000001, v17, 1.6186500000000001)),
+                        v7 * v17,
+                        (math::sub_mul(
+                            -0.24000000000000005 * v84,
+                            0.32000000000000006,
+                            v94,
+                        )),
+                    ),
                     v58,
                     v19,
-                    math::mul_add(
-                        v7 * v17,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v94,
-                            -0.24000000000000005 * v84,
-                        )),
-                        v7 * (math::mul_add(5.886000000000001, v17, 1.6186500000000001)),
-                    ),
                 ),
+                v7,
+                (math::sub_mul(
+                    math::sub_mul(-0.06600000000000002 * v32, 0.016000000000000004, v34),
+                    0.06000000000000001,
+                    v94,
+                )),
             ),
+            v6,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v31, 0.016000000000000004, v33),
+                0.06000000000000001,
+                v91,
+            )),
         );
-        h[5] = math::mul_add(
-            -(0.32000000000000006 * v17 * v16),
-            v69,
-            math::mul_add(
-                -5.886000000000001,
-                v25,
-                math::mul_add(
+        h[5] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    v6 * v16
+                        * (math::add_mul(
+                            0.24000000000000005 * v84,
+                            0.32000000000000006,
+                            v94,
+                        )),
                     v58,
                     v79,
-                    v6 * v16
-                        * (math::mul_add(
-                            0.32000000000000006,
-                            v94,
-                            0.24000000000000005 * v84,
-                        )),
                 ),
+                5.886000000000001,
+                v25,
             ),
+            0.32000000000000006 * v17 * v16,
+            v69,
         );
-        h[6] = math::mul_add(
+        h[6] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v9,
+                v9,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v36, 0.06600000000000002, v38),
+                    0.24000000000000005,
+                    v95,
+                )),
+            ),
             v8,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v35, 0.06600000000000002, v37),
                 0.24000000000000005,
                 v90,
-                math::mul_add(0.06600000000000002, v37, 0.3946666666666667 * v35),
             )),
-            math::mul_add(
-                v9,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v95,
-                    math::mul_add(-0.06600000000000002, v38, -0.3946666666666667 * v36),
-                )),
-                10.987200000000001 * v9,
-            ),
         );
-        h[7] = math::mul_add(
-            v10,
-            (math::mul_add(
-                0.06000000000000001,
-                v90,
-                math::mul_add(0.016000000000000004, v37, 0.06600000000000002 * v35),
-            )),
-            math::mul_add(
-                v11,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v95,
-                    math::mul_add(-0.016000000000000004, v38, -0.06600000000000002 * v36),
-                )),
-                math::mul_add(
-                    v57,
-                    v23,
-                    math::mul_add(
+        h[7] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v11
+                            * (math::mul_add(
+                                5.886000000000001,
+                                v21,
+                                1.6186500000000001,
+                            )),
                         v11 * v21,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v95,
+                        (math::sub_mul(
                             -0.24000000000000005 * v86,
-                        )),
-                        v11 * (math::mul_add(5.886000000000001, v21, 1.6186500000000001)),
-                    ),
-                ),
-            ),
-        );
-        h[8] = math::mul_add(
-            -(0.32000000000000006 * v21 * v20),
-            v71,
-            math::mul_add(
-                -5.886000000000001,
-                v24,
-                math::mul_add(
-                    v57,
-                    v80,
-                    v10 * v20
-                        * (math::mul_add(
                             0.32000000000000006,
                             v95,
-                            0.24000000000000005 * v86,
                         )),
+                    ),
+                    v57,
+                    v23,
                 ),
+                v11,
+                (math::sub_mul(
+                    math::sub_mul(-0.06600000000000002 * v36, 0.016000000000000004, v38),
+                    0.06000000000000001,
+                    v95,
+                )),
             ),
+            v10,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v35, 0.016000000000000004, v37),
+                0.06000000000000001,
+                v90,
+            )),
+        );
+        h[8] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    v10 * v20
+                        * (math::add_mul(
+                            0.24000000000000005 * v86,
+                            0.32000000000000006,
+                            v95,
+                        )),
+                    v57,
+                    v80,
+                ),
+                5.886000000000001,
+                v24,
+            ),
+            0.32000000000000006 * v21 * v20,
+            v71,
         );
         h[9] = 0.0;
         h[10] = 0.0;
         h[11] = 25.506000000000004;
         phi_q[(0, 0)] = -0.4 * v0;
-        phi_q[(0, 1)] = math::mul_add(-0.8, v15, -0.1 * v2);
+        phi_q[(0, 1)] = math::sub_mul(-0.1 * v2, 0.8, v15);
         phi_q[(0, 2)] = -0.8 * v3 * v12;
         phi_q[(0, 9)] = -1.0;
         phi_q[(1, 2)] = 0.8 * v13;
         phi_q[(1, 10)] = -1.0;
         phi_q[(2, 0)] = 0.4 * v1;
-        phi_q[(2, 1)] = math::mul_add(0.8, v14, 0.1 * v3);
+        phi_q[(2, 1)] = math::add_mul(0.1 * v3, 0.8, v14);
         phi_q[(2, 2)] = -0.8 * v26;
         phi_q[(2, 11)] = -1.0;
         phi_q[(3, 3)] = -0.4 * v4;
-        phi_q[(3, 4)] = math::mul_add(-0.8, v19, -0.1 * v6);
+        phi_q[(3, 4)] = math::sub_mul(-0.1 * v6, 0.8, v19);
         phi_q[(3, 5)] = -0.8 * v7 * v16;
         phi_q[(3, 9)] = 0.5;
         phi_q[(3, 10)] = -0.8660254037844386;
@@ -1240,11 +1250,11 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q[(4, 9)] = 0.8660254037844386;
         phi_q[(4, 10)] = 0.5;
         phi_q[(5, 3)] = 0.4 * v5;
-        phi_q[(5, 4)] = math::mul_add(0.8, v18, 0.1 * v7);
+        phi_q[(5, 4)] = math::add_mul(0.1 * v7, 0.8, v18);
         phi_q[(5, 5)] = -0.8 * v25;
         phi_q[(5, 11)] = -1.0;
         phi_q[(6, 6)] = -0.4 * v8;
-        phi_q[(6, 7)] = math::mul_add(-0.8, v23, -0.1 * v10);
+        phi_q[(6, 7)] = math::sub_mul(-0.1 * v10, 0.8, v23);
         phi_q[(6, 8)] = -0.8 * v11 * v20;
         phi_q[(6, 9)] = 0.5;
         phi_q[(6, 10)] = 0.8660254037844386;
@@ -1252,18 +1262,18 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q[(7, 9)] = -0.8660254037844386;
         phi_q[(7, 10)] = 0.5;
         phi_q[(8, 6)] = 0.4 * v9;
-        phi_q[(8, 7)] = math::mul_add(0.8, v22, 0.1 * v11);
+        phi_q[(8, 7)] = math::add_mul(0.1 * v11, 0.8, v22);
         phi_q[(8, 8)] = -0.8 * v24;
         phi_q[(8, 11)] = -1.0;
-        gamma[0] = math::mul_add(0.8, v92, 0.4 * v77);
+        gamma[0] = math::add_mul(0.4 * v77, 0.8, v92);
         gamma[1] = 0.8 * v12 * v67;
-        gamma[2] = math::mul_add(0.8, v93, 0.4 * v82);
-        gamma[3] = math::mul_add(0.8, v91, 0.4 * v75);
+        gamma[2] = math::add_mul(0.4 * v82, 0.8, v93);
+        gamma[3] = math::add_mul(0.4 * v75, 0.8, v91);
         gamma[4] = 0.8 * v16 * v69;
-        gamma[5] = math::mul_add(0.8, v94, 0.4 * v84);
-        gamma[6] = math::mul_add(0.8, v90, 0.4 * v73);
+        gamma[5] = math::add_mul(0.4 * v84, 0.8, v94);
+        gamma[6] = math::add_mul(0.4 * v73, 0.8, v90);
         gamma[7] = 0.8 * v20 * v71;
-        gamma[8] = math::mul_add(0.8, v95, 0.4 * v86);
+        gamma[8] = math::add_mul(0.4 * v86, 0.8, v95);
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
@@ -1367,273 +1377,278 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v71 = v10 * v16 * qdd[8];
         let v96 = v26 + v56;
         let v97 = v28 + v58;
-        let v98 = math::mul_add(-2.0, v43, v42);
+        let v98 = math::sub_mul(v42, 2.0, v43);
         let v99 = v44 + v68;
         let v123 = v69 + v98;
         let v132 = v99 + v123;
-        let v72 = math::mul_add(
+        let v72 = math::add_mul(
+            math::add_mul(0.24000000000000005 * v96, 0.06000000000000001, v97),
             0.32000000000000006,
             v132,
-            math::mul_add(0.06000000000000001, v97, 0.24000000000000005 * v96),
         );
         let v100 = v22 + v52;
         let v101 = v24 + v54;
-        let v102 = math::mul_add(-2.0, v37, v36);
+        let v102 = math::sub_mul(v36, 2.0, v37);
         let v103 = v38 + v64;
         let v124 = v65 + v102;
         let v133 = v103 + v124;
-        let v73 = math::mul_add(
+        let v73 = math::add_mul(
+            math::add_mul(0.24000000000000005 * v100, 0.06000000000000001, v101),
             0.32000000000000006,
             v133,
-            math::mul_add(0.06000000000000001, v101, 0.24000000000000005 * v100),
         );
         let v104 = v18 + v48;
         let v105 = v20 + v50;
-        let v106 = math::mul_add(-2.0, v31, v30);
+        let v106 = math::sub_mul(v30, 2.0, v31);
         let v107 = v32 + v60;
         let v125 = v61 + v106;
         let v134 = v107 + v125;
-        let v74 = math::mul_add(
+        let v74 = math::add_mul(
+            math::add_mul(0.24000000000000005 * v104, 0.06000000000000001, v105),
             0.32000000000000006,
             v134,
-            math::mul_add(0.06000000000000001, v105, 0.24000000000000005 * v104),
         );
         let v108 = v19 - v49;
         let v109 = v21 - v51;
-        let v110 = math::mul_add(2.0, v34, v33);
+        let v110 = math::add_mul(v33, 2.0, v34);
         let v111 = v35 - v62;
         let v112 = v23 - v53;
         let v113 = v25 - v55;
-        let v114 = math::mul_add(2.0, v40, v39);
+        let v114 = math::add_mul(v39, 2.0, v40);
         let v115 = v41 - v66;
         let v116 = v27 - v57;
         let v117 = v29 - v59;
-        let v118 = math::mul_add(2.0, v46, v45);
+        let v118 = math::add_mul(v45, 2.0, v46);
         let v119 = v47 - v70;
         let v126 = v63 + v110;
-        let v127 = math::mul_add(0.25, v109, v108);
+        let v127 = math::add_mul(v108, 0.25, v109);
         let v128 = v67 + v114;
-        let v129 = math::mul_add(0.25, v113, v112);
+        let v129 = math::add_mul(v112, 0.25, v113);
         let v130 = v71 + v118;
-        let v131 = math::mul_add(0.25, v117, v116);
+        let v131 = math::add_mul(v116, 0.25, v117);
         let v135 = v111 + v126;
         let v136 = v115 + v128;
         let v137 = v119 + v130;
-        tau[0] = math::mul_add(
+        tau[0] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v1,
+                v1,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v108, 0.06600000000000002, v109),
+                    0.24000000000000005,
+                    v135,
+                )),
+            ),
             v0,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v104, 0.06600000000000002, v105),
                 0.24000000000000005,
                 v134,
-                math::mul_add(0.06600000000000002, v105, 0.3946666666666667 * v104),
             )),
-            math::mul_add(
-                v1,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v135,
-                    math::mul_add(-0.06600000000000002, v109, -0.3946666666666667 * v108),
-                )),
-                10.987200000000001 * v1,
-            ),
         );
-        tau[1] = math::mul_add(
-            v2,
-            (math::mul_add(
-                0.06000000000000001,
-                v134,
-                math::mul_add(0.016000000000000004, v105, 0.06600000000000002 * v104),
-            )),
-            math::mul_add(
-                v3,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v135,
-                    math::mul_add(
-                        -0.016000000000000004,
-                        v109,
-                        -0.06600000000000002 * v108,
+        tau[1] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v3 * (math::mul_add(5.886000000000001, v13, 1.6186500000000001)),
+                        v3 * v13,
+                        (math::sub_mul(
+                            -0.24000000000000005 * v127,
+                            0.32000000000000006,
+                            v135,
+                        )),
                     ),
-                )),
-                math::mul_add(
                     v74,
                     v84,
-                    math::mul_add(
-                        v3 * v13,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v135,
-                            -0.24000000000000005 * v127,
-                        )),
-                        v3 * (math::mul_add(5.886000000000001, v13, 1.6186500000000001)),
-                    ),
                 ),
+                v3,
+                (math::sub_mul(
+                    math::sub_mul(
+                        -0.06600000000000002 * v108,
+                        0.016000000000000004,
+                        v109,
+                    ),
+                    0.06000000000000001,
+                    v135,
+                )),
             ),
+            v2,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v104, 0.016000000000000004, v105),
+                0.06000000000000001,
+                v134,
+            )),
         );
-        tau[2] = math::mul_add(
-            -(5.886000000000001 * v2),
-            v12,
-            math::mul_add(
+        tau[2] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    v2 * v12
+                        * (math::add_mul(
+                            0.24000000000000005 * v127,
+                            0.32000000000000006,
+                            v135,
+                        )),
+                    v13,
+                    (math::sub_mul(
+                        0.32000000000000006 * v13 * qdd[2],
+                        0.32000000000000006 * v12,
+                        v83,
+                    )),
+                ),
                 v74,
                 v93,
-                math::mul_add(
-                    v13,
-                    (math::mul_add(
-                        -(0.32000000000000006 * v12),
-                        v83,
-                        0.32000000000000006 * v13 * qdd[2],
-                    )),
-                    v2 * v12
-                        * (math::mul_add(
-                            0.32000000000000006,
-                            v135,
-                            0.24000000000000005 * v127,
-                        )),
-                ),
             ),
+            5.886000000000001 * v2,
+            v12,
         );
-        tau[3] = math::mul_add(
+        tau[3] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v5,
+                v5,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v112, 0.06600000000000002, v113),
+                    0.24000000000000005,
+                    v136,
+                )),
+            ),
             v4,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v100, 0.06600000000000002, v101),
                 0.24000000000000005,
                 v133,
-                math::mul_add(0.06600000000000002, v101, 0.3946666666666667 * v100),
             )),
-            math::mul_add(
-                v5,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v136,
-                    math::mul_add(-0.06600000000000002, v113, -0.3946666666666667 * v112),
-                )),
-                10.987200000000001 * v5,
-            ),
         );
-        tau[4] = math::mul_add(
-            v6,
-            (math::mul_add(
-                0.06000000000000001,
-                v133,
-                math::mul_add(0.016000000000000004, v101, 0.06600000000000002 * v100),
-            )),
-            math::mul_add(
-                v7,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v136,
-                    math::mul_add(
-                        -0.016000000000000004,
-                        v113,
-                        -0.06600000000000002 * v112,
+        tau[4] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v7 * (math::mul_add(5.886000000000001, v15, 1.6186500000000001)),
+                        v7 * v15,
+                        (math::sub_mul(
+                            -0.24000000000000005 * v129,
+                            0.32000000000000006,
+                            v136,
+                        )),
                     ),
-                )),
-                math::mul_add(
                     v73,
                     v88,
-                    math::mul_add(
-                        v7 * v15,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v136,
-                            -0.24000000000000005 * v129,
-                        )),
-                        v7 * (math::mul_add(5.886000000000001, v15, 1.6186500000000001)),
-                    ),
                 ),
+                v7,
+                (math::sub_mul(
+                    math::sub_mul(
+                        -0.06600000000000002 * v112,
+                        0.016000000000000004,
+                        v113,
+                    ),
+                    0.06000000000000001,
+                    v136,
+                )),
             ),
+            v6,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v100, 0.016000000000000004, v101),
+                0.06000000000000001,
+                v133,
+            )),
         );
-        tau[5] = math::mul_add(
-            -(5.886000000000001 * v6),
-            v14,
-            math::mul_add(
+        tau[5] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    v6 * v14
+                        * (math::add_mul(
+                            0.24000000000000005 * v129,
+                            0.32000000000000006,
+                            v136,
+                        )),
+                    v15,
+                    (math::sub_mul(
+                        0.32000000000000006 * v15 * qdd[5],
+                        0.32000000000000006 * v14,
+                        v87,
+                    )),
+                ),
                 v73,
                 v94,
-                math::mul_add(
-                    v15,
-                    (math::mul_add(
-                        -(0.32000000000000006 * v14),
-                        v87,
-                        0.32000000000000006 * v15 * qdd[5],
-                    )),
-                    v6 * v14
-                        * (math::mul_add(
-                            0.32000000000000006,
-                            v136,
-                            0.24000000000000005 * v129,
-                        )),
-                ),
             ),
+            5.886000000000001 * v6,
+            v14,
         );
-        tau[6] = math::mul_add(
+        tau[6] = math::add_mul(
+            math::add_mul(
+                10.987200000000001 * v9,
+                v9,
+                (math::sub_mul(
+                    math::sub_mul(-0.3946666666666667 * v116, 0.06600000000000002, v117),
+                    0.24000000000000005,
+                    v137,
+                )),
+            ),
             v8,
-            (math::mul_add(
+            (math::add_mul(
+                math::add_mul(0.3946666666666667 * v96, 0.06600000000000002, v97),
                 0.24000000000000005,
                 v132,
-                math::mul_add(0.06600000000000002, v97, 0.3946666666666667 * v96),
             )),
-            math::mul_add(
-                v9,
-                (math::mul_add(
-                    -0.24000000000000005,
-                    v137,
-                    math::mul_add(-0.06600000000000002, v117, -0.3946666666666667 * v116),
-                )),
-                10.987200000000001 * v9,
-            ),
         );
-        tau[7] = math::mul_add(
-            v10,
-            (math::mul_add(
-                0.06000000000000001,
-                v132,
-                math::mul_add(0.016000000000000004, v97, 0.06600000000000002 * v96),
-            )),
-            math::mul_add(
-                v11,
-                (math::mul_add(
-                    -0.06000000000000001,
-                    v137,
-                    math::mul_add(
-                        -0.016000000000000004,
-                        v117,
-                        -0.06600000000000002 * v116,
-                    ),
-                )),
-                math::mul_add(
-                    v72,
-                    v92,
-                    math::mul_add(
+        tau[7] = math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        v11
+                            * (math::mul_add(
+                                5.886000000000001,
+                                v17,
+                                1.6186500000000001,
+                            )),
                         v11 * v17,
-                        (math::mul_add(
-                            -0.32000000000000006,
-                            v137,
+                        (math::sub_mul(
                             -0.24000000000000005 * v131,
-                        )),
-                        v11 * (math::mul_add(5.886000000000001, v17, 1.6186500000000001)),
-                    ),
-                ),
-            ),
-        );
-        tau[8] = math::mul_add(
-            -(5.886000000000001 * v10),
-            v16,
-            math::mul_add(
-                v72,
-                v95,
-                math::mul_add(
-                    v17,
-                    (math::mul_add(
-                        -(0.32000000000000006 * v16),
-                        v91,
-                        0.32000000000000006 * v17 * qdd[8],
-                    )),
-                    v10 * v16
-                        * (math::mul_add(
                             0.32000000000000006,
                             v137,
-                            0.24000000000000005 * v131,
                         )),
+                    ),
+                    v72,
+                    v92,
                 ),
+                v11,
+                (math::sub_mul(
+                    math::sub_mul(
+                        -0.06600000000000002 * v116,
+                        0.016000000000000004,
+                        v117,
+                    ),
+                    0.06000000000000001,
+                    v137,
+                )),
             ),
+            v10,
+            (math::add_mul(
+                math::add_mul(0.06600000000000002 * v96, 0.016000000000000004, v97),
+                0.06000000000000001,
+                v132,
+            )),
+        );
+        tau[8] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    v10 * v16
+                        * (math::add_mul(
+                            0.24000000000000005 * v131,
+                            0.32000000000000006,
+                            v137,
+                        )),
+                    v17,
+                    (math::sub_mul(
+                        0.32000000000000006 * v17 * qdd[8],
+                        0.32000000000000006 * v16,
+                        v91,
+                    )),
+                ),
+                v72,
+                v95,
+            ),
+            5.886000000000001 * v10,
+            v16,
         );
         tau[9] = 2.6 * qdd[9];
         tau[10] = 2.6 * qdd[10];
@@ -1671,165 +1686,157 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v3 = v1 * qd[0];
         let v6 = v4 * qd[1];
         let v7 = v5 * qd[1];
-        let v8 = math::mul_add(-0.1, v6, -0.4 * v2);
-        let v9 = math::mul_add(0.1, v7, 0.4 * v3);
+        let v8 = math::sub_mul(-0.4 * v2, 0.1, v6);
+        let v9 = math::add_mul(0.4 * v3, 0.1, v7);
         let v12 = v10 * qd[3];
         let v13 = v11 * qd[3];
         let v16 = v14 * qd[4];
         let v17 = v15 * qd[4];
-        let v18 = math::mul_add(-0.1, v16, -0.4 * v12);
-        let v19 = math::mul_add(0.1, v17, 0.4 * v13);
+        let v18 = math::sub_mul(-0.4 * v12, 0.1, v16);
+        let v19 = math::add_mul(0.4 * v13, 0.1, v17);
         let v22 = v20 * qd[6];
         let v23 = v21 * qd[6];
         let v26 = v24 * qd[7];
         let v27 = v25 * qd[7];
-        let v28 = math::mul_add(-0.1, v26, -0.4 * v22);
-        let v29 = math::mul_add(0.1, v27, 0.4 * v23);
+        let v28 = math::sub_mul(-0.4 * v22, 0.1, v26);
+        let v29 = math::add_mul(0.4 * v23, 0.1, v27);
         let v42 = qd[2] * v30;
-        let v32 = math::mul_add(-(0.8 * v5), v42, math::mul_add(-(0.8 * v31), v6, v8));
-        let v33 = math::mul_add(-(0.8 * v4), v42, math::mul_add(0.8 * v31, v7, v9));
+        let v32 = math::sub_mul(math::sub_mul(v8, 0.8 * v31, v6), 0.8 * v5, v42);
+        let v33 = math::sub_mul(math::mul_add(0.8 * v31, v7, v9), 0.8 * v4, v42);
         let v43 = qd[5] * v34;
-        let v36 = math::mul_add(
-            -(0.8 * v15),
-            v43,
-            math::mul_add(-(0.8 * v35), v16, v18),
-        );
-        let v37 = math::mul_add(-(0.8 * v14), v43, math::mul_add(0.8 * v35, v17, v19));
+        let v36 = math::sub_mul(math::sub_mul(v18, 0.8 * v35, v16), 0.8 * v15, v43);
+        let v37 = math::sub_mul(math::mul_add(0.8 * v35, v17, v19), 0.8 * v14, v43);
         let v44 = qd[8] * v38;
-        let v40 = math::mul_add(
-            -(0.8 * v25),
-            v44,
-            math::mul_add(-(0.8 * v39), v26, v28),
-        );
-        let v41 = math::mul_add(-(0.8 * v24), v44, math::mul_add(0.8 * v39, v27, v29));
-        math::mul_add(
-            -(0.019999999999999997 * v28),
-            v22,
-            math::mul_add(
-                -(0.019999999999999997 * v18),
-                v12,
-                math::mul_add(
-                    -(0.019999999999999997 * v8),
-                    v2,
-                    math::mul_add(
-                        1.3 * qd[11],
-                        qd[11],
-                        math::mul_add(
-                            1.3 * qd[10],
-                            qd[10],
-                            math::mul_add(
-                                1.3 * qd[9],
-                                qd[9],
-                                math::mul_add(
-                                    0.25 * v41,
-                                    v41,
-                                    math::mul_add(
-                                        0.16000000000000003 * v39 * v39 * qd[8],
-                                        qd[8],
-                                        math::mul_add(
-                                            0.25 * v40,
-                                            v40,
-                                            math::mul_add(
-                                                0.25 * v29,
-                                                v41,
-                                                math::mul_add(
-                                                    0.25 * v28,
-                                                    v40,
-                                                    math::mul_add(
-                                                        0.3 * v29,
-                                                        v29,
-                                                        math::mul_add(
-                                                            0.3 * v28,
-                                                            v28,
-                                                            math::mul_add(
-                                                                0.019999999999999997 * v29,
-                                                                v23,
-                                                                math::mul_add(
-                                                                    0.061333333333333344 * qd[6],
-                                                                    qd[6],
-                                                                    math::mul_add(
-                                                                        0.25 * v37,
-                                                                        v37,
-                                                                        math::mul_add(
-                                                                            0.16000000000000003 * v35 * v35 * qd[5],
-                                                                            qd[5],
-                                                                            math::mul_add(
-                                                                                0.25 * v36,
-                                                                                v36,
-                                                                                math::mul_add(
-                                                                                    0.25 * v19,
-                                                                                    v37,
-                                                                                    math::mul_add(
-                                                                                        0.25 * v18,
-                                                                                        v36,
-                                                                                        math::mul_add(
-                                                                                            0.3 * v19,
-                                                                                            v19,
-                                                                                            math::mul_add(
-                                                                                                0.3 * v18,
-                                                                                                v18,
-                                                                                                math::mul_add(
-                                                                                                    0.019999999999999997 * v19,
-                                                                                                    v13,
-                                                                                                    math::mul_add(
-                                                                                                        0.061333333333333344 * qd[3],
-                                                                                                        qd[3],
-                                                                                                        math::mul_add(
-                                                                                                            0.25 * v33,
-                                                                                                            v33,
-                                                                                                            math::mul_add(
-                                                                                                                0.16000000000000003 * v31 * v31 * qd[2],
-                                                                                                                qd[2],
-                                                                                                                math::mul_add(
-                                                                                                                    0.25 * v32,
-                                                                                                                    v32,
-                                                                                                                    math::mul_add(
-                                                                                                                        0.25 * v9,
-                                                                                                                        v33,
-                                                                                                                        math::mul_add(
-                                                                                                                            0.25 * v8,
-                                                                                                                            v32,
-                                                                                                                            math::mul_add(
-                                                                                                                                0.3 * v9,
-                                                                                                                                v9,
-                                                                                                                                math::mul_add(
-                                                                                                                                    0.3 * v8,
-                                                                                                                                    v8,
-                                                                                                                                    math::mul_add(
+        let v40 = math::sub_mul(math::sub_mul(v28, 0.8 * v39, v26), 0.8 * v25, v44);
+        let v41 = math::sub_mul(math::mul_add(0.8 * v39, v27, v29), 0.8 * v24, v44);
+        math::sub_mul(
+            math::sub_mul(
+                math::sub_mul(
+                    math::add_mul(
+                        math::add_mul(
+                            math::add_mul(
+                                math::add_mul(
+                                    math::add_mul(
+                                        math::add_mul(
+                                            math::add_mul(
+                                                math::add_mul(
+                                                    math::add_mul(
+                                                        math::add_mul(
+                                                            math::add_mul(
+                                                                math::add_mul(
+                                                                    math::add_mul(
+                                                                        math::add_mul(
+                                                                            math::add_mul(
+                                                                                math::add_mul(
+                                                                                    math::add_mul(
+                                                                                        math::add_mul(
+                                                                                            math::add_mul(
+                                                                                                math::add_mul(
+                                                                                                    math::add_mul(
+                                                                                                        math::add_mul(
+                                                                                                            math::add_mul(
+                                                                                                                math::add_mul(
+                                                                                                                    math::add_mul(
+                                                                                                                        math::add_mul(
+                                                                                                                            math::add_mul(
+                                                                                                                                math::add_mul(
+                                                                                                                                    math::add_mul(
+                                                                                                                                        0.061333333333333344 * qd[0] * qd[0],
                                                                                                                                         0.019999999999999997 * v9,
                                                                                                                                         v3,
-                                                                                                                                        0.061333333333333344 * qd[0] * qd[0],
                                                                                                                                     ),
+                                                                                                                                    0.3 * v8,
+                                                                                                                                    v8,
                                                                                                                                 ),
+                                                                                                                                0.3 * v9,
+                                                                                                                                v9,
                                                                                                                             ),
+                                                                                                                            0.25 * v8,
+                                                                                                                            v32,
                                                                                                                         ),
+                                                                                                                        0.25 * v9,
+                                                                                                                        v33,
                                                                                                                     ),
+                                                                                                                    0.25 * v32,
+                                                                                                                    v32,
                                                                                                                 ),
+                                                                                                                0.16000000000000003 * v31 * v31 * qd[2],
+                                                                                                                qd[2],
                                                                                                             ),
+                                                                                                            0.25 * v33,
+                                                                                                            v33,
                                                                                                         ),
+                                                                                                        0.061333333333333344 * qd[3],
+                                                                                                        qd[3],
                                                                                                     ),
+                                                                                                    0.019999999999999997 * v19,
+                                                                                                    v13,
                                                                                                 ),
+                                                                                                0.3 * v18,
+                                                                                                v18,
                                                                                             ),
+                                                                                            0.3 * v19,
+                                                                                            v19,
                                                                                         ),
+                                                                                        0.25 * v18,
+                                                                                        v36,
                                                                                     ),
+                                                                                    0.25 * v19,
+                                                                                    v37,
                                                                                 ),
+                                                                                0.25 * v36,
+                                                                                v36,
                                                                             ),
+                                                                            0.16000000000000003 * v35 * v35 * qd[5],
+                                                                            qd[5],
                                                                         ),
+                                                                        0.25 * v37,
+                                                                        v37,
                                                                     ),
+                                                                    0.061333333333333344 * qd[6],
+                                                                    qd[6],
                                                                 ),
+                                                                0.019999999999999997 * v29,
+                                                                v23,
                                                             ),
+                                                            0.3 * v28,
+                                                            v28,
                                                         ),
+                                                        0.3 * v29,
+                                                        v29,
                                                     ),
+                                                    0.25 * v28,
+                                                    v40,
                                                 ),
+                                                0.25 * v29,
+                                                v41,
                                             ),
+                                            0.25 * v40,
+                                            v40,
                                         ),
+                                        0.16000000000000003 * v39 * v39 * qd[8],
+                                        qd[8],
                                     ),
+                                    0.25 * v41,
+                                    v41,
                                 ),
+                                1.3 * qd[9],
+                                qd[9],
                             ),
+                            1.3 * qd[10],
+                            qd[10],
                         ),
+                        1.3 * qd[11],
+                        qd[11],
                     ),
+                    0.019999999999999997 * v8,
+                    v2,
                 ),
+                0.019999999999999997 * v18,
+                v12,
             ),
+            0.019999999999999997 * v28,
+            v22,
         )
     }
     ///Potential energy `V` (gravity and elastic).
@@ -1844,42 +1851,42 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v6 = math::cos(q[2]);
         let v7 = math::cos(q[5]);
         let v8 = math::cos(q[8]);
-        math::mul_add(
-            25.506000000000004,
-            q[11],
-            math::mul_add(
-                5.886000000000001 * v5,
-                v8,
-                math::mul_add(
-                    5.886000000000001 * v3,
-                    v7,
-                    math::mul_add(
-                        5.886000000000001 * v1,
-                        v6,
-                        math::mul_add(
-                            1.6186500000000001,
-                            v5,
-                            math::mul_add(
-                                10.987200000000001,
-                                v4,
-                                math::mul_add(
-                                    1.6186500000000001,
-                                    v3,
-                                    math::mul_add(
-                                        10.987200000000001,
-                                        v2,
-                                        math::mul_add(
+        math::add_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        math::add_mul(
+                            math::add_mul(
+                                math::add_mul(
+                                    math::add_mul(
+                                        math::add_mul(
+                                            10.987200000000001 * v0,
                                             1.6186500000000001,
                                             v1,
-                                            10.987200000000001 * v0,
                                         ),
+                                        10.987200000000001,
+                                        v2,
                                     ),
+                                    1.6186500000000001,
+                                    v3,
                                 ),
+                                10.987200000000001,
+                                v4,
                             ),
+                            1.6186500000000001,
+                            v5,
                         ),
+                        5.886000000000001 * v1,
+                        v6,
                     ),
+                    5.886000000000001 * v3,
+                    v7,
                 ),
+                5.886000000000001 * v5,
+                v8,
             ),
+            25.506000000000004,
+            q[11],
         )
     }
     ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).

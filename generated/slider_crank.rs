@@ -54,10 +54,10 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         *m = SMatrix::zeros();
         m[(0, 0)] = 0.009666666666666669;
-        m[(0, 1)] = math::mul_add(
-            -(0.012000000000000002 * v1),
-            v3,
+        m[(0, 1)] = math::sub_mul(
             0.012000000000000002 * v0 * v2,
+            0.012000000000000002 * v1,
+            v3,
         );
         m[(1, 0)] = m[(0, 1)];
         m[(1, 1)] = 0.024;
@@ -75,29 +75,29 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
-        let v4 = math::mul_add(-(0.3 * v3), v7, -0.1 * v1 * v6);
-        let v5 = math::mul_add(-(0.1 * v0), v6, 0.3 * v2 * v7);
-        h[0] = math::mul_add(
-            -(0.04000000000000001 * v0),
+        let v4 = math::sub_mul(-0.1 * v1 * v6, 0.3 * v3, v7);
+        let v5 = math::sub_mul(0.3 * v2 * v7, 0.1 * v0, v6);
+        h[0] = math::sub_mul(
+            math::add_mul(1.0300500000000001 * v1, 0.04000000000000001 * v1, v5),
+            0.04000000000000001 * v0,
             v4,
-            math::mul_add(0.04000000000000001 * v1, v5, 1.0300500000000001 * v1),
         );
-        h[1] = math::mul_add(
-            -(0.08 * v3),
-            v5,
-            math::mul_add(
-                -(0.08 * v2),
-                v4,
-                math::mul_add(
-                    -1.1772,
-                    v3,
-                    math::mul_add(
+        h[1] = math::sub_mul(
+            math::sub_mul(
+                math::sub_mul(
+                    math::add_mul(
+                        0.004000000000000001 * v1 * v2 * v6,
                         0.004000000000000001 * v0 * v3,
                         v6,
-                        0.004000000000000001 * v1 * v2 * v6,
                     ),
+                    1.1772,
+                    v3,
                 ),
+                0.08 * v2,
+                v4,
             ),
+            0.08 * v3,
+            v5,
         );
         h[2] = 0.0;
     }
@@ -105,8 +105,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     #[inline]
     fn constraints(&self, q: &SVector<f64, 3>, _t: f64, phi: &mut SVector<f64, 2>) {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
-        phi[0] = math::mul_add(0.3, v3, 0.1 * v1) - q[2];
-        phi[1] = math::mul_add(-0.3, v2, 0.1 * v0);
+        phi[0] = math::add_mul(0.1 * v1, 0.3, v3) - q[2];
+        phi[1] = math::sub_mul(0.1 * v0, 0.3, v2);
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
     #[inline]
@@ -147,8 +147,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v4 = qd[0] * qd[0];
         let v5 = qd[1] * qd[1];
-        gamma[0] = math::mul_add(0.3 * v3, v5, 0.1 * v1 * v4);
-        gamma[1] = math::mul_add(-(0.3 * v2), v5, 0.1 * v0 * v4);
+        gamma[0] = math::add_mul(0.1 * v1 * v4, 0.3 * v3, v5);
+        gamma[1] = math::sub_mul(0.1 * v0 * v4, 0.3 * v2, v5);
     }
     ///`Phi` and `Phi_q` together, from one program sharing their common subexpressions (what a Newton iteration on the constraints needs).
     #[inline]
@@ -161,8 +161,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     ) {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         *phi_q = SMatrix::zeros();
-        phi[0] = math::mul_add(0.3, v3, 0.1 * v1) - q[2];
-        phi[1] = math::mul_add(-0.3, v2, 0.1 * v0);
+        phi[0] = math::add_mul(0.1 * v1, 0.3, v3) - q[2];
+        phi[1] = math::sub_mul(0.1 * v0, 0.3, v2);
         phi_q[(0, 0)] = -0.1 * v0;
         phi_q[(0, 1)] = -0.3 * v2;
         phi_q[(0, 2)] = -1.0;
@@ -188,40 +188,40 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let v11 = qd[1] * qd[1];
         let v6 = v3 * v11;
         let v7 = v2 * v11;
-        let v8 = math::mul_add(-0.3, v6, -0.1 * v4);
-        let v9 = math::mul_add(-0.1, v5, 0.3 * v7);
+        let v8 = math::sub_mul(-0.1 * v4, 0.3, v6);
+        let v9 = math::sub_mul(0.3 * v7, 0.1, v5);
         *m = SMatrix::zeros();
         *phi_q = SMatrix::zeros();
         m[(0, 0)] = 0.009666666666666669;
-        m[(0, 1)] = math::mul_add(
-            -(0.012000000000000002 * v1),
-            v3,
+        m[(0, 1)] = math::sub_mul(
             0.012000000000000002 * v0 * v2,
+            0.012000000000000002 * v1,
+            v3,
         );
         m[(1, 0)] = m[(0, 1)];
         m[(1, 1)] = 0.024;
         m[(2, 2)] = 1.2;
-        h[0] = math::mul_add(
-            -(0.04000000000000001 * v0),
+        h[0] = math::sub_mul(
+            math::add_mul(1.0300500000000001 * v1, 0.04000000000000001 * v1, v9),
+            0.04000000000000001 * v0,
             v8,
-            math::mul_add(0.04000000000000001 * v1, v9, 1.0300500000000001 * v1),
         );
-        h[1] = math::mul_add(
-            -(0.08 * v3),
-            v9,
-            math::mul_add(
-                -(0.08 * v2),
-                v8,
-                math::mul_add(
-                    -1.1772,
-                    v3,
-                    math::mul_add(
+        h[1] = math::sub_mul(
+            math::sub_mul(
+                math::sub_mul(
+                    math::add_mul(
+                        0.004000000000000001 * v2 * v4,
                         0.004000000000000001 * v3,
                         v5,
-                        0.004000000000000001 * v2 * v4,
                     ),
+                    1.1772,
+                    v3,
                 ),
+                0.08 * v2,
+                v8,
             ),
+            0.08 * v3,
+            v9,
         );
         h[2] = 0.0;
         phi_q[(0, 0)] = -0.1 * v0;
@@ -229,8 +229,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         phi_q[(0, 2)] = -1.0;
         phi_q[(1, 0)] = 0.1 * v1;
         phi_q[(1, 1)] = -0.3 * v3;
-        gamma[0] = math::mul_add(0.3, v6, 0.1 * v4);
-        gamma[1] = math::mul_add(-0.3, v7, 0.1 * v5);
+        gamma[0] = math::add_mul(0.1 * v4, 0.3, v6);
+        gamma[1] = math::sub_mul(0.1 * v5, 0.3, v7);
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
@@ -245,57 +245,49 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
-        let v4 = math::mul_add(
-            -(0.3 * v2),
+        let v4 = math::sub_mul(
+            math::sub_mul(math::sub_mul(-0.1 * v1 * v6, 0.1 * v0, qdd[0]), 0.3 * v3, v7),
+            0.3 * v2,
             qdd[1],
-            math::mul_add(
-                -(0.3 * v3),
-                v7,
-                math::mul_add(-(0.1 * v0), qdd[0], -0.1 * v1 * v6),
-            ),
         );
-        let v5 = math::mul_add(
-            -(0.3 * v3),
+        let v5 = math::sub_mul(
+            math::sub_mul(math::add_mul(0.1 * v1 * qdd[0], 0.3 * v2, v7), 0.1 * v0, v6),
+            0.3 * v3,
             qdd[1],
-            math::mul_add(
-                -(0.1 * v0),
-                v6,
-                math::mul_add(0.3 * v2, v7, 0.1 * v1 * qdd[0]),
-            ),
         );
-        tau[0] = math::mul_add(
-            -(0.04000000000000001 * v0),
-            v4,
-            math::mul_add(
+        tau[0] = math::sub_mul(
+            math::add_mul(
+                math::add_mul(1.0300500000000001 * v1, 0.005666666666666668, qdd[0]),
                 0.04000000000000001 * v1,
                 v5,
-                math::mul_add(0.005666666666666668, qdd[0], 1.0300500000000001 * v1),
             ),
+            0.04000000000000001 * v0,
+            v4,
         );
-        tau[1] = math::mul_add(
-            -(0.08 * v3),
-            v5,
-            math::mul_add(
-                -(0.08 * v2),
-                v4,
-                math::mul_add(
-                    -(0.004000000000000001 * v1 * v3),
-                    qdd[0],
-                    math::mul_add(
-                        -1.1772,
-                        v3,
-                        math::mul_add(
-                            0.004000000000000001 * v0 * v2,
-                            qdd[0],
-                            math::mul_add(
+        tau[1] = math::sub_mul(
+            math::sub_mul(
+                math::sub_mul(
+                    math::sub_mul(
+                        math::add_mul(
+                            math::add_mul(
+                                0.004000000000000001 * v1 * v2 * v6,
                                 0.004000000000000001 * v0 * v3,
                                 v6,
-                                0.004000000000000001 * v1 * v2 * v6,
                             ),
+                            0.004000000000000001 * v0 * v2,
+                            qdd[0],
                         ),
+                        1.1772,
+                        v3,
                     ),
+                    0.004000000000000001 * v1 * v3,
+                    qdd[0],
                 ),
+                0.08 * v2,
+                v4,
             ),
+            0.08 * v3,
+            v5,
         );
         tau[2] = 1.2 * qdd[2];
     }
@@ -309,28 +301,28 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     #[inline]
     fn kinetic_energy(&self, q: &SVector<f64, 3>, qd: &SVector<f64, 3>, _t: f64) -> f64 {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
-        let v4 = math::mul_add(-(0.3 * v2), qd[1], -0.1 * v0 * qd[0]);
-        let v5 = math::mul_add(-(0.3 * v3), qd[1], 0.1 * v1 * qd[0]);
-        math::mul_add(
-            -(0.013333333333333336 * v0 * qd[0]),
-            v4,
-            math::mul_add(
-                0.6 * qd[2],
-                qd[2],
-                math::mul_add(
-                    0.13333333333333333 * v5,
-                    v5,
-                    math::mul_add(
-                        0.13333333333333333 * v4,
-                        v4,
-                        math::mul_add(
+        let v4 = math::sub_mul(-0.1 * v0 * qd[0], 0.3 * v2, qd[1]);
+        let v5 = math::sub_mul(0.1 * v1 * qd[0], 0.3 * v3, qd[1]);
+        math::sub_mul(
+            math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        math::add_mul(
+                            0.002166666666666667 * qd[0] * qd[0],
                             0.013333333333333336 * v1 * qd[0],
                             v5,
-                            0.002166666666666667 * qd[0] * qd[0],
                         ),
+                        0.13333333333333333 * v4,
+                        v4,
                     ),
+                    0.13333333333333333 * v5,
+                    v5,
                 ),
+                0.6 * qd[2],
+                qd[2],
             ),
+            0.013333333333333336 * v0 * qd[0],
+            v4,
         )
     }
     ///Potential energy `V` (gravity and elastic).
@@ -338,7 +330,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     fn potential_energy(&self, q: &SVector<f64, 3>, _t: f64) -> f64 {
         let v0 = math::sin(q[0]);
         let v1 = math::sin(q[1]);
-        math::mul_add(-1.1772, v1, 1.0300500000000001 * v0)
+        math::sub_mul(1.0300500000000001 * v0, 1.1772, v1)
     }
     ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
     #[inline]
@@ -360,25 +352,25 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
-        let v4 = math::mul_add(-(0.3 * v3), v7, -0.1 * v1 * v6);
-        let v5 = math::mul_add(-(0.1 * v0), v6, 0.3 * v2 * v7);
-        out[0] = math::mul_add(
-            -(0.04000000000000001 * v0),
-            v4,
+        let v4 = math::sub_mul(-0.1 * v1 * v6, 0.3 * v3, v7);
+        let v5 = math::sub_mul(0.3 * v2 * v7, 0.1 * v0, v6);
+        out[0] = math::sub_mul(
             0.04000000000000001 * v1 * v5,
+            0.04000000000000001 * v0,
+            v4,
         );
-        out[1] = math::mul_add(
-            -(0.08 * v3),
-            v5,
-            math::mul_add(
-                -(0.08 * v2),
-                v4,
-                math::mul_add(
+        out[1] = math::sub_mul(
+            math::sub_mul(
+                math::add_mul(
+                    0.004000000000000001 * v1 * v2 * v6,
                     0.004000000000000001 * v0 * v3,
                     v6,
-                    0.004000000000000001 * v1 * v2 * v6,
                 ),
+                0.08 * v2,
+                v4,
             ),
+            0.08 * v3,
+            v5,
         );
         out[2] = 0.0;
         true
@@ -425,8 +417,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v8 = qd[0] * qd[0];
         let v9 = qd[1] * qd[1];
-        let v4 = math::mul_add(-(0.3 * v3), v9, -0.1 * v1 * v8);
-        let v5 = math::mul_add(-(0.1 * v0), v8, 0.3 * v2 * v9);
+        let v4 = math::sub_mul(-0.1 * v1 * v8, 0.3 * v3, v9);
+        let v5 = math::sub_mul(0.3 * v2 * v9, 0.1 * v0, v8);
         let v10 = v0 * v2;
         let v6 = v8 * v10;
         let v11 = v1 * v3;
@@ -435,48 +427,48 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let v13 = v1 * v2;
         *h_q = SMatrix::zeros();
         *h_qd = SMatrix::zeros();
-        h_q[(0, 0)] = math::mul_add(
-            -(0.04000000000000001 * v0),
-            v5,
-            math::mul_add(
-                -(0.04000000000000001 * v1),
-                v4,
-                math::mul_add(
-                    -(0.004000000000000001 * qd[0]),
-                    qd[0],
+        h_q[(0, 0)] = math::sub_mul(
+            math::sub_mul(
+                math::sub_mul(
                     -1.0300500000000001 * v0,
+                    0.004000000000000001 * qd[0],
+                    qd[0],
                 ),
-            ),
-        );
-        h_q[(0, 1)] = math::mul_add(
-            -(0.012000000000000002 * v9),
-            v10,
-            0.012000000000000002 * v9 * v11,
-        );
-        h_q[(1, 0)] = math::mul_add(-0.012, v6, 0.012 * v7);
-        h_q[(1, 1)] = math::mul_add(
-            -(0.024 * qd[1]),
-            qd[1],
-            math::mul_add(
-                -(0.08 * v3),
+                0.04000000000000001 * v1,
                 v4,
-                math::mul_add(
-                    -0.004000000000000001,
-                    v6,
-                    math::mul_add(
+            ),
+            0.04000000000000001 * v0,
+            v5,
+        );
+        h_q[(0, 1)] = math::sub_mul(
+            0.012000000000000002 * v9 * v11,
+            0.012000000000000002 * v9,
+            v10,
+        );
+        h_q[(1, 0)] = math::sub_mul(0.012 * v7, 0.012, v6);
+        h_q[(1, 1)] = math::sub_mul(
+            math::sub_mul(
+                math::sub_mul(
+                    math::add_mul(
+                        math::add_mul(1.1772 * v2, 0.004000000000000001, v7),
                         0.08 * v2,
                         v5,
-                        math::mul_add(0.004000000000000001, v7, 1.1772 * v2),
                     ),
+                    0.004000000000000001,
+                    v6,
                 ),
+                0.08 * v3,
+                v4,
             ),
+            0.024 * qd[1],
+            qd[1],
         );
-        h_qd[(0, 1)] = math::mul_add(
+        h_qd[(0, 1)] = math::add_mul(
+            0.024000000000000004 * qd[1] * v12,
             0.024000000000000004 * qd[1],
             v13,
-            0.024000000000000004 * qd[1] * v12,
         );
-        h_qd[(1, 0)] = math::mul_add(0.024 * qd[0], v12, 0.024 * qd[0] * v13);
+        h_qd[(1, 0)] = math::add_mul(0.024 * qd[0] * v13, 0.024 * qd[0], v12);
         true
     }
 }

@@ -166,11 +166,11 @@ struct Printer<'e, 'a> {
     /// The text of each intermediate (taken by its one reader) and its
     /// binding strength.
     texts: Vec<Option<(TokenStream, u8)>>,
-    /// The factors' texts of each intermediate that is a product, and the
-    /// first factor's negated, for an addition that reads it to print
-    /// `math::mul_add` (in `f64` modules: `f32` ones compute the same on
-    /// every target, so they never fuse).
-    factors: Vec<Option<[TokenStream; 3]>>,
+    /// The factors' texts of each intermediate that is a product, for an
+    /// addition or subtraction that reads it to print as a multiply-add
+    /// (in `f64` modules: `f32` ones compute the same on every target, so
+    /// they never fuse).
+    factors: Vec<Option<[TokenStream; 2]>>,
     /// `let ` in flat programs, nothing where variables are declared first.
     bind: TokenStream,
 }
@@ -179,11 +179,6 @@ impl Printer<'_, '_> {
     /// An operand's text, parenthesised where the lowering asks for it or
     /// where it binds less strongly than `need`.
     fn operand(&mut self, o: Operand, need: u8) -> TokenStream {
-        self.operands(o, &[need]).remove(0)
-    }
-
-    /// An operand's text for each binding strength of `needs`.
-    fn operands(&mut self, o: Operand, needs: &[u8]) -> Vec<TokenStream> {
         let (text, strength) = match o.value {
             Value::Var(v) => {
                 let v = var(v);
@@ -198,49 +193,44 @@ impl Printer<'_, '_> {
                 .take()
                 .expect("an intermediate is read once, after it is written"),
         };
-        needs
-            .iter()
-            .map(|&need| {
-                if o.paren || strength < need {
-                    quote!((#text))
-                } else {
-                    text.clone()
-                }
-            })
-            .collect()
+        if o.paren || strength < need {
+            quote!((#text))
+        } else {
+            text
+        }
     }
 
-    /// The factors of an operand that is a product, and the first negated.
-    fn product(&self, o: Operand) -> Option<&[TokenStream; 3]> {
+    /// The factors of an operand that is a product.
+    fn product(&self, o: Operand) -> Option<&[TokenStream; 2]> {
         match o.value {
             Value::Temp(t) => self.factors[t as usize].as_ref(),
             _ => None,
         }
     }
 
-    /// `a + b` or `a - b`, one of them a product `x * y`, as
-    /// `math::mul_add(x, y, c)` (`a - x * y` as `math::mul_add(-x, y, a)`,
-    /// `x * y - b` as `math::mul_add(x, y, -b)`): the same two roundings as
-    /// written, or one fused operation where the target has it.
+    /// `a + b` or `a - b`, one of them a product `x * y`, as the runtime's
+    /// multiply-add that computes exactly that expression (`a + x * y` is
+    /// `math::add_mul(a, x, y)`, `x * y + b` `math::mul_add(x, y, b)`,
+    /// `a - x * y` `math::sub_mul(a, x, y)`, `x * y - b`
+    /// `math::mul_sub(x, y, b)`): the same operations in the same order, or
+    /// one fused operation where the target has it.
     fn mul_add(&mut self, op: Binary, a: Operand, b: Operand) -> TokenStream {
-        let fused_b = self.product(b).is_some();
-        let (product, other) = if fused_b { (b, a) } else { (a, b) };
+        let product_second = self.product(b).is_some();
+        let (product, other) = if product_second { (b, a) } else { (a, b) };
         let Value::Temp(t) = product.value else {
             unreachable!("a product is an intermediate")
         };
         self.texts[t as usize] = None;
-        let [x, y, minus_x] = self.factors[t as usize]
+        let [x, y] = self.factors[t as usize]
             .take()
             .expect("a product is read once");
-        let (x, c) = match (op, fused_b) {
-            (Binary::Sub, true) => (minus_x, self.operand(other, SUM)),
-            (Binary::Sub, false) => {
-                let c = self.operand(other, ATOM);
-                (x, quote!(-#c))
-            }
-            _ => (x, self.operand(other, SUM)),
-        };
-        quote!(math::mul_add(#x, #y, #c))
+        let c = self.operand(other, SUM);
+        match (op, product_second) {
+            (Binary::Sub, true) => quote!(math::sub_mul(#c, #x, #y)),
+            (Binary::Sub, false) => quote!(math::mul_sub(#x, #y, #c)),
+            (_, true) => quote!(math::add_mul(#c, #x, #y)),
+            (_, false) => quote!(math::mul_add(#x, #y, #c)),
+        }
     }
 
     fn set(&mut self, dst: u32, text: TokenStream, strength: u8) {
@@ -268,17 +258,10 @@ impl Printer<'_, '_> {
                     Binary::Mul => (PRODUCT, quote!(*)),
                     Binary::Div => (PRODUCT, quote!(/)),
                 };
-                let [x, atom]: [TokenStream; 2] = self
-                    .operands(*a, &[level, ATOM])
-                    .try_into()
-                    .expect("two texts");
+                let x = self.operand(*a, level);
                 let y = self.operand(*b, level + 1);
                 if *op == Binary::Mul && self.emitter.model.precision == Precision::F64 {
-                    let minus_x = match a.value {
-                        Value::Literal(v) => self.emitter.lit(-v),
-                        _ => quote!(-#atom),
-                    };
-                    self.factors[*dst as usize] = Some([x.clone(), y.clone(), minus_x]);
+                    self.factors[*dst as usize] = Some([x.clone(), y.clone()]);
                 }
                 self.set(*dst, quote!(#x #sign #y), level);
             }

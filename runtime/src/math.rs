@@ -291,22 +291,43 @@ pub fn sin_cos(x: f64) -> (f64, f64) {
     sc
 }
 
-/// `a * b + c`, as the generated modules write a product added to a value:
-/// one fused multiply-add (one rounding) where the build targets a
-/// processor that has it and may use `std` (`-C target-cpu=native` on a
-/// recent x86-64: what a C compiler contracts `a * b + c` to at
-/// `-march=native`), else the multiplication and the addition as written
+/// Whether [`mul_add`] and its three siblings fuse: one rounding where the
+/// build targets a processor that has fused multiply-adds and may use `std`
+/// (`-C target-cpu=native` on a recent x86-64: what a C compiler contracts
+/// `a * b + c` to at `-march=native`); elsewhere the expression as written
 /// (two roundings; bitwise what the interpreter computes).
-#[inline(always)]
-pub fn mul_add(a: f64, b: f64, c: f64) -> f64 {
-    #[cfg(all(feature = "std", target_feature = "fma"))]
-    {
-        a.mul_add(b, c)
-    }
-    #[cfg(not(all(feature = "std", target_feature = "fma")))]
-    {
-        a * b + c
-    }
+macro_rules! fused_or_written {
+    ($(#[$doc:meta])* $name:ident($($arg:ident),*) = $fused:expr, $written:expr;) => {
+        $(#[$doc])*
+        #[inline(always)]
+        pub fn $name($($arg: f64),*) -> f64 {
+            #[cfg(all(feature = "std", target_feature = "fma"))]
+            {
+                $fused
+            }
+            #[cfg(not(all(feature = "std", target_feature = "fma")))]
+            {
+                $written
+            }
+        }
+    };
+}
+
+fused_or_written! {
+    /// `x * y + c`, as the generated modules write a product added to a value.
+    mul_add(x, y, c) = x.mul_add(y, c), x * y + c;
+}
+fused_or_written! {
+    /// `a + x * y`.
+    add_mul(a, x, y) = x.mul_add(y, a), a + x * y;
+}
+fused_or_written! {
+    /// `a - x * y`.
+    sub_mul(a, x, y) = (-x).mul_add(y, a), a - x * y;
+}
+fused_or_written! {
+    /// `x * y - b`.
+    mul_sub(x, y, b) = x.mul_add(y, -b), x * y - b;
 }
 
 /// The same functions in `f32`, for modules generated with
@@ -557,5 +578,23 @@ mod tests {
         }
         assert!(sign(f64::NAN).is_nan() && step(f64::NAN).is_nan());
         assert!(f32::sign(f32::NAN).is_nan() && f32::step(f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn multiply_adds_compute_their_expression_rounded_once_only_where_fused() {
+        // 0.1 * 10 is 1 + 2^-54 exactly: it rounds to 1, so the written
+        // expressions give 0 and a fused one keeps 2^-54.
+        let (x, y) = (0.1, 10.0);
+        let fused = cfg!(all(feature = "std", target_feature = "fma"));
+        let tail = if fused { 2f64.powi(-54) } else { 0.0 };
+        assert_eq!(mul_add(x, y, -1.0), tail);
+        assert_eq!(add_mul(-1.0, x, y), tail);
+        assert_eq!(mul_sub(x, y, 1.0), tail);
+        assert_eq!(sub_mul(1.0, x, y), -tail);
+        // Ordinary values: the expression itself.
+        assert_eq!(mul_add(3.0, 4.0, 5.0), 17.0);
+        assert_eq!(add_mul(5.0, 3.0, 4.0), 17.0);
+        assert_eq!(mul_sub(3.0, 4.0, 5.0), 7.0);
+        assert_eq!(sub_mul(5.0, 3.0, 4.0), -7.0);
     }
 }
