@@ -197,7 +197,7 @@ mod tests {
         };
         let want = g.eval(outputs, &env);
         for (a, b) in want.iter().zip(&run(p, &env)) {
-            assert!((a - b).abs() <= 1e-14 * a.abs(), "{a} vs {b}");
+            assert!((a - b).abs() <= 1e-15 * a.abs(), "{a} vs {b}");
         }
     }
 
