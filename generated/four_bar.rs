@@ -179,10 +179,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v6 = v1 * v12;
         let v7 = v0 * v12;
         let v13 = qd[2] * qd[2];
-        let v8 = v3 * v13;
-        let v9 = v2 * v13;
-        let v10 = -v6 - v8;
-        let v11 = -v7 - v9;
+        let v10 = math::sub_mul(-v6, v3, v13);
+        let v11 = math::sub_mul(-v7, v2, v13);
         let v14 = qd[1] * qd[1];
         *m = SMatrix::zeros();
         m[(0, 0)] = 1.3333333333333333;

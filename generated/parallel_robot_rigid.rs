@@ -219,68 +219,50 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v28 = v11 * v56;
         let v29 = v10 * v56;
         let v57 = v3 * v13;
-        let v30 = v52 * v57;
         let v58 = qd[2] * v12;
         let v78 = qd[1] * v58;
-        let v31 = v2 * v78;
         let v59 = qd[2] * qd[2];
-        let v32 = v59 * v57;
         let v60 = v2 * v13;
-        let v33 = v52 * v60;
-        let v34 = v3 * v78;
-        let v35 = v59 * v60;
         let v61 = v7 * v15;
-        let v36 = v54 * v61;
         let v62 = qd[5] * v14;
         let v79 = qd[4] * v62;
-        let v37 = v6 * v79;
         let v63 = qd[5] * qd[5];
-        let v38 = v63 * v61;
         let v64 = v6 * v15;
-        let v39 = v54 * v64;
-        let v40 = v7 * v79;
-        let v41 = v63 * v64;
         let v65 = v11 * v17;
-        let v42 = v56 * v65;
         let v66 = qd[8] * v16;
         let v80 = qd[7] * v66;
-        let v43 = v10 * v80;
         let v67 = qd[8] * qd[8];
-        let v44 = v67 * v65;
         let v68 = v10 * v17;
-        let v45 = v56 * v68;
-        let v46 = v11 * v80;
-        let v47 = v67 * v68;
-        let v69 = math::sub_mul(v42, 2.0, v43);
-        let v81 = v44 + v69;
+        let v69 = math::sub_mul(v56 * v65, 2.0, (v10 * v80));
+        let v81 = math::mul_add(v67, v65, v69);
         let v48 = math::add_mul(
             math::add_mul(0.24000000000000005 * v26, 0.06000000000000001, v28),
             0.32000000000000006,
             v81,
         );
-        let v70 = math::sub_mul(v36, 2.0, v37);
-        let v82 = v38 + v70;
+        let v70 = math::sub_mul(v54 * v61, 2.0, (v6 * v79));
+        let v82 = math::mul_add(v63, v61, v70);
         let v49 = math::add_mul(
             math::add_mul(0.24000000000000005 * v22, 0.06000000000000001, v24),
             0.32000000000000006,
             v82,
         );
-        let v71 = math::sub_mul(v30, 2.0, v31);
-        let v83 = v32 + v71;
+        let v71 = math::sub_mul(v52 * v57, 2.0, (v2 * v78));
+        let v83 = math::mul_add(v59, v57, v71);
         let v50 = math::add_mul(
             math::add_mul(0.24000000000000005 * v18, 0.06000000000000001, v20),
             0.32000000000000006,
             v83,
         );
-        let v72 = math::add_mul(v33, 2.0, v34);
+        let v72 = math::add_mul(v52 * v60, 2.0, (v3 * v78));
         let v73 = math::add_mul(v19, 0.25, v21);
-        let v74 = math::add_mul(v39, 2.0, v40);
+        let v74 = math::add_mul(v54 * v64, 2.0, (v7 * v79));
         let v75 = math::add_mul(v23, 0.25, v25);
-        let v76 = math::add_mul(v45, 2.0, v46);
+        let v76 = math::add_mul(v56 * v68, 2.0, (v11 * v80));
         let v77 = math::add_mul(v27, 0.25, v29);
-        let v84 = v35 + v72;
-        let v85 = v41 + v74;
-        let v86 = v47 + v76;
+        let v84 = math::mul_add(v59, v60, v72);
+        let v85 = math::mul_add(v63, v64, v74);
+        let v86 = math::mul_add(v67, v68, v76);
         h[0] = math::add_mul(
             math::add_mul(
                 10.987200000000001 * v1,
@@ -879,57 +861,39 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v65 = qd[7] * qd[7];
         let v37 = v11 * v65;
         let v38 = v10 * v65;
-        let v39 = v61 * v14;
         let v66 = qd[2] * v12;
         let v87 = qd[1] * v66;
-        let v40 = v2 * v87;
         let v67 = qd[2] * qd[2];
-        let v41 = v67 * v14;
-        let v42 = v61 * v15;
-        let v43 = v3 * v87;
-        let v44 = v67 * v15;
-        let v45 = v63 * v18;
         let v68 = qd[5] * v16;
         let v88 = qd[4] * v68;
-        let v46 = v6 * v88;
         let v69 = qd[5] * qd[5];
-        let v47 = v69 * v18;
-        let v48 = v63 * v19;
-        let v49 = v7 * v88;
-        let v50 = v69 * v19;
-        let v51 = v65 * v22;
         let v70 = qd[8] * v20;
         let v89 = qd[7] * v70;
-        let v52 = v10 * v89;
         let v71 = qd[8] * qd[8];
-        let v53 = v71 * v22;
-        let v54 = v65 * v23;
-        let v55 = v11 * v89;
-        let v56 = v71 * v23;
-        let v72 = math::sub_mul(v51, 2.0, v52);
+        let v72 = math::sub_mul(v65 * v22, 2.0, (v10 * v89));
         let v73 = math::add_mul(v35, 0.25, v37);
-        let v90 = v53 + v72;
+        let v90 = math::mul_add(v71, v22, v72);
         let v57 = math::add_mul(0.24000000000000005 * v73, 0.32000000000000006, v90);
-        let v74 = math::sub_mul(v45, 2.0, v46);
+        let v74 = math::sub_mul(v63 * v18, 2.0, (v6 * v88));
         let v75 = math::add_mul(v31, 0.25, v33);
-        let v91 = v47 + v74;
+        let v91 = math::mul_add(v69, v18, v74);
         let v58 = math::add_mul(0.24000000000000005 * v75, 0.32000000000000006, v91);
-        let v76 = math::sub_mul(v39, 2.0, v40);
+        let v76 = math::sub_mul(v61 * v14, 2.0, (v2 * v87));
         let v77 = math::add_mul(v27, 0.25, v29);
-        let v92 = v41 + v76;
+        let v92 = math::mul_add(v67, v14, v76);
         let v59 = math::add_mul(0.24000000000000005 * v77, 0.32000000000000006, v92);
         let v78 = v3 * v12;
         let v79 = v7 * v16;
         let v80 = v11 * v20;
-        let v81 = math::add_mul(v42, 2.0, v43);
+        let v81 = math::add_mul(v61 * v15, 2.0, (v3 * v87));
         let v82 = math::add_mul(v28, 0.25, v30);
-        let v83 = math::add_mul(v48, 2.0, v49);
+        let v83 = math::add_mul(v63 * v19, 2.0, (v7 * v88));
         let v84 = math::add_mul(v32, 0.25, v34);
-        let v85 = math::add_mul(v54, 2.0, v55);
+        let v85 = math::add_mul(v65 * v23, 2.0, (v11 * v89));
         let v86 = math::add_mul(v36, 0.25, v38);
-        let v93 = v44 + v81;
-        let v94 = v50 + v83;
-        let v95 = v56 + v85;
+        let v93 = math::mul_add(v67, v15, v81);
+        let v94 = math::mul_add(v69, v19, v83);
+        let v95 = math::mul_add(v71, v23, v85);
         *m = SMatrix::zeros();
         *phi_q = SMatrix::zeros();
         m[(0, 0)] = 0.3946666666666667;
@@ -1298,133 +1262,79 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[8],
         ]);
         let v75 = qd[0] * qd[0];
-        let v18 = v1 * v75;
-        let v19 = v0 * v75;
         let v76 = qd[1] * qd[1];
-        let v20 = v3 * v76;
-        let v21 = v2 * v76;
         let v77 = qd[3] * qd[3];
-        let v22 = v5 * v77;
-        let v23 = v4 * v77;
         let v78 = qd[4] * qd[4];
-        let v24 = v7 * v78;
-        let v25 = v6 * v78;
         let v79 = qd[6] * qd[6];
-        let v26 = v9 * v79;
-        let v27 = v8 * v79;
         let v80 = qd[7] * qd[7];
-        let v28 = v11 * v80;
-        let v29 = v10 * v80;
         let v81 = v3 * v13;
-        let v30 = v76 * v81;
         let v82 = qd[2] * v12;
         let v120 = qd[1] * v82;
-        let v31 = v2 * v120;
         let v83 = qd[2] * qd[2];
-        let v32 = v83 * v81;
         let v84 = v2 * v13;
-        let v33 = v76 * v84;
-        let v34 = v3 * v120;
-        let v35 = v84 * v83;
         let v85 = v7 * v15;
-        let v36 = v78 * v85;
         let v86 = qd[5] * v14;
         let v121 = qd[4] * v86;
-        let v37 = v6 * v121;
         let v87 = qd[5] * qd[5];
-        let v38 = v87 * v85;
         let v88 = v6 * v15;
-        let v39 = v78 * v88;
-        let v40 = v7 * v121;
-        let v41 = v88 * v87;
         let v89 = v11 * v17;
-        let v42 = v80 * v89;
         let v90 = qd[8] * v16;
         let v122 = qd[7] * v90;
-        let v43 = v10 * v122;
         let v91 = qd[8] * qd[8];
-        let v44 = v91 * v89;
         let v92 = v10 * v17;
-        let v45 = v80 * v92;
-        let v46 = v11 * v122;
-        let v47 = v92 * v91;
-        let v48 = v0 * qdd[0];
-        let v49 = v1 * qdd[0];
-        let v50 = v2 * qdd[1];
-        let v51 = v3 * qdd[1];
-        let v52 = v4 * qdd[3];
-        let v53 = v5 * qdd[3];
-        let v54 = v6 * qdd[4];
-        let v55 = v7 * qdd[4];
-        let v56 = v8 * qdd[6];
-        let v57 = v9 * qdd[6];
-        let v58 = v10 * qdd[7];
-        let v59 = v11 * qdd[7];
-        let v60 = qdd[1] * v84;
         let v93 = v3 * v12;
-        let v61 = qdd[2] * v93;
-        let v62 = qdd[1] * v81;
-        let v63 = v2 * v12 * qdd[2];
-        let v64 = qdd[4] * v88;
         let v94 = v7 * v14;
-        let v65 = qdd[5] * v94;
-        let v66 = qdd[4] * v85;
-        let v67 = v6 * v14 * qdd[5];
-        let v68 = qdd[7] * v92;
         let v95 = v11 * v16;
-        let v69 = qdd[8] * v95;
-        let v70 = qdd[7] * v89;
-        let v71 = v10 * v16 * qdd[8];
-        let v96 = v26 + v56;
-        let v97 = v28 + v58;
-        let v98 = math::sub_mul(v42, 2.0, v43);
-        let v99 = v44 + v68;
-        let v123 = v69 + v98;
+        let v96 = math::add_mul(v9 * v79, v8, qdd[6]);
+        let v97 = math::add_mul(v11 * v80, v10, qdd[7]);
+        let v98 = math::sub_mul(v80 * v89, 2.0, (v10 * v122));
+        let v99 = math::add_mul(v91 * v89, qdd[7], v92);
+        let v123 = math::mul_add(qdd[8], v95, v98);
         let v132 = v99 + v123;
         let v72 = math::add_mul(
             math::add_mul(0.24000000000000005 * v96, 0.06000000000000001, v97),
             0.32000000000000006,
             v132,
         );
-        let v100 = v22 + v52;
-        let v101 = v24 + v54;
-        let v102 = math::sub_mul(v36, 2.0, v37);
-        let v103 = v38 + v64;
-        let v124 = v65 + v102;
+        let v100 = math::add_mul(v5 * v77, v4, qdd[3]);
+        let v101 = math::add_mul(v7 * v78, v6, qdd[4]);
+        let v102 = math::sub_mul(v78 * v85, 2.0, (v6 * v121));
+        let v103 = math::add_mul(v87 * v85, qdd[4], v88);
+        let v124 = math::mul_add(qdd[5], v94, v102);
         let v133 = v103 + v124;
         let v73 = math::add_mul(
             math::add_mul(0.24000000000000005 * v100, 0.06000000000000001, v101),
             0.32000000000000006,
             v133,
         );
-        let v104 = v18 + v48;
-        let v105 = v20 + v50;
-        let v106 = math::sub_mul(v30, 2.0, v31);
-        let v107 = v32 + v60;
-        let v125 = v61 + v106;
+        let v104 = math::add_mul(v1 * v75, v0, qdd[0]);
+        let v105 = math::add_mul(v3 * v76, v2, qdd[1]);
+        let v106 = math::sub_mul(v76 * v81, 2.0, (v2 * v120));
+        let v107 = math::add_mul(v83 * v81, qdd[1], v84);
+        let v125 = math::mul_add(qdd[2], v93, v106);
         let v134 = v107 + v125;
         let v74 = math::add_mul(
             math::add_mul(0.24000000000000005 * v104, 0.06000000000000001, v105),
             0.32000000000000006,
             v134,
         );
-        let v108 = v19 - v49;
-        let v109 = v21 - v51;
-        let v110 = math::add_mul(v33, 2.0, v34);
-        let v111 = v35 - v62;
-        let v112 = v23 - v53;
-        let v113 = v25 - v55;
-        let v114 = math::add_mul(v39, 2.0, v40);
-        let v115 = v41 - v66;
-        let v116 = v27 - v57;
-        let v117 = v29 - v59;
-        let v118 = math::add_mul(v45, 2.0, v46);
-        let v119 = v47 - v70;
-        let v126 = v63 + v110;
+        let v108 = math::sub_mul(v0 * v75, v1, qdd[0]);
+        let v109 = math::sub_mul(v2 * v76, v3, qdd[1]);
+        let v110 = math::add_mul(v76 * v84, 2.0, (v3 * v120));
+        let v111 = math::sub_mul(v84 * v83, qdd[1], v81);
+        let v112 = math::sub_mul(v4 * v77, v5, qdd[3]);
+        let v113 = math::sub_mul(v6 * v78, v7, qdd[4]);
+        let v114 = math::add_mul(v78 * v88, 2.0, (v7 * v121));
+        let v115 = math::sub_mul(v88 * v87, qdd[4], v85);
+        let v116 = math::sub_mul(v8 * v79, v9, qdd[6]);
+        let v117 = math::sub_mul(v10 * v80, v11, qdd[7]);
+        let v118 = math::add_mul(v80 * v92, 2.0, (v11 * v122));
+        let v119 = math::sub_mul(v92 * v91, qdd[7], v89);
+        let v126 = math::mul_add(v2 * v12, qdd[2], v110);
         let v127 = math::add_mul(v108, 0.25, v109);
-        let v128 = v67 + v114;
+        let v128 = math::mul_add(v6 * v14, qdd[5], v114);
         let v129 = math::add_mul(v112, 0.25, v113);
-        let v130 = v71 + v118;
+        let v130 = math::mul_add(v10 * v16, qdd[8], v118);
         let v131 = math::add_mul(v116, 0.25, v117);
         let v135 = v111 + v126;
         let v136 = v115 + v128;

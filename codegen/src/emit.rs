@@ -10,8 +10,8 @@ use quote::{format_ident, quote};
 use crate::expr::Symbol;
 use crate::model::{Model, Precision};
 use crate::schedule::{
-    lower, Binary, Code, Inputs, Lowered, Op, OpCount, Operand, OutputSpec, Program, Scheduled,
-    Shape, Stmt, Value,
+    lower, Binary, Code, Fused, Inputs, Lowered, Op, OpCount, Operand, OutputSpec, Program,
+    Scheduled, Shape, Stmt, Value,
 };
 
 /// Operation counts of one emitted function.
@@ -166,11 +166,6 @@ struct Printer<'e, 'a> {
     /// The text of each intermediate (taken by its one reader) and its
     /// binding strength.
     texts: Vec<Option<(TokenStream, u8)>>,
-    /// The factors' texts of each intermediate that is a product, for an
-    /// addition or subtraction that reads it to print as a multiply-add
-    /// (in `f64` modules: `f32` ones compute the same on every target, so
-    /// they never fuse).
-    factors: Vec<Option<[TokenStream; 2]>>,
     /// `let ` in flat programs, nothing where variables are declared first.
     bind: TokenStream,
 }
@@ -200,39 +195,6 @@ impl Printer<'_, '_> {
         }
     }
 
-    /// The factors of an operand that is a product.
-    fn product(&self, o: Operand) -> Option<&[TokenStream; 2]> {
-        match o.value {
-            Value::Temp(t) => self.factors[t as usize].as_ref(),
-            _ => None,
-        }
-    }
-
-    /// `a + b` or `a - b`, one of them a product `x * y`, as the runtime's
-    /// multiply-add that computes exactly that expression (`a + x * y` is
-    /// `math::add_mul(a, x, y)`, `x * y + b` `math::mul_add(x, y, b)`,
-    /// `a - x * y` `math::sub_mul(a, x, y)`, `x * y - b`
-    /// `math::mul_sub(x, y, b)`): the same operations in the same order, or
-    /// one fused operation where the target has it.
-    fn mul_add(&mut self, op: Binary, a: Operand, b: Operand) -> TokenStream {
-        let product_second = self.product(b).is_some();
-        let (product, other) = if product_second { (b, a) } else { (a, b) };
-        let Value::Temp(t) = product.value else {
-            unreachable!("a product is an intermediate")
-        };
-        self.texts[t as usize] = None;
-        let [x, y] = self.factors[t as usize]
-            .take()
-            .expect("a product is read once");
-        let c = self.operand(other, SUM);
-        match (op, product_second) {
-            (Binary::Sub, true) => quote!(math::sub_mul(#c, #x, #y)),
-            (Binary::Sub, false) => quote!(math::mul_sub(#x, #y, #c)),
-            (_, true) => quote!(math::add_mul(#c, #x, #y)),
-            (_, false) => quote!(math::mul_add(#x, #y, #c)),
-        }
-    }
-
     fn set(&mut self, dst: u32, text: TokenStream, strength: u8) {
         self.texts[dst as usize] = Some((text, strength));
     }
@@ -242,14 +204,16 @@ impl Printer<'_, '_> {
     fn op(&mut self, op: &Op, out: &mut TokenStream, tail: &mut TokenStream) {
         let bind = self.bind.clone();
         match op {
-            Op::Binary {
-                dst,
-                op: op @ (Binary::Add | Binary::Sub),
-                a,
-                b,
-            } if self.product(*a).is_some() || self.product(*b).is_some() => {
-                let text = self.mul_add(*op, *a, *b);
-                self.set(*dst, text, ATOM);
+            Op::Fused { dst, form, x, y, c } => {
+                let x = self.operand(*x, PRODUCT);
+                let y = self.operand(*y, PRODUCT + 1);
+                let c = self.operand(*c, SUM);
+                let name = format_ident!("{}", form.name());
+                let args = match form {
+                    Fused::AddMul | Fused::SubMul => quote!(#c, #x, #y),
+                    Fused::MulAdd | Fused::MulSub => quote!(#x, #y, #c),
+                };
+                self.set(*dst, quote!(math::#name(#args)), ATOM);
             }
             Op::Binary { dst, op, a, b } => {
                 let (level, sign) = match op {
@@ -260,9 +224,6 @@ impl Printer<'_, '_> {
                 };
                 let x = self.operand(*a, level);
                 let y = self.operand(*b, level + 1);
-                if *op == Binary::Mul && self.emitter.model.precision == Precision::F64 {
-                    self.factors[*dst as usize] = Some([x.clone(), y.clone()]);
-                }
                 self.set(*dst, quote!(#x #sign #y), level);
             }
             Op::Neg { dst, a } => {
@@ -524,7 +485,6 @@ impl Emitter<'_> {
             inputs: lowered.function.spec().inputs,
             names: names.to_vec(),
             texts: vec![None; lowered.temps as usize],
-            factors: vec![None; lowered.temps as usize],
             bind: if flat { quote!(let) } else { quote!() },
         };
         for op in &lowered.ops {

@@ -4,10 +4,10 @@
 //! literals is folded (the compiler folds them in the emitted code,
 //! with the same IEEE result), program variables and stored values become
 //! the slots holding them, and the stores become writes to the output
-//! buffer (matrices column-major, nalgebra's layout). Two rewritings make
-//! the tape cheaper to run and change no result: a product used only as a
-//! term of one sum is fused into it (`fuse`), and the instructions are
-//! reordered into runs of one operation (`in_runs`).
+//! buffer (matrices column-major, nalgebra's layout). The lowering's
+//! multiply-adds are one instruction each, computing the written
+//! expression; the instructions are reordered into runs of one operation
+//! (`in_runs`), which changes no result.
 
 use std::collections::HashMap;
 
@@ -48,62 +48,6 @@ impl Pre {
         let b = (self.op == Instruction::SinCos).then_some(self.b);
         [Some(self.dst), b].into_iter().flatten().filter_map(temp)
     }
-}
-
-/// `code` with each product whose only use is as a term of one sum or
-/// difference (not an output) computed by that instruction: `c + a b`,
-/// `c - a b` or `a b - c`, the same two roundings in the same order (`x + y`
-/// equals `y + x`), in one instruction instead of two.
-fn fuse(code: Vec<Pre>, temps: usize, outputs: &[(Ref, usize)]) -> Vec<Pre> {
-    let mut uses = vec![0usize; temps];
-    for p in &code {
-        for t in p.reads() {
-            uses[t as usize] += 1;
-        }
-    }
-    for (r, _) in outputs {
-        if let Some(t) = temp(*r) {
-            uses[t as usize] += 1;
-        }
-    }
-    let mut product: Vec<Option<usize>> = vec![None; temps];
-    for (k, p) in code.iter().enumerate() {
-        if let (Instruction::Mul, Ref::Temp(t)) = (p.op, p.dst) {
-            product[t as usize] = Some(k);
-        }
-    }
-    let single = |r: Ref| {
-        temp(r)
-            .filter(|&t| uses[t as usize] == 1)
-            .and_then(|t| product[t as usize])
-    };
-    let mut gone = vec![false; code.len()];
-    let mut fused = code.clone();
-    for (k, p) in code.iter().enumerate() {
-        if !matches!(p.op, Instruction::Add | Instruction::Sub) || p.a == p.b {
-            continue;
-        }
-        let (op, m, c) = match (p.op, single(p.a), single(p.b)) {
-            (Instruction::Add, _, Some(m)) => (Instruction::MulAdd, m, p.a),
-            (Instruction::Add, Some(m), None) => (Instruction::MulAdd, m, p.b),
-            (Instruction::Sub, _, Some(m)) => (Instruction::SubMul, m, p.a),
-            (Instruction::Sub, Some(m), None) => (Instruction::MulSub, m, p.b),
-            _ => continue,
-        };
-        gone[m] = true;
-        fused[k] = Pre {
-            op,
-            dst: p.dst,
-            a: code[m].a,
-            b: code[m].b,
-            c,
-        };
-    }
-    fused
-        .into_iter()
-        .zip(gone)
-        .filter_map(|(p, gone)| (!gone).then_some(p))
-        .collect()
 }
 
 fn temp(r: Ref) -> Option<u32> {
@@ -150,6 +94,25 @@ pub(super) fn assemble(lowered: &Lowered, nq: usize, params: usize) -> Tape {
                 let v = match (a.constant(x), a.constant(y)) {
                     (Some(x), Some(y)) => a.literal(op.apply(x, y)),
                     _ => a.push(Instruction::from(*op), x, y),
+                };
+                a.temps[*dst as usize] = Some(v);
+            }
+            Op::Fused { dst, form, x, y, c } => {
+                let (x, y, c) = (a.operand(*x), a.operand(*y), a.operand(*c));
+                let v = match (a.constant(x), a.constant(y), a.constant(c)) {
+                    (Some(x), Some(y), Some(c)) => a.literal(form.apply(x, y, c)),
+                    _ => {
+                        let dst = a.temp();
+                        let op = Instruction::from(*form);
+                        a.code.push(Pre {
+                            op,
+                            dst,
+                            a: x,
+                            b: y,
+                            c,
+                        });
+                        dst
+                    }
                 };
                 a.temps[*dst as usize] = Some(v);
             }
@@ -316,7 +279,7 @@ impl Assembler {
         const LIVE: usize = usize::MAX;
         let inputs = 3 * self.nq + 1 + self.params;
         let first_temp = inputs + self.literals.len();
-        let code = fuse(self.code, self.slots_used as usize, &writes);
+        let code = self.code;
         let pre: Vec<Pre> = in_runs(&code, self.slots_used as usize)
             .into_iter()
             .map(|k| code[k])

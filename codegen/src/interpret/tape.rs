@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use flexdyn_runtime::math;
 
 use crate::expr::Func;
-use crate::schedule::Binary;
+use crate::schedule::{Binary, Fused};
 
 impl From<Binary> for Instruction {
     fn from(op: Binary) -> Instruction {
@@ -20,6 +20,16 @@ impl From<Binary> for Instruction {
             Binary::Sub => Instruction::Sub,
             Binary::Mul => Instruction::Mul,
             Binary::Div => Instruction::Div,
+        }
+    }
+}
+
+impl From<Fused> for Instruction {
+    fn from(form: Fused) -> Instruction {
+        match form {
+            Fused::AddMul | Fused::MulAdd => Instruction::MulAdd,
+            Fused::SubMul => Instruction::SubMul,
+            Fused::MulSub => Instruction::MulSub,
         }
     }
 }

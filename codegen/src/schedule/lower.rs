@@ -18,6 +18,13 @@
 //!   first, in one batch (`math::sin_cos_array`, bitwise `sin_cos` lane by
 //!   lane).
 //!
+//! In `f64` code a product added to or subtracted from a value is one
+//! operation ([`Op::Fused`]): the emitter prints it as the runtime's
+//! multiply-add (one rounding where the target fuses them, else exactly the
+//! written expression), the interpreter runs it as one instruction
+//! computing the written expression. `f32` code computes the same on every
+//! target, so it never fuses.
+//!
 //! Each operand also says whether the printed text parenthesises it
 //! ([`Operand::paren`]): where the tree's precedence asks for it, also where
 //! the association does not (the emitted text has always been written so).
@@ -26,7 +33,9 @@
 //! is stored at its row and column, and an off-diagonal entry of a
 //! symmetric matrix is mirrored.
 
-use super::{Code, Function, Inputs, Scheduled, Shape, Stmt};
+use std::collections::HashMap;
+
+use super::{Code, Function, Inputs, Program, Scheduled, Shape, Stmt};
 use crate::expr::{Func, Symbol};
 
 /// A value an operation reads.
@@ -85,6 +94,42 @@ impl Binary {
     }
 }
 
+/// The form of a product `x * y` added to or subtracted from a value `c`,
+/// in the order the program writes it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fused {
+    /// `c + x * y`.
+    AddMul,
+    /// `x * y + c`.
+    MulAdd,
+    /// `c - x * y`.
+    SubMul,
+    /// `x * y - c`.
+    MulSub,
+}
+
+impl Fused {
+    /// The written expression, two roundings (an addition's operands
+    /// commute, so `AddMul` and `MulAdd` are the same bits).
+    pub fn apply(self, x: f64, y: f64, c: f64) -> f64 {
+        match self {
+            Fused::AddMul | Fused::MulAdd => c + x * y,
+            Fused::SubMul => c - x * y,
+            Fused::MulSub => x * y - c,
+        }
+    }
+
+    /// The runtime's function for it (`math::add_mul`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Fused::AddMul => "add_mul",
+            Fused::MulAdd => "mul_add",
+            Fused::SubMul => "sub_mul",
+            Fused::MulSub => "mul_sub",
+        }
+    }
+}
+
 /// One operation of a lowered function.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Op {
@@ -98,6 +143,19 @@ pub enum Op {
         a: Operand,
         /// Right operand.
         b: Operand,
+    },
+    /// `dst = c + x * y` and the other [`Fused`] forms (`f64` code).
+    Fused {
+        /// Intermediate written.
+        dst: u32,
+        /// Which form.
+        form: Fused,
+        /// First factor.
+        x: Operand,
+        /// Second factor.
+        y: Operand,
+        /// The value the product is added to or subtracted from.
+        c: Operand,
     },
     /// `dst = -a`.
     Neg {
@@ -207,6 +265,7 @@ impl Op {
     pub fn operands(&self) -> Vec<Operand> {
         match self {
             Op::Binary { a, b, .. } => vec![*a, *b],
+            Op::Fused { x, y, c, .. } => vec![*x, *y, *c],
             Op::Atan2 { y, x, .. } => vec![*y, *x],
             Op::Neg { a, .. } | Op::Call { a, .. } => vec![*a],
             Op::Bind { value, .. } | Op::Store { value, .. } => vec![*value],
@@ -232,15 +291,19 @@ fn precedence(c: &Code) -> u8 {
     }
 }
 
-/// Lower a scheduled function; `batch` puts the sines and cosines of angles
-/// that read inputs only into one batch first (for `f64` code).
-pub fn lower(f: &Scheduled, batch: bool) -> Lowered {
+/// Lower a scheduled function; for `f64` code (`double`), the sines and
+/// cosines of angles that read inputs only come first in one batch, and
+/// products added to or subtracted from a value are fused ([`Op::Fused`]).
+pub fn lower(f: &Scheduled, double: bool) -> Lowered {
     let spec = f.spec();
     let shapes: Vec<(usize, usize)> = spec.outputs.iter().map(|o| o.shape.size(f.dims)).collect();
     let mut l = Lowering::default();
     let p = &f.program;
+    if double {
+        l.inline = products_read_once_as_terms(p);
+    }
     let batched =
-        |s: &&Stmt| batch && matches!(s, Stmt::SinCos { arg, .. } if !arg.reads_variables());
+        |s: &&Stmt| double && matches!(s, Stmt::SinCos { arg, .. } if !arg.reads_variables());
     let mut pairs = Vec::new();
     for s in p.stmts.iter().filter(batched) {
         if let Stmt::SinCos { sin, cos, arg } = s {
@@ -253,6 +316,7 @@ pub fn lower(f: &Scheduled, batch: bool) -> Lowered {
     }
     for s in p.stmts.iter().filter(|s| !batched(s)) {
         let op = match s {
+            Stmt::Let { var, .. } if l.inline.contains_key(var) => continue,
             Stmt::Let { var, value } => Op::Bind {
                 var: *var,
                 value: l.operand(value, SUM),
@@ -302,18 +366,117 @@ pub fn lower(f: &Scheduled, batch: bool) -> Lowered {
             });
         }
     }
+    let ops = if double { fuse(l.ops, l.temps) } else { l.ops };
     Lowered {
         function: f.function,
         shapes,
-        ops: l.ops,
+        ops,
         temps: l.temps,
     }
+}
+
+/// `ops` with each addition or subtraction that reads a product (an
+/// intermediate, so read by it only) computing that product itself: a
+/// product second is preferred (`c + x * y`, `c - x * y`), as Rust's
+/// `a + b * c` reads.
+fn fuse(ops: Vec<Op>, temps: u32) -> Vec<Op> {
+    let mut product: Vec<Option<usize>> = vec![None; temps as usize];
+    for (k, op) in ops.iter().enumerate() {
+        if let Op::Binary {
+            dst,
+            op: Binary::Mul,
+            ..
+        } = op
+        {
+            product[*dst as usize] = Some(k);
+        }
+    }
+    let factors = |o: Operand| match o.value {
+        Value::Temp(t) => product[t as usize],
+        _ => None,
+    };
+    let mut gone = vec![false; ops.len()];
+    let mut fused = ops.clone();
+    for (k, op) in ops.iter().enumerate() {
+        let Op::Binary {
+            dst,
+            op: op @ (Binary::Add | Binary::Sub),
+            a,
+            b,
+        } = *op
+        else {
+            continue;
+        };
+        let (form, m, c) = match (op, factors(a), factors(b)) {
+            (Binary::Add, _, Some(m)) => (Fused::AddMul, m, a),
+            (Binary::Add, Some(m), None) => (Fused::MulAdd, m, b),
+            (Binary::Sub, _, Some(m)) => (Fused::SubMul, m, a),
+            (Binary::Sub, Some(m), None) => (Fused::MulSub, m, b),
+            _ => continue,
+        };
+        let Op::Binary { a: x, b: y, .. } = ops[m] else {
+            unreachable!("a product is a binary operation")
+        };
+        gone[m] = true;
+        fused[k] = Op::Fused { dst, form, x, y, c };
+    }
+    fused
+        .into_iter()
+        .zip(gone)
+        .filter_map(|(op, gone)| (!gone).then_some(op))
+        .collect()
+}
+
+/// The variables of `p` bound to a product of inputs, literals and
+/// variables that are read once, as a term of a sum: computed where they
+/// are read instead (one level deeper), so the sum fuses them.
+fn products_read_once_as_terms(p: &Program) -> HashMap<u32, Code> {
+    /// `(reads, reads as a term of a sum)` of each variable.
+    fn count(c: &Code, term: bool, reads: &mut HashMap<u32, (usize, usize)>) {
+        match c {
+            Code::Var(v) => {
+                let r = reads.entry(*v).or_default();
+                r.0 += 1;
+                r.1 += usize::from(term);
+            }
+            Code::Sym(_) | Code::Lit(_) => {}
+            Code::Sum { terms, .. } => terms.iter().for_each(|(_, t)| count(t, true, reads)),
+            Code::Prod { num, den } => num.iter().chain(den).for_each(|f| count(f, false, reads)),
+            Code::Call(_, a) => count(a, false, reads),
+            Code::Atan2(y, x) => {
+                count(y, false, reads);
+                count(x, false, reads);
+            }
+        }
+    }
+    let mut reads = HashMap::new();
+    for s in &p.stmts {
+        match s {
+            Stmt::Let { value: c, .. } | Stmt::SinCos { arg: c, .. } => count(c, false, &mut reads),
+        }
+    }
+    p.outputs.iter().for_each(|c| count(c, false, &mut reads));
+    let atom = |c: &Code| matches!(c, Code::Var(_) | Code::Sym(_) | Code::Lit(_));
+    p.stmts
+        .iter()
+        .filter_map(|s| match s {
+            Stmt::Let {
+                var,
+                value: value @ Code::Prod { num, den },
+            } if den.is_empty() && num.iter().all(atom) && reads.get(var) == Some(&(1, 1)) => {
+                Some((*var, value.clone()))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 #[derive(Default)]
 struct Lowering {
     ops: Vec<Op>,
     temps: u32,
+    /// Variables computed where they are read, not bound.
+    inline: HashMap<u32, Code>,
 }
 
 impl Lowering {
@@ -340,15 +503,22 @@ impl Lowering {
 
     /// `c` printed where precedence `need` is required.
     fn operand(&mut self, c: &Code, need: u8) -> Operand {
+        let strength = match c {
+            Code::Var(v) => self.inline.get(v).map_or(ATOM, precedence),
+            _ => precedence(c),
+        };
         let mut o = self.value(c);
-        o.paren |= precedence(c) < need;
+        o.paren |= strength < need;
         o
     }
 
     /// The value of `c` as a whole.
     fn value(&mut self, c: &Code) -> Operand {
         match c {
-            Code::Var(v) => Operand::new(Value::Var(*v)),
+            Code::Var(v) => match self.inline.remove(v) {
+                Some(value) => self.value(&value),
+                None => Operand::new(Value::Var(*v)),
+            },
             Code::Sym(s) => Operand::new(Value::Input(*s)),
             Code::Lit(x) => Self::literal(*x),
             Code::Sum { constant, terms } => self.sum(*constant, terms),
@@ -443,5 +613,112 @@ impl Lowering {
             });
         }
         acc.unwrap_or_else(|| Self::literal(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn q(i: u32) -> Code {
+        Code::Sym(Symbol::Q(i))
+    }
+
+    fn product(a: Code, b: Code) -> Code {
+        Code::Prod {
+            num: vec![a, b],
+            den: vec![],
+        }
+    }
+
+    fn sum(terms: Vec<(f64, Code)>) -> Code {
+        Code::Sum {
+            constant: 0.0,
+            terms,
+        }
+    }
+
+    fn input(i: u32) -> Operand {
+        Operand::new(Value::Input(Symbol::Q(i)))
+    }
+
+    /// `v0 = q0 q1` is read once, as a term; `v1 = q0 q2` twice. Outputs
+    /// `q2 + v0`, `q1 - v1`, `v1`, `q1 q2 - q0`.
+    fn scheduled() -> Scheduled {
+        let stmts = vec![
+            Stmt::Let {
+                var: 0,
+                value: product(q(0), q(1)),
+            },
+            Stmt::Let {
+                var: 1,
+                value: product(q(0), q(2)),
+            },
+        ];
+        let outputs = vec![
+            sum(vec![(1.0, q(2)), (1.0, Code::Var(0))]),
+            sum(vec![(1.0, q(1)), (-1.0, Code::Var(1))]),
+            Code::Var(1),
+            sum(vec![(1.0, product(q(1), q(2))), (-1.0, q(0))]),
+        ];
+        Scheduled {
+            function: Function::Constraints,
+            marker: None,
+            dims: (3, outputs.len(), 0),
+            slots: (0..outputs.len()).map(|i| (0, i, 0)).collect(),
+            program: Program::new(stmts, outputs),
+        }
+    }
+
+    #[test]
+    fn products_added_or_subtracted_are_fused_in_f64_code_only() {
+        let fused = |l: &Lowered| {
+            let f = l.ops.iter().filter_map(|op| match op {
+                Op::Fused { form, x, y, c, .. } => Some((*form, *x, *y, *c)),
+                _ => None,
+            });
+            f.collect::<Vec<_>>()
+        };
+        let binds = |l: &Lowered| {
+            let b = l.ops.iter().filter_map(|op| match op {
+                Op::Bind { var, .. } => Some(*var),
+                _ => None,
+            });
+            b.collect::<Vec<_>>()
+        };
+        let double = lower(&scheduled(), true);
+        // `v0` computed where it is read and fused; `v1` read twice stays
+        // a variable, so `q1 - v1` is a plain difference.
+        assert_eq!(binds(&double), [1]);
+        let q2 = input(2);
+        assert_eq!(
+            fused(&double),
+            [
+                (Fused::AddMul, input(0), input(1), q2),
+                (Fused::MulSub, input(1), input(2), input(0)),
+            ]
+        );
+        let muls = double.ops.iter().filter(|op| {
+            matches!(
+                op,
+                Op::Binary {
+                    op: Binary::Mul,
+                    ..
+                }
+            )
+        });
+        assert_eq!(muls.count(), 1, "{:?}", double.ops);
+        let single = lower(&scheduled(), false);
+        assert_eq!(binds(&single), [0, 1]);
+        assert!(fused(&single).is_empty());
+    }
+
+    #[test]
+    fn fused_forms_compute_their_written_expressions() {
+        let (x, y, c) = (0.1, 3.0f64.sqrt(), 0.7);
+        assert_eq!(Fused::AddMul.apply(x, y, c), c + x * y);
+        assert_eq!(Fused::MulAdd.apply(x, y, c), x * y + c);
+        assert_eq!(Fused::SubMul.apply(x, y, c), c - x * y);
+        assert_eq!(Fused::MulSub.apply(x, y, c), x * y - c);
     }
 }

@@ -21,7 +21,7 @@ pub use code::{Code, OpCount, Program, Stmt};
 #[cfg(test)]
 pub use functions::Terms;
 pub use functions::{functions, Dim, Function, Inputs, OutputSpec, Scheduled, Shape, Spec};
-pub use lower::{lower, Binary, Lowered, Op, Operand, Value};
+pub use lower::{lower, Binary, Fused, Lowered, Op, Operand, Value};
 
 use crate::expr::{Graph, Id};
 
