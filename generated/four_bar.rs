@@ -80,24 +80,21 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         h[0] = math::sub_mul(math::add_mul(14.715 * v1, 0.5 * v1, v6), 0.5 * v0, v5);
         h[1] = 4.905 * v4;
         h[2] = math::sub_mul(
-            math::sub_mul(
-                math::add_mul(
-                    math::add_mul(4.905 * v3, 0.16666666666666666 * v1 * v2, v7),
-                    0.3333333333333333 * v3,
-                    v6,
-                ),
-                0.16666666666666666 * v0 * v3,
-                v7,
-            ),
-            0.3333333333333333 * v2,
-            v5,
-        );
+            0.3333333333333333 * v3 * v6,
+            0.16666666666666666 * v0 * v3,
+            v7,
+        )
+            + math::sub_mul(
+                math::add_mul(4.905 * v3, 0.16666666666666666 * v1 * v2, v7),
+                0.3333333333333333 * v2,
+                v5,
+            );
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
     fn constraints(&self, q: &SVector<f64, 3>, _t: f64, phi: &mut SVector<f64, 2>) {
         let [(v0, v1), (v2, v3), (v4, v5)] = math::sin_cos_array([q[0], q[2], q[1]]);
-        phi[0] = v1 + v3 - 1.0 - v5;
+        phi[0] = v1 - 1.0 + (v3 - v5);
         phi[1] = v0 + v2 - v4;
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
@@ -153,7 +150,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         phi_q: &mut SMatrix<f64, 2, 3>,
     ) {
         let [(v0, v1), (v2, v3), (v4, v5)] = math::sin_cos_array([q[0], q[2], q[1]]);
-        phi[0] = v1 + v3 - 1.0 - v5;
+        phi[0] = v1 - 1.0 + (v3 - v5);
         phi[1] = v0 + v2 - v4;
         phi_q[(0, 0)] = -v0;
         phi_q[(0, 1)] = v4;
@@ -191,18 +188,10 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         h[0] = math::sub_mul(math::add_mul(14.715 * v1, 0.5 * v1, v11), 0.5 * v0, v10);
         h[1] = 4.905 * v5;
         h[2] = math::sub_mul(
-            math::sub_mul(
-                math::add_mul(
-                    math::add_mul(4.905 * v3, 0.16666666666666666 * v2, v6),
-                    0.3333333333333333 * v3,
-                    v11,
-                ),
-                0.16666666666666666 * v3,
-                v7,
-            ),
-            0.3333333333333333 * v2,
-            v10,
-        );
+            math::add_mul(4.905 * v3, 0.16666666666666666 * v2, v6),
+            0.16666666666666666 * v3,
+            v7,
+        ) + math::sub_mul(0.3333333333333333 * v3 * v11, 0.3333333333333333 * v2, v10);
         phi_q[(0, 0)] = -v0;
         phi_q[(0, 1)] = v4;
         phi_q[(0, 2)] = -v2;
@@ -226,47 +215,34 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v4 = math::cos(q[1]);
         let v7 = qd[0] * qd[0];
         let v8 = qd[2] * qd[2];
-        let v5 = math::sub_mul(
-            math::sub_mul(math::sub_mul(-v1 * v7, v3, v8), v0, qdd[0]),
-            v2,
-            qdd[2],
-        );
-        let v6 = math::sub_mul(
-            math::sub_mul(math::add_mul(v1 * qdd[0], v3, qdd[2]), v0, v7),
-            v2,
-            v8,
-        );
+        let v5 = math::sub_mul(-v1 * v7, v2, qdd[2])
+            - math::add_mul(v3 * v8, v0, qdd[0]);
+        let v6 = math::add_mul(v1 * qdd[0], v3, qdd[2]) - math::add_mul(v0 * v7, v2, v8);
         tau[0] = math::sub_mul(
             math::add_mul(
-                math::add_mul(14.715 * v1, 0.8333333333333333, qdd[0]),
+                math::add_mul(0.8333333333333333 * qdd[0], 14.715, v1),
                 0.5 * v1,
                 v6,
             ),
             0.5 * v0,
             v5,
         );
-        tau[1] = math::add_mul(4.905 * v4, 0.3333333333333333, qdd[1]);
-        tau[2] = math::sub_mul(
-            math::sub_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(4.905 * v3, 0.16666666666666666 * v1 * v2, v7),
-                            0.16666666666666666 * v0 * v2,
-                            qdd[0],
-                        ),
-                        0.16666666666666666 * v1 * v3,
-                        qdd[0],
-                    ),
-                    0.3333333333333333 * v3,
-                    v6,
+        tau[1] = math::add_mul(0.3333333333333333 * qdd[1], 4.905, v4);
+        tau[2] = math::add_mul(4.905 * v3, 0.16666666666666666 * v1 * v2, v7)
+            + math::add_mul(
+                0.16666666666666666 * v0 * v2 * qdd[0],
+                0.16666666666666666 * v1 * v3,
+                qdd[0],
+            )
+            + math::sub_mul(
+                math::sub_mul(
+                    0.3333333333333333 * v3 * v6,
+                    0.16666666666666666 * v0 * v3,
+                    v7,
                 ),
-                0.16666666666666666 * v0 * v3,
-                v7,
-            ),
-            0.3333333333333333 * v2,
-            v5,
-        );
+                0.3333333333333333 * v2,
+                v5,
+            );
     }
     ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
@@ -281,26 +257,23 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v4 = math::sub_mul(-v0 * qd[0], v2, qd[2]);
         let v5 = math::add_mul(v1 * qd[0], v3, qd[2]);
         math::sub_mul(
-            math::add_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            0.3333333333333333 * qd[0] * qd[0],
-                            0.16666666666666666 * qd[1],
-                            qd[1],
-                        ),
-                        0.16666666666666666 * v1 * qd[0],
-                        v5,
-                    ),
-                    0.16666666666666666 * v4,
-                    v4,
-                ),
-                0.16666666666666666 * v5,
-                v5,
-            ),
+            0.16666666666666666 * v5 * v5,
             0.16666666666666666 * v0 * qd[0],
             v4,
         )
+            + math::add_mul(
+                math::add_mul(
+                    math::add_mul(
+                        0.3333333333333333 * qd[0] * qd[0],
+                        0.16666666666666666 * qd[1],
+                        qd[1],
+                    ),
+                    0.16666666666666666 * v1 * qd[0],
+                    v5,
+                ),
+                0.16666666666666666 * v4,
+                v4,
+            )
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
@@ -308,7 +281,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         let v0 = math::sin(q[0]);
         let v1 = math::sin(q[2]);
         let v2 = math::sin(q[1]);
-        math::add_mul(math::add_mul(14.715 * v0, 4.905, v1), 4.905, v2)
+        math::mul_add(4.905, v2, math::add_mul(14.715 * v0, 4.905, v1))
     }
     ///The actuators' generalized forces `f = B tau` for the actuator inputs `tau` (the non-zero entries of `B` only).
     #[inline]
@@ -335,18 +308,10 @@ impl flexdyn_runtime::Model<3, 2, 1> for FourBar {
         out[0] = math::sub_mul(0.5 * v1 * v5, 0.5 * v0, v4);
         out[1] = 0.0;
         out[2] = math::sub_mul(
-            math::sub_mul(
-                math::add_mul(
-                    0.16666666666666666 * v1 * v2 * v6,
-                    0.3333333333333333 * v3,
-                    v5,
-                ),
-                0.16666666666666666 * v0 * v3,
-                v6,
-            ),
-            0.3333333333333333 * v2,
-            v4,
-        );
+            0.16666666666666666 * v1 * v2 * v6,
+            0.16666666666666666 * v0 * v3,
+            v6,
+        ) + math::sub_mul(0.3333333333333333 * v3 * v5, 0.3333333333333333 * v2, v4);
         true
     }
     ///Gravity and elastic forces `dV/dq`.

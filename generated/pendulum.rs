@@ -75,7 +75,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         h: &mut SVector<f64, 1>,
     ) {
         let v0 = math::sin(q[0]);
-        h[0] = math::add_mul(9.81 * self.m * self.l * v0, qd[0], self.c);
+        h[0] = math::add_mul(qd[0] * self.c, 9.81 * self.m * self.l, v0);
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
@@ -129,7 +129,7 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         let v0 = math::sin(q[0]);
         let v1 = self.l * self.m;
         m[(0, 0)] = self.l * v1;
-        h[0] = math::add_mul(9.81 * v0 * v1, qd[0], self.c);
+        h[0] = math::add_mul(qd[0] * self.c, 9.81 * v0, v1);
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
@@ -144,8 +144,8 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
         let v0 = math::sin(q[0]);
         let v1 = self.l * self.m;
         tau[0] = math::add_mul(
-            math::add_mul(9.81 * v0 * v1, qd[0], self.c),
-            self.l * qdd[0],
+            math::add_mul(qd[0] * self.c, self.l * qdd[0], v1),
+            9.81 * v0,
             v1,
         );
     }
@@ -236,9 +236,9 @@ impl flexdyn_runtime::Model<1, 0, 1> for Pendulum {
     ) -> bool {
         let v0 = math::sin(q[0]);
         qdd[0] = (math::sub_mul(
-            math::sub_mul(f[0], 9.81 * self.m * self.l, v0),
-            qd[0],
-            self.c,
+            math::sub_mul(f[0], qd[0], self.c),
+            9.81 * self.m * self.l,
+            v0,
         )) / (self.m * self.l * self.l);
         d[0] = 1.0;
         true

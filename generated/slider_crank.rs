@@ -82,30 +82,19 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             0.04000000000000001 * v0,
             v4,
         );
-        h[1] = math::sub_mul(
-            math::sub_mul(
-                math::sub_mul(
-                    math::add_mul(
-                        0.004000000000000001 * v1 * v2 * v6,
-                        0.004000000000000001 * v0 * v3,
-                        v6,
-                    ),
-                    1.1772,
-                    v3,
-                ),
-                0.08 * v2,
-                v4,
-            ),
-            0.08 * v3,
-            v5,
-        );
+        h[1] = math::sub_mul(0.004000000000000001 * v0 * v3 * v6, 0.08 * v2, v4)
+            + math::sub_mul(
+                math::sub_mul(0.004000000000000001 * v1 * v2 * v6, 1.1772, v3),
+                0.08 * v3,
+                v5,
+            );
         h[2] = 0.0;
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
     fn constraints(&self, q: &SVector<f64, 3>, _t: f64, phi: &mut SVector<f64, 2>) {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
-        phi[0] = math::add_mul(0.1 * v1, 0.3, v3) - q[2];
+        phi[0] = math::mul_add(0.3, v3, math::mul_sub(0.1, v1, q[2]));
         phi[1] = math::sub_mul(0.1 * v0, 0.3, v2);
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
@@ -161,7 +150,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
     ) {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         *phi_q = SMatrix::zeros();
-        phi[0] = math::add_mul(0.1 * v1, 0.3, v3) - q[2];
+        phi[0] = math::mul_add(0.3, v3, math::mul_sub(0.1, v1, q[2]));
         phi[1] = math::sub_mul(0.1 * v0, 0.3, v2);
         phi_q[(0, 0)] = -0.1 * v0;
         phi_q[(0, 1)] = -0.3 * v2;
@@ -206,23 +195,11 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             0.04000000000000001 * v0,
             v8,
         );
-        h[1] = math::sub_mul(
-            math::sub_mul(
-                math::sub_mul(
-                    math::add_mul(
-                        0.004000000000000001 * v2 * v4,
-                        0.004000000000000001 * v3,
-                        v5,
-                    ),
-                    1.1772,
-                    v3,
-                ),
-                0.08 * v2,
-                v8,
-            ),
-            0.08 * v3,
-            v9,
-        );
+        h[1] = math::mul_add(
+            0.004000000000000001 * v3,
+            v5,
+            math::sub_mul(0.004000000000000001 * v2 * v4, 1.1772, v3),
+        ) - math::add_mul(0.08 * v2 * v8, 0.08 * v3, v9);
         h[2] = 0.0;
         phi_q[(0, 0)] = -0.1 * v0;
         phi_q[(0, 1)] = -0.3 * v2;
@@ -245,19 +222,13 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let [(v0, v1), (v2, v3)] = math::sin_cos_array([q[0], q[1]]);
         let v6 = qd[0] * qd[0];
         let v7 = qd[1] * qd[1];
-        let v4 = math::sub_mul(
-            math::sub_mul(math::sub_mul(-0.1 * v1 * v6, 0.1 * v0, qdd[0]), 0.3 * v3, v7),
-            0.3 * v2,
-            qdd[1],
-        );
-        let v5 = math::sub_mul(
-            math::sub_mul(math::add_mul(0.1 * v1 * qdd[0], 0.3 * v2, v7), 0.1 * v0, v6),
-            0.3 * v3,
-            qdd[1],
-        );
+        let v4 = math::sub_mul(-0.1 * v1 * v6, 0.1 * v0, qdd[0])
+            - math::add_mul(0.3 * v3 * v7, 0.3 * v2, qdd[1]);
+        let v5 = math::add_mul(0.1 * v1 * qdd[0], 0.3 * v2, v7)
+            - math::add_mul(0.1 * v0 * v6, 0.3 * v3, qdd[1]);
         tau[0] = math::sub_mul(
             math::add_mul(
-                math::add_mul(1.0300500000000001 * v1, 0.005666666666666668, qdd[0]),
+                math::add_mul(0.005666666666666668 * qdd[0], 1.0300500000000001, v1),
                 0.04000000000000001 * v1,
                 v5,
             ),
@@ -265,30 +236,23 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             v4,
         );
         tau[1] = math::sub_mul(
-            math::sub_mul(
+            math::add_mul(
+                0.004000000000000001 * v0 * v3 * v6,
+                0.004000000000000001 * v0 * v2,
+                qdd[0],
+            ),
+            0.08 * v2,
+            v4,
+        )
+            + math::sub_mul(
                 math::sub_mul(
-                    math::sub_mul(
-                        math::add_mul(
-                            math::add_mul(
-                                0.004000000000000001 * v1 * v2 * v6,
-                                0.004000000000000001 * v0 * v3,
-                                v6,
-                            ),
-                            0.004000000000000001 * v0 * v2,
-                            qdd[0],
-                        ),
-                        1.1772,
-                        v3,
-                    ),
+                    math::sub_mul(0.004000000000000001 * v1 * v2 * v6, 1.1772, v3),
                     0.004000000000000001 * v1 * v3,
                     qdd[0],
                 ),
-                0.08 * v2,
-                v4,
-            ),
-            0.08 * v3,
-            v5,
-        );
+                0.08 * v3,
+                v5,
+            );
         tau[2] = 1.2 * qdd[2];
     }
     ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
@@ -304,26 +268,23 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let v4 = math::sub_mul(-0.1 * v0 * qd[0], 0.3 * v2, qd[1]);
         let v5 = math::sub_mul(0.1 * v1 * qd[0], 0.3 * v3, qd[1]);
         math::sub_mul(
-            math::add_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            0.002166666666666667 * qd[0] * qd[0],
-                            0.013333333333333336 * v1 * qd[0],
-                            v5,
-                        ),
-                        0.13333333333333333 * v4,
-                        v4,
-                    ),
-                    0.13333333333333333 * v5,
-                    v5,
-                ),
-                0.6 * qd[2],
-                qd[2],
-            ),
+            0.13333333333333333 * v4 * v4,
             0.013333333333333336 * v0 * qd[0],
             v4,
         )
+            + math::mul_add(
+                0.13333333333333333 * v5,
+                v5,
+                math::add_mul(
+                    math::add_mul(
+                        0.002166666666666667 * qd[0] * qd[0],
+                        0.6 * qd[2],
+                        qd[2],
+                    ),
+                    0.013333333333333336 * v1 * qd[0],
+                    v5,
+                ),
+            )
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
@@ -359,19 +320,11 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             0.04000000000000001 * v0,
             v4,
         );
-        out[1] = math::sub_mul(
-            math::sub_mul(
-                math::add_mul(
-                    0.004000000000000001 * v1 * v2 * v6,
-                    0.004000000000000001 * v0 * v3,
-                    v6,
-                ),
-                0.08 * v2,
-                v4,
-            ),
-            0.08 * v3,
-            v5,
-        );
+        out[1] = math::add_mul(
+            0.004000000000000001 * v1 * v2 * v6,
+            0.004000000000000001 * v0 * v3,
+            v6,
+        ) - math::add_mul(0.08 * v2 * v4, 0.08 * v3, v5);
         out[2] = 0.0;
         true
     }
@@ -446,23 +399,16 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             v10,
         );
         h_q[(1, 0)] = math::sub_mul(0.012 * v7, 0.012, v6);
-        h_q[(1, 1)] = math::sub_mul(
-            math::sub_mul(
-                math::sub_mul(
-                    math::add_mul(
-                        math::add_mul(1.1772 * v2, 0.004000000000000001, v7),
-                        0.08 * v2,
-                        v5,
-                    ),
+        h_q[(1, 1)] = math::sub_mul(0.08 * v2 * v5, 0.004000000000000001, v6)
+            + math::sub_mul(
+                math::add_mul(
+                    math::sub_mul(1.1772 * v2, 0.024 * qd[1], qd[1]),
                     0.004000000000000001,
-                    v6,
+                    v7,
                 ),
                 0.08 * v3,
                 v4,
-            ),
-            0.024 * qd[1],
-            qd[1],
-        );
+            );
         h_qd[(0, 1)] = math::add_mul(
             0.024000000000000004 * qd[1] * v12,
             0.024000000000000004 * qd[1],

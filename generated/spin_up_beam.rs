@@ -67,26 +67,20 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
     fn mass_matrix(&self, q: &SVector<f64, 5>, _t: f64, m: &mut SMatrix<f64, 5, 5>) {
         *m = SMatrix::zeros();
         m[(0, 0)] = math::sub_mul(
-            math::sub_mul(
-                math::sub_mul(
-                    math::sub_mul(
-                        math::sub_mul(
-                            math::sub_mul(2400.0, 0.1933363815496154 * q[1], q[1]),
-                            5.478223351576361 * q[3],
-                            q[3],
-                        ),
-                        1.1933363815470852 * q[2],
-                        q[2],
-                    ),
-                    6.47822335157899 * q[4],
-                    q[4],
-                ),
-                1.3717084651066016 * q[1],
-                q[3],
-            ),
+            math::sub_mul(2400.0, 0.1933363815496154 * q[1], q[1]),
             1.3717084650890934 * q[2],
             q[4],
-        );
+        )
+            - (math::add_mul(
+                5.478223351576361 * q[3] * q[3],
+                1.1933363815470852 * q[2],
+                q[2],
+            )
+                + math::add_mul(
+                    6.47822335157899 * q[4] * q[4],
+                    1.3717084651066016 * q[1],
+                    q[3],
+                ));
         m[(0, 1)] = 19.704701741876853;
         m[(1, 0)] = m[(0, 1)];
         m[(0, 3)] = -3.1442527828646982;
@@ -115,55 +109,42 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
         h[0] = math::sub_mul(
             qd[0] * (math::add_mul(2.0000000000000004 * v4, 2.000000000000001, v5)),
             qd[0],
-            (math::add_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(
-                                math::add_mul(
-                                    math::add_mul(
-                                        2.3866727630992313 * v4,
-                                        12.956446703152723,
-                                        v5,
-                                    ),
-                                    2.3866727630941704 * q[2],
-                                    qd[2],
-                                ),
-                                12.95644670315798 * q[4],
-                                qd[4],
-                            ),
-                            1.3717084651066016 * q[3],
-                            qd[1],
-                        ),
-                        1.3717084651066016 * q[1],
-                        qd[3],
-                    ),
-                    1.3717084650890934 * q[4],
-                    qd[2],
-                ),
-                1.3717084650890934 * q[2],
-                qd[4],
-            )),
+            (math::add_mul(2.3866727630992313 * v4, 12.956446703152723, v5)
+                + math::add_mul(
+                    2.3866727630941704 * q[2] * qd[2],
+                    12.95644670315798 * q[4],
+                    qd[4],
+                )
+                + (math::add_mul(
+                    1.3717084651066016 * q[3] * qd[1],
+                    1.3717084651066016 * q[1],
+                    qd[3],
+                )
+                    + math::add_mul(
+                        1.3717084650890934 * q[4] * qd[2],
+                        1.3717084650890934 * q[2],
+                        qd[4],
+                    ))),
         );
-        h[1] = math::add_mul(
-            math::add_mul(14.42278192907212 * q[1], 0.6858542325533008, v2),
+        h[1] = math::mul_add(
             0.1933363815496154,
             v3,
+            math::add_mul(14.42278192907212 * q[1], 0.6858542325533008, v2),
         );
-        h[2] = math::add_mul(
-            math::add_mul(14.422781929081372 * q[2], 0.6858542325445467, v0),
+        h[2] = math::mul_add(
             1.1933363815470852,
             v1,
+            math::add_mul(14.422781929081372 * q[2], 0.6858542325445467, v0),
         );
-        h[3] = math::add_mul(
-            math::add_mul(566.4761185942624 * q[3], 5.478223351576361, v2),
+        h[3] = math::mul_add(
             0.6858542325533008,
             v3,
+            math::add_mul(566.4761185942624 * q[3], 5.478223351576361, v2),
         );
-        h[4] = math::add_mul(
-            math::add_mul(566.4761185942573 * q[4], 6.47822335157899, v0),
+        h[4] = math::mul_add(
             0.6858542325445467,
             v1,
+            math::add_mul(566.4761185942573 * q[4], 6.47822335157899, v0),
         );
     }
     ///Constraint residuals `Phi(q, t)`.
@@ -171,13 +152,13 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
     fn constraints(&self, q: &SVector<f64, 5>, t: f64, phi: &mut SVector<f64, 1>) {
         let v0 = math::cos(0.41887902047863906 * t);
         phi[0] = math::sub_mul(
-            math::sub_mul(
-                q[0],
-                0.4 * self.phase,
-                (math::add_mul(0.5 * t * t, 5.699316579881501, v0) - 5.699316579881501),
-            ),
-            (1.0 - self.phase),
-            (math::mul_sub(6.0, t, 45.0)),
+            math::sub_mul(q[0], (1.0 - self.phase), (math::mul_sub(6.0, t, 45.0))),
+            0.4 * self.phase,
+            (math::add_mul(
+                math::mul_sub(0.5 * t, t, 5.699316579881501),
+                5.699316579881501,
+                v0,
+            )),
         );
     }
     ///Constraint Jacobian `Phi_q(q, t)`.
@@ -230,13 +211,13 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
         let v0 = math::cos(0.41887902047863906 * t);
         *phi_q = SMatrix::zeros();
         phi[0] = math::sub_mul(
-            math::sub_mul(
-                q[0],
-                0.4 * self.phase,
-                (math::add_mul(0.5 * t * t, 5.699316579881501, v0) - 5.699316579881501),
-            ),
-            (1.0 - self.phase),
-            (math::mul_sub(6.0, t, 45.0)),
+            math::sub_mul(q[0], (1.0 - self.phase), (math::mul_sub(6.0, t, 45.0))),
+            0.4 * self.phase,
+            (math::add_mul(
+                math::mul_sub(0.5 * t, t, 5.699316579881501),
+                5.699316579881501,
+                v0,
+            )),
         );
         phi_q[(0, 0)] = 1.0;
     }
@@ -263,26 +244,20 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
         *m = SMatrix::zeros();
         *phi_q = SMatrix::zeros();
         m[(0, 0)] = math::sub_mul(
-            math::sub_mul(
-                math::sub_mul(
-                    math::sub_mul(
-                        math::sub_mul(
-                            math::sub_mul(2400.0, 0.1933363815496154 * q[1], q[1]),
-                            5.478223351576361 * q[3],
-                            q[3],
-                        ),
-                        1.1933363815470852 * q[2],
-                        q[2],
-                    ),
-                    6.47822335157899 * q[4],
-                    q[4],
-                ),
-                1.3717084651066016 * q[1],
-                q[3],
-            ),
+            math::sub_mul(2400.0, 0.1933363815496154 * q[1], q[1]),
             1.3717084650890934 * q[2],
             q[4],
-        );
+        )
+            - (math::add_mul(
+                5.478223351576361 * q[3] * q[3],
+                1.1933363815470852 * q[2],
+                q[2],
+            )
+                + math::add_mul(
+                    6.47822335157899 * q[4] * q[4],
+                    1.3717084651066016 * q[1],
+                    q[3],
+                ));
         m[(0, 1)] = 19.704701741876853;
         m[(1, 0)] = m[(0, 1)];
         m[(0, 3)] = -3.1442527828646982;
@@ -294,55 +269,42 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
         h[0] = math::sub_mul(
             qd[0] * (math::add_mul(2.0000000000000004 * v5, 2.000000000000001, v6)),
             qd[0],
-            (math::add_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(
-                                math::add_mul(
-                                    math::add_mul(
-                                        2.3866727630992313 * v5,
-                                        12.956446703152723,
-                                        v6,
-                                    ),
-                                    2.3866727630941704 * q[2],
-                                    qd[2],
-                                ),
-                                12.95644670315798 * q[4],
-                                qd[4],
-                            ),
-                            1.3717084651066016 * q[3],
-                            qd[1],
-                        ),
-                        1.3717084651066016 * q[1],
-                        qd[3],
-                    ),
-                    1.3717084650890934 * q[4],
-                    qd[2],
-                ),
-                1.3717084650890934 * q[2],
-                qd[4],
-            )),
+            (math::add_mul(2.3866727630992313 * v5, 12.956446703152723, v6)
+                + math::add_mul(
+                    2.3866727630941704 * q[2] * qd[2],
+                    12.95644670315798 * q[4],
+                    qd[4],
+                )
+                + (math::add_mul(
+                    1.3717084651066016 * q[3] * qd[1],
+                    1.3717084651066016 * q[1],
+                    qd[3],
+                )
+                    + math::add_mul(
+                        1.3717084650890934 * q[4] * qd[2],
+                        1.3717084650890934 * q[2],
+                        qd[4],
+                    ))),
         );
-        h[1] = math::add_mul(
-            math::add_mul(14.42278192907212 * q[1], 0.6858542325533008, v3),
+        h[1] = math::mul_add(
             0.1933363815496154,
             v4,
+            math::add_mul(14.42278192907212 * q[1], 0.6858542325533008, v3),
         );
-        h[2] = math::add_mul(
-            math::add_mul(14.422781929081372 * q[2], 0.6858542325445467, v1),
+        h[2] = math::mul_add(
             1.1933363815470852,
             v2,
+            math::add_mul(14.422781929081372 * q[2], 0.6858542325445467, v1),
         );
-        h[3] = math::add_mul(
-            math::add_mul(566.4761185942624 * q[3], 5.478223351576361, v3),
+        h[3] = math::mul_add(
             0.6858542325533008,
             v4,
+            math::add_mul(566.4761185942624 * q[3], 5.478223351576361, v3),
         );
-        h[4] = math::add_mul(
-            math::add_mul(566.4761185942573 * q[4], 6.47822335157899, v1),
+        h[4] = math::mul_add(
             0.6858542325445467,
             v2,
+            math::add_mul(566.4761185942573 * q[4], 6.47822335157899, v1),
         );
         phi_q[(0, 0)] = 1.0;
         gamma[0] = 0.4 * self.phase * (1.0 - v0);
@@ -366,123 +328,81 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
         let v5 = q[1] * v8;
         let v6 = q[1] * qd[1];
         let v7 = q[3] * qd[3];
-        tau[0] = math::sub_mul(
-            math::sub_mul(
+        tau[0] = math::mul_add(
+            (math::mul_add(
+                1.0000000000000004,
+                v1,
+                math::add_mul(399.99999999999983, 1.0000000000000002, v0),
+            )),
+            qdd[0],
+            math::add_mul(
                 math::sub_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(2000.0 * qdd[0], 19.704701741876853, qdd[1]),
-                            qd[0],
-                            (math::add_mul(
-                                2.0000000000000004 * v6,
-                                2.000000000000001,
-                                v7,
-                            )),
-                        ),
-                        (math::add_mul(1.0000000000000002 * v0, 1.0000000000000004, v1)
-                            + 399.99999999999983),
-                        qdd[0],
-                    ),
+                    math::add_mul(2000.0 * qdd[0], 19.704701741876853, qdd[1]),
                     3.1442527828646982,
                     qdd[3],
                 ),
                 qd[0],
-                (math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(
-                                math::add_mul(
-                                    math::add_mul(
-                                        math::add_mul(
-                                            2.3866727630992313 * v6,
-                                            12.956446703152723,
-                                            v7,
-                                        ),
-                                        2.3866727630941704 * q[2],
-                                        qd[2],
-                                    ),
-                                    12.95644670315798 * q[4],
-                                    qd[4],
-                                ),
-                                1.3717084651066016 * q[3],
-                                qd[1],
-                            ),
+                (math::add_mul(2.0000000000000004 * v6, 2.000000000000001, v7)),
+            ),
+        )
+            - math::add_mul(
+                qd[0]
+                    * (math::add_mul(2.3866727630992313 * v6, 12.956446703152723, v7)
+                        + math::add_mul(
+                            2.3866727630941704 * q[2] * qd[2],
+                            12.95644670315798 * q[4],
+                            qd[4],
+                        )
+                        + (math::add_mul(
+                            1.3717084651066016 * q[3] * qd[1],
                             1.3717084651066016 * q[1],
                             qd[3],
-                        ),
-                        1.3717084650890934 * q[4],
-                        qd[2],
-                    ),
+                        )
+                            + math::add_mul(
+                                1.3717084650890934 * q[4] * qd[2],
+                                1.3717084650890934 * q[2],
+                                qd[4],
+                            ))),
+                (math::add_mul(
+                    1.3717084651066016 * q[1] * q[3],
                     1.3717084650890934 * q[2],
-                    qd[4],
-                )),
-            ),
-            (math::add_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(
-                                1.1933363815496156 * v0,
-                                6.478223351576362,
-                                v1,
-                            ),
-                            1.1933363815470852 * q[2],
-                            q[2],
-                        ),
-                        6.47822335157899 * q[4],
-                        q[4],
-                    ),
-                    1.3717084651066016 * q[1],
-                    q[3],
-                ),
-                1.3717084650890934 * q[2],
-                q[4],
-            )),
-            qdd[0],
-        );
-        tau[1] = math::add_mul(
-            math::add_mul(
-                math::add_mul(
-                    math::add_mul(14.42278192907212 * q[1], 0.6858542325533008, v4),
-                    0.1933363815496154,
-                    v5,
-                ),
-                19.704701741876853,
+                    q[4],
+                )
+                    + (math::add_mul(1.1933363815496156 * v0, 6.478223351576362, v1)
+                        + math::add_mul(
+                            1.1933363815470852 * q[2] * q[2],
+                            6.47822335157899 * q[4],
+                            q[4],
+                        ))),
                 qdd[0],
-            ),
+            );
+        tau[1] = math::mul_add(
             1.0000000000000004,
             qdd[1],
-        );
-        tau[2] = math::add_mul(
+            math::add_mul(14.42278192907212 * q[1], 19.704701741876853, qdd[0]),
+        ) + math::add_mul(0.6858542325533008 * v4, 0.1933363815496154, v5);
+        tau[2] = math::mul_add(
+            1.1933363815470852,
+            v3,
             math::add_mul(
-                math::add_mul(14.422781929081372 * q[2], 0.6858542325445467, v2),
-                1.1933363815470852,
-                v3,
+                math::add_mul(14.422781929081372 * q[2], 1.0000000000000009, qdd[2]),
+                0.6858542325445467,
+                v2,
             ),
-            1.0000000000000009,
-            qdd[2],
         );
         tau[3] = math::sub_mul(
-            math::add_mul(
-                math::add_mul(
-                    math::add_mul(566.4761185942624 * q[3], 5.478223351576361, v4),
-                    0.6858542325533008,
-                    v5,
-                ),
-                1.0000000000000004,
-                qdd[3],
-            ),
+            math::add_mul(566.4761185942624 * q[3], 1.0000000000000004, qdd[3]),
             3.1442527828646982,
             qdd[0],
-        );
-        tau[4] = math::add_mul(
+        ) + math::add_mul(5.478223351576361 * v4, 0.6858542325533008, v5);
+        tau[4] = math::mul_add(
+            0.6858542325445467,
+            v3,
             math::add_mul(
-                math::add_mul(566.4761185942573 * q[4], 6.47822335157899, v2),
-                0.6858542325445467,
-                v3,
+                math::add_mul(566.4761185942573 * q[4], 1.0000000000000007, qdd[4]),
+                6.47822335157899,
+                v2,
             ),
-            1.0000000000000007,
-            qdd[4],
         );
     }
     ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
@@ -497,79 +417,56 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
         let v0 = q[1] * q[1];
         let v1 = q[3] * q[3];
         math::sub_mul(
-            math::add_mul(
+            math::mul_add(
+                0.5 * qd[0] * qd[0],
+                (math::mul_add(
+                    1.0000000000000004,
+                    v1,
+                    math::add_mul(399.99999999999983, 1.0000000000000002, v0),
+                )),
                 math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(
-                                math::add_mul(
-                                    1000.0 * qd[0] * qd[0],
-                                    0.5 * qd[0] * qd[0],
-                                    (math::add_mul(
-                                        1.0000000000000002 * v0,
-                                        1.0000000000000004,
-                                        v1,
-                                    ) + 399.99999999999983),
-                                ),
-                                qd[0],
-                                (math::sub_mul(
-                                    19.704701741876853 * qd[1],
-                                    3.1442527828646982,
-                                    qd[3],
-                                )),
-                            ),
-                            0.5000000000000002 * qd[1],
-                            qd[1],
-                        ),
-                        0.5000000000000004 * qd[2],
-                        qd[2],
-                    ),
-                    0.5000000000000002 * qd[3],
-                    qd[3],
-                ),
-                0.5000000000000003 * qd[4],
-                qd[4],
+                    0.5000000000000003 * qd[4] * qd[4],
+                    qd[0],
+                    (math::sub_mul(
+                        19.704701741876853 * qd[1],
+                        3.1442527828646982,
+                        qd[3],
+                    )),
+                )
+                    + (math::add_mul(
+                        1000.0 * qd[0] * qd[0],
+                        0.5000000000000002 * qd[1],
+                        qd[1],
+                    )
+                        + math::add_mul(
+                            0.5000000000000004 * qd[2] * qd[2],
+                            0.5000000000000002 * qd[3],
+                            qd[3],
+                        )),
             ),
             0.5 * qd[0] * qd[0],
             (math::add_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::add_mul(
-                            math::add_mul(
-                                1.1933363815496156 * v0,
-                                6.478223351576362,
-                                v1,
-                            ),
-                            1.1933363815470852 * q[2],
-                            q[2],
-                        ),
-                        6.47822335157899 * q[4],
-                        q[4],
-                    ),
-                    1.3717084651066016 * q[1],
-                    q[3],
-                ),
+                1.3717084651066016 * q[1] * q[3],
                 1.3717084650890934 * q[2],
                 q[4],
-            )),
+            )
+                + (math::add_mul(1.1933363815496156 * v0, 6.478223351576362, v1)
+                    + math::add_mul(
+                        1.1933363815470852 * q[2] * q[2],
+                        6.47822335157899 * q[4],
+                        q[4],
+                    ))),
         )
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
     fn potential_energy(&self, q: &SVector<f64, 5>, _t: f64) -> f64 {
-        math::add_mul(
-            math::add_mul(
-                math::add_mul(
-                    7.21139096453606 * q[1] * q[1],
-                    283.2380592971312 * q[3],
-                    q[3],
-                ),
-                7.211390964540686 * q[2],
-                q[2],
-            ),
-            283.23805929712864 * q[4],
-            q[4],
-        )
+        math::add_mul(7.21139096453606 * q[1] * q[1], 283.2380592971312 * q[3], q[3])
+            + math::add_mul(
+                7.211390964540686 * q[2] * q[2],
+                283.23805929712864 * q[4],
+                q[4],
+            )
     }
     const PARAMETERS: &'static [&'static str] = &["phase"];
     fn set_parameter(&mut self, name: &str, value: f64) -> bool {
@@ -631,7 +528,7 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
                 rotation[(0, 0)] = math::sub_mul(v8 * v9, v0, v7);
                 rotation[(0, 1)] = math::sub_mul(-v7 * v9, v0, v8);
                 rotation[(0, 2)] = v1 * v5;
-                rotation[(1, 0)] = math::add_mul(v8 * v10, v1, v7);
+                rotation[(1, 0)] = math::add_mul(v1 * v7, v8, v10);
                 rotation[(1, 1)] = math::sub_mul(v1 * v8, v7, v10);
                 rotation[(1, 2)] = v0 * v5;
                 rotation[(2, 0)] = -v5 * v8;
@@ -690,7 +587,7 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
                 rotation[(0, 0)] = math::sub_mul(v12 * v13, v0, v11);
                 rotation[(0, 1)] = math::sub_mul(-v11 * v13, v0, v12);
                 rotation[(0, 2)] = v9;
-                rotation[(1, 0)] = math::add_mul(v12 * v14, v1, v11);
+                rotation[(1, 0)] = math::add_mul(v1 * v11, v12, v14);
                 rotation[(1, 1)] = math::sub_mul(v1 * v12, v11, v14);
                 rotation[(1, 2)] = v10;
                 rotation[(2, 0)] = -v7 * v12;
@@ -772,10 +669,10 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
                     (math::add_mul(10.0 * v0, v1, v2)),
                     v9,
                 );
-                velocity[1] = math::mul_add(
+                velocity[1] = math::add_mul(
+                    v10,
                     qd[0],
                     (math::sub_mul(10.0 * v1, v0, v2)),
-                    v10,
                 );
                 velocity[2] = math::add_mul(
                     0.5773512568456358 * qd[2],
@@ -798,15 +695,15 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
                     v12,
                 );
                 acceleration_bias[2] = 0.0;
-                acceleration_bias[3] = math::sub_mul(
-                    math::sub_mul(v1 * v15, v7, v13),
-                    v11,
-                    v12,
+                acceleration_bias[3] = math::mul_sub(
+                    v1,
+                    v15,
+                    math::add_mul(v7 * v13, v11, v12),
                 );
-                acceleration_bias[4] = math::sub_mul(
-                    math::add_mul(v11 * v13, v0, v15),
-                    v7,
-                    v12,
+                acceleration_bias[4] = math::mul_add(
+                    v0,
+                    v15,
+                    math::sub_mul(v11 * v13, v7, v12),
                 );
                 acceleration_bias[5] = -v7 * v11;
             }

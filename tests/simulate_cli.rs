@@ -313,7 +313,10 @@ fn four_bar_started_off_its_constraints_is_projected_and_stays_on_them() {
     let s = write(
         dir.path(),
         "s.json",
-        r#"{"q": [0.5, 0.52, 0.01], "qd": [1.0, 0.0, 0.0], "t": 0}"#,
+        // Near the hanging position (th = -pi/2): the parallelogram swings
+        // between th1 = -1.13 and -2.01, away from the flat positions
+        // (th = 0, -pi), where one rounding can pick the branch.
+        r#"{"q": [-1.2, -1.18, 0.01], "qd": [1.0, 0.0, 0.0], "t": 0}"#,
     );
     let four_bar = scene("four_bar");
     let args = [
@@ -326,7 +329,7 @@ fn four_bar_started_off_its_constraints_is_projected_and_stays_on_them() {
     ];
     let (t, stderr) = simulate_noted(dir.path(), &args).unwrap();
     assert!(
-        stderr.contains("projected onto the constraints: th2 0.52 ->"),
+        stderr.contains("projected onto the constraints: th2 -1.18 ->"),
         "{stderr}"
     );
     assert!(stderr.contains("th1_dot 1.0 ->"), "{stderr}");
@@ -344,9 +347,11 @@ fn four_bar_started_off_its_constraints_is_projected_and_stays_on_them() {
     let energy = max_abs(e.iter().map(|x| x - e[0]));
     println!("four-bar: max drift {drift:e}, energy change {energy:e}");
     assert!(drift < 1e-10, "{drift:e}");
-    assert!(energy < 1e-6, "{energy:e}");
+    // Measured 2.6e-10; semi-implicit Euler at 1 ms gives 6e-3, RK4 at
+    // 20 ms 2.4e-7.
+    assert!(energy < 1e-8, "{energy:e}");
     assert!(
-        column(&t, "th1").iter().any(|&x| (x - 0.5).abs() > 0.5),
+        column(&t, "th1").iter().any(|&x| (x + 1.2).abs() > 0.5),
         "it moves"
     );
 }

@@ -5,10 +5,17 @@
 //! emitted Rust expression *as Rust parses it*, not of the program's tree,
 //! where the two differ:
 //!
-//! * a sum `c0 + sum(c_k t_k)` is printed positive terms first (left to
-//!   right), then the constant (`+ c0` or `- |c0|`), then the negative
-//!   terms subtracted (`- |c_k| t_k`); when no positive term or constant
-//!   leads, the first negative term is negated (`-|c_k| t_k`);
+//! * a sum `c0 + sum(c_k t_k)` adds its terms (`|c_k| t_k`, the constant
+//!   `|c0|`) two at a time, always the two that are ready first in a model
+//!   of the processor's latencies (the longest path of operations from the
+//!   inputs: 4 cycles an addition or multiplication, 14 a division, 20 a
+//!   call), so that its last addition waits only for its latest term
+//!   rather than a chain through all of them; between terms ready together
+//!   the order is positive terms, the constant, negative terms. A negative
+//!   term is subtracted (`a - t`, `t` possibly a sum of negative terms
+//!   added first); when no positive term or constant leads, the first
+//!   negative term is negated (`-|c_k| t_k`), and a sum with no positive
+//!   term leads with its constant, negative or not;
 //! * a term `c * (a * b / d)` is printed without parentheses, so it is the
 //!   chain `((c * a) * b) / d`, and a leading minus negates the chain's first
 //!   operand (`(-c) * a`, `(-a) * b`);
@@ -33,7 +40,8 @@
 //! is stored at its row and column, and an off-diagonal entry of a
 //! symmetric matrix is mirrored.
 
-use std::collections::HashMap;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
 
 use super::{Code, Function, Inputs, Program, Scheduled, Shape, Stmt};
 use crate::expr::{Func, Symbol};
@@ -308,6 +316,7 @@ pub fn lower(f: &Scheduled, double: bool) -> Lowered {
     for s in p.stmts.iter().filter(batched) {
         if let Stmt::SinCos { sin, cos, arg } = s {
             let a = l.operand(arg, SUM);
+            l.bound(&[*sin, *cos], a, CALL);
             pairs.push((*sin, *cos, a));
         }
     }
@@ -317,15 +326,20 @@ pub fn lower(f: &Scheduled, double: bool) -> Lowered {
     for s in p.stmts.iter().filter(|s| !batched(s)) {
         let op = match s {
             Stmt::Let { var, .. } if l.inline.contains_key(var) => continue,
-            Stmt::Let { var, value } => Op::Bind {
-                var: *var,
-                value: l.operand(value, SUM),
-            },
-            Stmt::SinCos { sin, cos, arg } => Op::SinCos {
-                sin: *sin,
-                cos: *cos,
-                arg: l.operand(arg, SUM),
-            },
+            Stmt::Let { var, value } => {
+                let value = l.operand(value, SUM);
+                l.bound(&[*var], value, 0);
+                Op::Bind { var: *var, value }
+            }
+            Stmt::SinCos { sin, cos, arg } => {
+                let arg = l.operand(arg, SUM);
+                l.bound(&[*sin, *cos], arg, CALL);
+                Op::SinCos {
+                    sin: *sin,
+                    cos: *cos,
+                    arg,
+                }
+            }
         };
         l.ops.push(op);
     }
@@ -477,24 +491,62 @@ struct Lowering {
     temps: u32,
     /// Variables computed where they are read, not bound.
     inline: HashMap<u32, Code>,
+    /// When each intermediate is ready ([`Lowering::ready`]).
+    ready: Vec<u32>,
+    /// When each bound variable is ready.
+    var_ready: HashMap<u32, u32>,
 }
 
+/// Latencies, in cycles of a present-day processor, of the model by which
+/// a sum adds its earliest terms first: an addition, subtraction or
+/// multiplication; a division; a negation; a call.
+const ARITHMETIC: u32 = 4;
+const DIVISION: u32 = 14;
+const NEGATION: u32 = 1;
+const CALL: u32 = 20;
+
 impl Lowering {
-    fn temp(&mut self) -> u32 {
+    /// A new intermediate, ready `latency` after `operands`.
+    fn temp(&mut self, operands: &[Operand], latency: u32) -> u32 {
+        let at = operands.iter().map(|o| self.ready(*o)).max().unwrap_or(0);
+        self.ready.push(at + latency);
         self.temps += 1;
         self.temps - 1
     }
 
+    /// When a value is ready, in the model of the latencies above: the
+    /// longest path of operations from the function's inputs.
+    fn ready(&self, o: Operand) -> u32 {
+        match o.value {
+            Value::Temp(t) => self.ready[t as usize],
+            Value::Var(v) => self.var_ready.get(&v).copied().unwrap_or(0),
+            Value::Input(_) | Value::Literal(_) => 0,
+        }
+    }
+
     fn binary(&mut self, op: Binary, a: Operand, b: Operand) -> Operand {
-        let dst = self.temp();
+        let latency = if op == Binary::Div {
+            DIVISION
+        } else {
+            ARITHMETIC
+        };
+        let dst = self.temp(&[a, b], latency);
         self.ops.push(Op::Binary { dst, op, a, b });
         Operand::new(Value::Temp(dst))
     }
 
     fn neg(&mut self, a: Operand) -> Operand {
-        let dst = self.temp();
+        let dst = self.temp(&[a], NEGATION);
         self.ops.push(Op::Neg { dst, a });
         Operand::new(Value::Temp(dst))
+    }
+
+    /// Variables `vars` ready `latency` after `value`.
+    fn bound(&mut self, vars: &[u32], value: Operand, latency: u32) {
+        let at = self.ready(value) + latency;
+        for v in vars {
+            self.var_ready.insert(*v, at);
+        }
     }
 
     fn literal(x: f64) -> Operand {
@@ -525,13 +577,13 @@ impl Lowering {
             Code::Prod { num, den } => self.chain(None, false, num, den),
             Code::Call(f, a) => {
                 let a = self.operand(a, SUM);
-                let dst = self.temp();
+                let dst = self.temp(&[a], CALL);
                 self.ops.push(Op::Call { dst, f: *f, a });
                 Operand::new(Value::Temp(dst))
             }
             Code::Atan2(y, x) => {
                 let (y, x) = (self.operand(y, SUM), self.operand(x, SUM));
-                let dst = self.temp();
+                let dst = self.temp(&[y, x], CALL);
                 self.ops.push(Op::Atan2 { dst, y, x });
                 Operand::new(Value::Temp(dst))
             }
@@ -585,34 +637,50 @@ impl Lowering {
         }
     }
 
-    /// A sum as printed: positive terms, the constant, negative terms.
+    /// A sum as printed: its terms (positive ones, then the constant, then
+    /// negative ones subtracted) added two at a time, always the two that
+    /// are ready first (the earlier one first, the order above between
+    /// terms ready together), so that the sum's last addition waits only
+    /// for its latest term, not for a chain of all the others. A partial
+    /// sum of subtracted terms is subtracted as one; a positive term or the
+    /// constant leads, else the first negative term is negated.
     fn sum(&mut self, constant: f64, terms: &[(f64, Code)]) -> Operand {
-        let mut acc: Option<Operand> = None;
+        let positive = terms.iter().any(|(c, _)| *c > 0.0);
+        // `(value, subtracted)`, in the order above.
+        let mut items: Vec<(Operand, bool)> = Vec::new();
         for (c, t) in terms.iter().filter(|(c, _)| *c > 0.0) {
-            let v = self.term(*c, t, false);
-            acc = Some(match acc {
-                None => v,
-                Some(a) => self.binary(Binary::Add, a, v),
+            items.push((self.term(*c, t, false), false));
+        }
+        if constant != 0.0 {
+            items.push(match positive {
+                true => (Self::literal(constant.abs()), constant < 0.0),
+                false => (Self::literal(constant), false),
             });
         }
-        acc = match acc {
-            None if constant != 0.0 => Some(Self::literal(constant)),
-            Some(a) if constant > 0.0 => Some(self.binary(Binary::Add, a, Self::literal(constant))),
-            Some(a) if constant < 0.0 => {
-                Some(self.binary(Binary::Sub, a, Self::literal(-constant)))
-            }
-            other => other,
-        };
+        let mut negate = items.is_empty();
         for (c, t) in terms.iter().filter(|(c, _)| *c < 0.0) {
-            acc = Some(match acc {
-                None => self.term(*c, t, true),
-                Some(a) => {
-                    let v = self.term(*c, t, false);
-                    self.binary(Binary::Sub, a, v)
-                }
-            });
+            items.push((self.term(*c, t, negate), !negate));
+            negate = false;
         }
-        acc.unwrap_or_else(|| Self::literal(0.0))
+        let mut queue: BinaryHeap<Reverse<(u32, usize)>> = items
+            .iter()
+            .enumerate()
+            .map(|(k, (v, _))| Reverse((self.ready(*v), k)))
+            .collect();
+        while let (Some(Reverse((_, i))), Some(Reverse((_, j)))) = (queue.pop(), queue.pop()) {
+            let ((a, a_sub), (b, b_sub)) = (items[i], items[j]);
+            let (value, sub) = match (a_sub, b_sub) {
+                (false, false) => (self.binary(Binary::Add, a, b), false),
+                (false, true) => (self.binary(Binary::Sub, a, b), false),
+                (true, false) => (self.binary(Binary::Sub, b, a), false),
+                (true, true) => (self.binary(Binary::Add, a, b), true),
+            };
+            queue.push(Reverse((self.ready(value), items.len())));
+            items.push((value, sub));
+        }
+        // What is left is positive: adding to a positive value gives one,
+        // and one leads.
+        items.last().map_or(Self::literal(0.0), |(v, _)| *v)
     }
 }
 
@@ -711,6 +779,71 @@ mod tests {
         let single = lower(&scheduled(), false);
         assert_eq!(binds(&single), [0, 1]);
         assert!(fused(&single).is_empty());
+    }
+
+    /// `sum` lowered alone as an output, `f32`-style (no fusing).
+    fn lowered_sum(terms: Vec<(f64, Code)>) -> Vec<Op> {
+        let f = Scheduled {
+            function: Function::Constraints,
+            marker: None,
+            dims: (4, 1, 0),
+            slots: vec![(0, 0, 0)],
+            program: Program::new(Vec::new(), vec![sum(terms)]),
+        };
+        let mut ops = lower(&f, false).ops;
+        ops.retain(|op| !matches!(op, Op::Store { .. } | Op::Zero { .. }));
+        ops
+    }
+
+    fn temp(t: u32) -> Operand {
+        Operand::new(Value::Temp(t))
+    }
+
+    #[test]
+    fn sums_add_the_terms_ready_first_first() {
+        // Four inputs: a tree of two levels, not a chain of three.
+        let ops = lowered_sum((0..4).map(|i| (1.0, q(i))).collect());
+        let add = |dst, a, b| Op::Binary {
+            dst,
+            op: Binary::Add,
+            a,
+            b,
+        };
+        assert_eq!(
+            ops,
+            [
+                add(0, input(0), input(1)),
+                add(1, input(2), input(3)),
+                add(2, temp(0), temp(1)),
+            ]
+        );
+        // `sin(q0) + q1 - q2`: the inputs first, the call's value last.
+        let sine = Code::Call(Func::Sin, Box::new(q(0)));
+        let ops = lowered_sum(vec![(1.0, sine), (1.0, q(1)), (-1.0, q(2))]);
+        let call = ops.iter().find_map(|op| match op {
+            Op::Call { dst, .. } => Some(*dst),
+            _ => None,
+        });
+        let (early, late) = match ops.last() {
+            Some(Op::Binary {
+                op: Binary::Add,
+                a,
+                b,
+                ..
+            }) => (a.value, b.value),
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(late, Value::Temp(call.unwrap()));
+        let difference = ops.iter().find_map(|op| match op {
+            Op::Binary {
+                dst,
+                op: Binary::Sub,
+                a,
+                b,
+            } if (a.value, b.value) == (input(1).value, input(2).value) => Some(*dst),
+            _ => None,
+        });
+        assert_eq!(Some(early), difference.map(Value::Temp));
     }
 
     #[test]
