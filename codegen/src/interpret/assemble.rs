@@ -93,7 +93,7 @@ pub(super) fn assemble(lowered: &Lowered, nq: usize, params: usize) -> Tape {
                 let (x, y) = (a.operand(*x), a.operand(*y));
                 let v = match (a.constant(x), a.constant(y)) {
                     (Some(x), Some(y)) => a.literal(op.apply(x, y)),
-                    _ => a.push(Instruction::from(*op), x, y),
+                    _ => a.push(Instruction::from(*op), x, y, x),
                 };
                 a.temps[*dst as usize] = Some(v);
             }
@@ -101,18 +101,7 @@ pub(super) fn assemble(lowered: &Lowered, nq: usize, params: usize) -> Tape {
                 let (x, y, c) = (a.operand(*x), a.operand(*y), a.operand(*c));
                 let v = match (a.constant(x), a.constant(y), a.constant(c)) {
                     (Some(x), Some(y), Some(c)) => a.literal(form.apply(x, y, c)),
-                    _ => {
-                        let dst = a.temp();
-                        let op = Instruction::from(*form);
-                        a.code.push(Pre {
-                            op,
-                            dst,
-                            a: x,
-                            b: y,
-                            c,
-                        });
-                        dst
-                    }
+                    _ => a.push(Instruction::from(*form), x, y, c),
                 };
                 a.temps[*dst as usize] = Some(v);
             }
@@ -120,18 +109,18 @@ pub(super) fn assemble(lowered: &Lowered, nq: usize, params: usize) -> Tape {
                 let x = a.operand(*x);
                 let v = match a.constant(x) {
                     Some(c) => a.literal(-c),
-                    None => a.push(Instruction::Neg, x, x),
+                    None => a.push(Instruction::Neg, x, x, x),
                 };
                 a.temps[*dst as usize] = Some(v);
             }
             Op::Call { dst, f, a: x } => {
                 let x = a.operand(*x);
-                let v = a.push(Instruction::Call(*f), x, x);
+                let v = a.push(Instruction::Call(*f), x, x, x);
                 a.temps[*dst as usize] = Some(v);
             }
             Op::Atan2 { dst, y, x } => {
                 let (y, x) = (a.operand(*y), a.operand(*x));
-                let v = a.push(Instruction::Atan2, y, x);
+                let v = a.push(Instruction::Atan2, y, x, y);
                 a.temps[*dst as usize] = Some(v);
             }
             Op::Bind { var, value } => {
@@ -233,15 +222,11 @@ impl Assembler {
     }
 
     /// The instruction `op(a, b)`.
-    fn push(&mut self, op: Instruction, a: Ref, b: Ref) -> Ref {
+    /// One instruction into a new intermediate; `c` is read by the fused
+    /// forms only (the others pass `a`).
+    fn push(&mut self, op: Instruction, a: Ref, b: Ref, c: Ref) -> Ref {
         let dst = self.temp();
-        self.code.push(Pre {
-            op,
-            dst,
-            a,
-            b,
-            c: a,
-        });
+        self.code.push(Pre { op, dst, a, b, c });
         dst
     }
 
@@ -279,10 +264,9 @@ impl Assembler {
         const LIVE: usize = usize::MAX;
         let inputs = 3 * self.nq + 1 + self.params;
         let first_temp = inputs + self.literals.len();
-        let code = self.code;
-        let pre: Vec<Pre> = in_runs(&code, self.slots_used as usize)
+        let pre: Vec<Pre> = in_runs(&self.code, self.slots_used as usize)
             .into_iter()
-            .map(|k| code[k])
+            .map(|k| self.code[k])
             .collect();
         // Last instruction reading each intermediate (outputs: to the end).
         let mut last: Vec<Option<usize>> = vec![None; self.slots_used as usize];

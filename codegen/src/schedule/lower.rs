@@ -393,7 +393,7 @@ pub fn lower(f: &Scheduled, double: bool) -> Lowered {
 /// intermediate, so read by it only) computing that product itself: a
 /// product second is preferred (`c + x * y`, `c - x * y`), as Rust's
 /// `a + b * c` reads.
-fn fuse(ops: Vec<Op>, temps: u32) -> Vec<Op> {
+fn fuse(mut ops: Vec<Op>, temps: u32) -> Vec<Op> {
     let mut product: Vec<Option<usize>> = vec![None; temps as usize];
     for (k, op) in ops.iter().enumerate() {
         if let Op::Binary {
@@ -410,7 +410,7 @@ fn fuse(ops: Vec<Op>, temps: u32) -> Vec<Op> {
         _ => None,
     };
     let mut gone = vec![false; ops.len()];
-    let mut fused = ops.clone();
+    let mut fused = Vec::new();
     for (k, op) in ops.iter().enumerate() {
         let Op::Binary {
             dst,
@@ -432,10 +432,12 @@ fn fuse(ops: Vec<Op>, temps: u32) -> Vec<Op> {
             unreachable!("a product is a binary operation")
         };
         gone[m] = true;
-        fused[k] = Op::Fused { dst, form, x, y, c };
+        fused.push((k, Op::Fused { dst, form, x, y, c }));
     }
-    fused
-        .into_iter()
+    for (k, op) in fused {
+        ops[k] = op;
+    }
+    ops.into_iter()
         .zip(gone)
         .filter_map(|(op, gone)| (!gone).then_some(op))
         .collect()
