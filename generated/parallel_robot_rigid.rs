@@ -10,9 +10,9 @@
 //   dynamics_terms                              147    294      0      9
 //   inverse_dynamics                            118    210      0      9
 //   actuator_forces                               0      0      0      0
-//   kinetic_energy                               53    123      0      9
+//   kinetic_energy                               53    121      0      9
 //   potential_energy                              9     13      0      9
-//   total                                       566   1127      0     90
+//   total                                       566   1125      0     90
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -291,7 +291,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v83,
                 )),
                 math::add_mul(
-                    v3 * (math::add_mul(1.6186500000000001, 5.886000000000001, v13)),
+                    v3 * (math::add_mul(1.6186500000000001, 5.886, v13)),
                     v3 * v13,
                     (math::sub_mul(-0.24000000000000005 * v73, 0.32000000000000006, v84)),
                 ),
@@ -302,11 +302,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             math::mul_sub(
                 v2 * v12,
                 (math::add_mul(0.24000000000000005 * v73, 0.32000000000000006, v84)),
-                math::add_mul(
-                    5.886000000000001 * v2 * v12,
-                    0.32000000000000006 * v13 * v12,
-                    v59,
-                ),
+                math::add_mul(5.886 * v2 * v12, 0.32000000000000006 * v13 * v12, v59),
             ),
         );
         h[3] = math::mul_add(
@@ -343,7 +339,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v82,
                 )),
                 math::add_mul(
-                    v7 * (math::add_mul(1.6186500000000001, 5.886000000000001, v15)),
+                    v7 * (math::add_mul(1.6186500000000001, 5.886, v15)),
                     v7 * v15,
                     (math::sub_mul(-0.24000000000000005 * v75, 0.32000000000000006, v85)),
                 ),
@@ -354,11 +350,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             math::mul_sub(
                 v6 * v14,
                 (math::add_mul(0.24000000000000005 * v75, 0.32000000000000006, v85)),
-                math::add_mul(
-                    5.886000000000001 * v6 * v14,
-                    0.32000000000000006 * v15 * v14,
-                    v63,
-                ),
+                math::add_mul(5.886 * v6 * v14, 0.32000000000000006 * v15 * v14, v63),
             ),
         );
         h[6] = math::mul_add(
@@ -395,7 +387,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v81,
                 )),
                 math::add_mul(
-                    v11 * (math::add_mul(1.6186500000000001, 5.886000000000001, v17)),
+                    v11 * (math::add_mul(1.6186500000000001, 5.886, v17)),
                     v11 * v17,
                     (math::sub_mul(-0.24000000000000005 * v77, 0.32000000000000006, v86)),
                 ),
@@ -406,11 +398,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             math::mul_sub(
                 v10 * v16,
                 (math::add_mul(0.24000000000000005 * v77, 0.32000000000000006, v86)),
-                math::add_mul(
-                    5.886000000000001 * v10 * v16,
-                    0.32000000000000006 * v17 * v16,
-                    v67,
-                ),
+                math::add_mul(5.886 * v10 * v16, 0.32000000000000006 * v17 * v16, v67),
             ),
         );
         h[9] = 0.0;
@@ -918,7 +906,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v92,
                 )),
                 math::add_mul(
-                    v3 * (math::add_mul(1.6186500000000001, 5.886000000000001, v13)),
+                    v3 * (math::add_mul(1.6186500000000001, 5.886, v13)),
                     v3 * v13,
                     (math::sub_mul(-0.24000000000000005 * v82, 0.32000000000000006, v93)),
                 ),
@@ -929,11 +917,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             math::mul_sub(
                 v2 * v12,
                 (math::add_mul(0.24000000000000005 * v82, 0.32000000000000006, v93)),
-                math::add_mul(
-                    5.886000000000001 * v26,
-                    0.32000000000000006 * v13 * v12,
-                    v67,
-                ),
+                math::add_mul(5.886 * v26, 0.32000000000000006 * v13 * v12, v67),
             ),
         );
         h[3] = math::mul_add(
@@ -970,7 +954,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v91,
                 )),
                 math::add_mul(
-                    v7 * (math::add_mul(1.6186500000000001, 5.886000000000001, v17)),
+                    v7 * (math::add_mul(1.6186500000000001, 5.886, v17)),
                     v7 * v17,
                     (math::sub_mul(-0.24000000000000005 * v84, 0.32000000000000006, v94)),
                 ),
@@ -981,11 +965,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             math::mul_sub(
                 v6 * v16,
                 (math::add_mul(0.24000000000000005 * v84, 0.32000000000000006, v94)),
-                math::add_mul(
-                    5.886000000000001 * v25,
-                    0.32000000000000006 * v17 * v16,
-                    v69,
-                ),
+                math::add_mul(5.886 * v25, 0.32000000000000006 * v17 * v16, v69),
             ),
         );
         h[6] = math::mul_add(
@@ -1022,7 +1002,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v90,
                 )),
                 math::add_mul(
-                    v11 * (math::add_mul(1.6186500000000001, 5.886000000000001, v21)),
+                    v11 * (math::add_mul(1.6186500000000001, 5.886, v21)),
                     v11 * v21,
                     (math::sub_mul(-0.24000000000000005 * v86, 0.32000000000000006, v95)),
                 ),
@@ -1033,11 +1013,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             math::mul_sub(
                 v10 * v20,
                 (math::add_mul(0.24000000000000005 * v86, 0.32000000000000006, v95)),
-                math::add_mul(
-                    5.886000000000001 * v24,
-                    0.32000000000000006 * v21 * v20,
-                    v71,
-                ),
+                math::add_mul(5.886 * v24, 0.32000000000000006 * v21 * v20, v71),
             ),
         );
         h[9] = 0.0;
@@ -1225,7 +1201,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v134,
                 )),
                 math::add_mul(
-                    v3 * (math::add_mul(1.6186500000000001, 5.886000000000001, v13)),
+                    v3 * (math::add_mul(1.6186500000000001, 5.886, v13)),
                     v3 * v13,
                     (math::sub_mul(
                         -0.24000000000000005 * v127,
@@ -1245,7 +1221,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                             0.32000000000000006 * v12,
                             v83,
                         )),
-                    5.886000000000001 * v2,
+                    5.886 * v2,
                     v12,
                 ),
                 v2 * v12,
@@ -1290,7 +1266,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v133,
                 )),
                 math::add_mul(
-                    v7 * (math::add_mul(1.6186500000000001, 5.886000000000001, v15)),
+                    v7 * (math::add_mul(1.6186500000000001, 5.886, v15)),
                     v7 * v15,
                     (math::sub_mul(
                         -0.24000000000000005 * v129,
@@ -1310,7 +1286,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                             0.32000000000000006 * v14,
                             v87,
                         )),
-                    5.886000000000001 * v6,
+                    5.886 * v6,
                     v14,
                 ),
                 v6 * v14,
@@ -1351,7 +1327,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     v132,
                 )),
                 math::add_mul(
-                    v11 * (math::add_mul(1.6186500000000001, 5.886000000000001, v17)),
+                    v11 * (math::add_mul(1.6186500000000001, 5.886, v17)),
                     v11 * v17,
                     (math::sub_mul(
                         -0.24000000000000005 * v131,
@@ -1371,7 +1347,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                             0.32000000000000006 * v16,
                             v91,
                         )),
-                    5.886000000000001 * v10,
+                    5.886 * v10,
                     v16,
                 ),
                 v10 * v16,
@@ -1440,26 +1416,32 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         math::add_mul(0.25 * v32 * v32, 0.25 * v33, v33)
             + math::add_mul(0.25 * v36 * v36, 0.25 * v37, v37)
             + (math::add_mul(0.25 * v40 * v40, 0.25 * v41, v41)
-                + (math::add_mul(0.019999999999999997 * v9 * v3, 0.3 * v8, v8)
+                + (math::add_mul(0.02 * v9 * v3, 0.3 * v8, v8)
                     + math::add_mul(0.3 * v9 * v9, 0.25 * v8, v32)))
-            + (math::add_mul(0.25 * v9 * v33, 0.019999999999999997 * v19, v13)
+            + (math::add_mul(0.25 * v9 * v33, 0.02 * v19, v13)
                 + math::add_mul(0.3 * v18 * v18, 0.3 * v19, v19)
                 + (math::add_mul(0.25 * v18 * v36, 0.25 * v19, v37)
-                    + math::add_mul(0.019999999999999997 * v29 * v23, 0.3 * v28, v28))
+                    + math::add_mul(0.02 * v29 * v23, 0.3 * v28, v28))
                 + (math::add_mul(0.3 * v29 * v29, 0.25 * v28, v40)
-                    + math::sub_mul(0.25 * v29 * v41, 0.019999999999999997 * v8, v2)
+                    + math::sub_mul(0.25 * v29 * v41, 0.02 * v8, v2)
                     + (math::add_mul(
-                        math::add_mul(1.3 * qd[10] * qd[10], 1.3 * qd[11], qd[11])
-                            + (math::add_mul(
-                                0.061333333333333344 * qd[0] * qd[0],
-                                0.061333333333333344 * qd[3],
-                                qd[3],
-                            )
-                                + math::add_mul(
-                                    0.061333333333333344 * qd[6] * qd[6],
-                                    1.3 * qd[9],
-                                    qd[9],
-                                )),
+                        math::mul_add(
+                            1.3,
+                            (math::mul_add(
+                                qd[11],
+                                qd[11],
+                                math::add_mul(qd[9] * qd[9], qd[10], qd[10]),
+                            )),
+                            math::mul_add(
+                                0.061333333333333344 * qd[6],
+                                qd[6],
+                                math::add_mul(
+                                    0.061333333333333344 * qd[0] * qd[0],
+                                    0.061333333333333344 * qd[3],
+                                    qd[3],
+                                ),
+                            ),
+                        ),
                         0.16000000000000003 * v31 * v31 * qd[2],
                         qd[2],
                     )
@@ -1467,12 +1449,7 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                             0.16000000000000003 * v35 * v35 * qd[5] * qd[5],
                             0.16000000000000003 * v39 * v39 * qd[8],
                             qd[8],
-                        )
-                        - math::add_mul(
-                            0.019999999999999997 * v18 * v12,
-                            0.019999999999999997 * v28,
-                            v22,
-                        ))))
+                        ) - math::add_mul(0.02 * v18 * v12, 0.02 * v28, v22))))
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
@@ -1487,8 +1464,8 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v7 = math::cos(q[5]);
         let v8 = math::cos(q[8]);
         math::add_mul(1.6186500000000001 * v3, 10.987200000000001, v4)
-            + math::add_mul(1.6186500000000001 * v5, 5.886000000000001 * v1, v6)
-            + (math::add_mul(5.886000000000001 * v3 * v7, 5.886000000000001 * v5, v8)
+            + math::add_mul(1.6186500000000001 * v5, 5.886 * v1, v6)
+            + (math::add_mul(5.886 * v3 * v7, 5.886 * v5, v8)
                 + (math::add_mul(25.506000000000004 * q[11], 10.987200000000001, v0)
                     + math::add_mul(1.6186500000000001 * v1, 10.987200000000001, v2)))
     }

@@ -82,9 +82,9 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             0.04000000000000001 * v0,
             v4,
         );
-        h[1] = math::sub_mul(0.004000000000000001 * v0 * v3 * v6, 0.08 * v2, v4)
+        h[1] = math::sub_mul(0.004 * v0 * v3 * v6, 0.08 * v2, v4)
             + math::sub_mul(
-                math::sub_mul(0.004000000000000001 * v1 * v2 * v6, 1.1772, v3),
+                math::sub_mul(0.004 * v1 * v2 * v6, 1.1772, v3),
                 0.08 * v3,
                 v5,
             );
@@ -195,11 +195,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             0.04000000000000001 * v0,
             v8,
         );
-        h[1] = math::mul_add(
-            0.004000000000000001 * v3,
-            v5,
-            math::sub_mul(0.004000000000000001 * v2 * v4, 1.1772, v3),
-        ) - math::add_mul(0.08 * v2 * v8, 0.08 * v3, v9);
+        h[1] = math::mul_add(0.004 * v3, v5, math::sub_mul(0.004 * v2 * v4, 1.1772, v3))
+            - math::add_mul(0.08 * v2 * v8, 0.08 * v3, v9);
         h[2] = 0.0;
         phi_q[(0, 0)] = -0.1 * v0;
         phi_q[(0, 1)] = -0.3 * v2;
@@ -236,18 +233,14 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             v4,
         );
         tau[1] = math::sub_mul(
-            math::add_mul(
-                0.004000000000000001 * v0 * v3 * v6,
-                0.004000000000000001 * v0 * v2,
-                qdd[0],
-            ),
+            math::add_mul(0.004 * v0 * v3 * v6, 0.004 * v0 * v2, qdd[0]),
             0.08 * v2,
             v4,
         )
             + math::sub_mul(
                 math::sub_mul(
-                    math::sub_mul(0.004000000000000001 * v1 * v2 * v6, 1.1772, v3),
-                    0.004000000000000001 * v1 * v3,
+                    math::sub_mul(0.004 * v1 * v2 * v6, 1.1772, v3),
+                    0.004 * v1 * v3,
                     qdd[0],
                 ),
                 0.08 * v3,
@@ -269,7 +262,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
         let v5 = math::sub_mul(0.1 * v1 * qd[0], 0.3 * v3, qd[1]);
         math::sub_mul(
             0.13333333333333333 * v4 * v4,
-            0.013333333333333336 * v0 * qd[0],
+            0.013333333333333334 * v0 * qd[0],
             v4,
         )
             + math::mul_add(
@@ -281,7 +274,7 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
                         0.6 * qd[2],
                         qd[2],
                     ),
-                    0.013333333333333336 * v1 * qd[0],
+                    0.013333333333333334 * v1 * qd[0],
                     v5,
                 ),
             )
@@ -320,11 +313,8 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             0.04000000000000001 * v0,
             v4,
         );
-        out[1] = math::add_mul(
-            0.004000000000000001 * v1 * v2 * v6,
-            0.004000000000000001 * v0 * v3,
-            v6,
-        ) - math::add_mul(0.08 * v2 * v4, 0.08 * v3, v5);
+        out[1] = math::add_mul(0.004 * v1 * v2 * v6, 0.004 * v0 * v3, v6)
+            - math::add_mul(0.08 * v2 * v4, 0.08 * v3, v5);
         out[2] = 0.0;
         true
     }
@@ -399,11 +389,11 @@ impl flexdyn_runtime::Model<3, 2, 1> for SliderCrank {
             v10,
         );
         h_q[(1, 0)] = math::sub_mul(0.012 * v7, 0.012, v6);
-        h_q[(1, 1)] = math::sub_mul(0.08 * v2 * v5, 0.004000000000000001, v6)
+        h_q[(1, 1)] = math::sub_mul(0.08 * v2 * v5, 0.004, v6)
             + math::sub_mul(
                 math::add_mul(
                     math::sub_mul(1.1772 * v2, 0.024 * qd[1], qd[1]),
-                    0.004000000000000001,
+                    0.004,
                     v7,
                 ),
                 0.08 * v3,

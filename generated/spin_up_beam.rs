@@ -10,12 +10,12 @@
 //   dynamics_terms                               24     52      0      1
 //   inverse_dynamics                             35     62      0      0
 //   actuator_forces                               0      0      0      0
-//   kinetic_energy                               15     33      0      0
-//   potential_energy                              3      8      0      0
+//   kinetic_energy                               15     34      0      0
+//   potential_energy                              3      9      0      0
 //   marker_pose (tip)                            13     26      0      3
 //   marker_jacobian (tip)                        19     41      0      3
 //   marker_motion (tip)                          29     47      0      2
-//   total                                       177    342      0     13
+//   total                                       177    344      0     13
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -416,57 +416,59 @@ impl flexdyn_runtime::Model<5, 1, 1> for SpinUpBeam {
     fn kinetic_energy(&self, q: &SVector<f64, 5>, qd: &SVector<f64, 5>, _t: f64) -> f64 {
         let v0 = q[1] * q[1];
         let v1 = q[3] * q[3];
-        math::sub_mul(
-            math::mul_add(
-                0.5 * qd[0] * qd[0],
-                (math::mul_add(
-                    1.0000000000000004,
-                    v1,
-                    math::add_mul(399.99999999999983, 1.0000000000000002, v0),
-                )),
-                math::add_mul(
-                    0.5000000000000003 * qd[4] * qd[4],
-                    qd[0],
-                    (math::sub_mul(
-                        19.704701741876853 * qd[1],
-                        3.1442527828646982,
-                        qd[3],
-                    )),
-                )
-                    + (math::add_mul(
-                        1000.0 * qd[0] * qd[0],
-                        0.5000000000000002 * qd[1],
-                        qd[1],
-                    )
-                        + math::add_mul(
-                            0.5000000000000004 * qd[2] * qd[2],
-                            0.5000000000000002 * qd[3],
-                            qd[3],
-                        )),
+        math::add_mul(
+            math::add_mul(
+                1000.0 * qd[0] * qd[0],
+                qd[0],
+                (math::sub_mul(19.704701741876853 * qd[1], 3.1442527828646982, qd[3])),
             ),
             0.5 * qd[0] * qd[0],
-            (math::add_mul(
-                1.3717084651066016 * q[1] * q[3],
-                1.3717084650890934 * q[2],
-                q[4],
-            )
-                + (math::add_mul(1.1933363815496156 * v0, 6.478223351576362, v1)
-                    + math::add_mul(
-                        1.1933363815470852 * q[2] * q[2],
-                        6.47822335157899 * q[4],
-                        q[4],
-                    ))),
+            (math::mul_add(
+                1.0000000000000004,
+                v1,
+                math::add_mul(399.99999999999983, 1.0000000000000002, v0),
+            )),
         )
+            + math::sub_mul(
+                0.5
+                    * (math::add_mul(
+                        1.0000000000000004 * qd[1] * qd[1],
+                        1.0000000000000009 * qd[2],
+                        qd[2],
+                    )
+                        + math::add_mul(
+                            1.0000000000000004 * qd[3] * qd[3],
+                            1.0000000000000007 * qd[4],
+                            qd[4],
+                        )),
+                0.5 * qd[0] * qd[0],
+                (math::add_mul(
+                    1.3717084651066016 * q[1] * q[3],
+                    1.3717084650890934 * q[2],
+                    q[4],
+                )
+                    + (math::add_mul(1.1933363815496156 * v0, 6.478223351576362, v1)
+                        + math::add_mul(
+                            1.1933363815470852 * q[2] * q[2],
+                            6.47822335157899 * q[4],
+                            q[4],
+                        ))),
+            )
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
     fn potential_energy(&self, q: &SVector<f64, 5>, _t: f64) -> f64 {
-        math::add_mul(7.21139096453606 * q[1] * q[1], 283.2380592971312 * q[3], q[3])
-            + math::add_mul(
-                7.211390964540686 * q[2] * q[2],
-                283.23805929712864 * q[4],
-                q[4],
+        0.5
+            * (math::add_mul(
+                14.42278192907212 * q[1] * q[1],
+                566.4761185942624 * q[3],
+                q[3],
             )
+                + math::add_mul(
+                    14.422781929081372 * q[2] * q[2],
+                    566.4761185942573 * q[4],
+                    q[4],
+                ))
     }
     const PARAMETERS: &'static [&'static str] = &["phase"];
     fn set_parameter(&mut self, name: &str, value: f64) -> bool {

@@ -97,14 +97,12 @@ impl Graph {
         std::array::from_fn(|i| self.row_dot([r[0][i], r[1][i], r[2][i]], v))
     }
 
-    /// `a . v`, numeric entries of `a` as the coefficients of one sum. A
-    /// row of three non-zero entries (a turn about no axis of the frame: a
-    /// tilt) keeps the sums of more than two terms it scales as terms: each
-    /// of the three rows would otherwise repeat every term of the vector's
-    /// components (measured: the Unitree G1's inverse dynamics, with its
-    /// shoulders tilted, 5,983 operations opened, 5,038 kept), where a turn
-    /// about an axis of the frame mixes two components and opening lets
-    /// their terms collect (keeping them cost the flexible robots 0.5 %).
+    /// `a . v`, numeric entries of `a` as the coefficients of one sum (which
+    /// keeps the sums of more than two terms it scales as terms, see
+    /// `SCALED_MAX_TERMS` in [`crate::expr`]: a tilt's three rows would
+    /// otherwise repeat every term of the vector's components; measured on
+    /// the Unitree G1's inverse dynamics, with its shoulders tilted, 5,983
+    /// operations opened, 5,038 kept).
     fn row_dot(&mut self, a: [Id; 3], v: [Id; 3]) -> Id {
         let mut terms: Vec<(Id, f64)> = Vec::with_capacity(3);
         for k in 0..3 {
@@ -116,11 +114,7 @@ impl Graph {
                 }
             }
         }
-        if terms.iter().all(|t| t.1 != 0.0) {
-            self.linear_opening(&terms, 0.0, 2)
-        } else {
-            self.linear(&terms, 0.0)
-        }
+        self.linear(&terms, 0.0)
     }
 
     /// `A B`.

@@ -10,9 +10,9 @@
 //   dynamics_terms                              147    294      0      9
 //   inverse_dynamics                            118    210      0      9
 //   actuator_forces                               0      0      0      0
-//   kinetic_energy                               53    123      0      9
+//   kinetic_energy                               53    121      0      9
 //   potential_energy                              9     13      0      9
-//   total                                       566   1127      0     90
+//   total                                       566   1125      0     90
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -883,9 +883,10 @@ impl flexdyn_runtime::Model<12, 9, 3, f32> for ParallelRobotRigid {
                     + (0.02 * v29 * v23 + 0.3 * v28 * v28))
                 + (0.3 * v29 * v29 + 0.25 * v28 * v40
                     + (0.25 * v29 * v41 - 0.02 * v8 * v2)
-                    + (1.3 * qd[10] * qd[10] + 1.3 * qd[11] * qd[11]
-                        + (0.061333332 * qd[0] * qd[0] + 0.061333332 * qd[3] * qd[3]
-                            + (0.061333332 * qd[6] * qd[6] + 1.3 * qd[9] * qd[9]))
+                    + (1.3 * (qd[11] * qd[11] + (qd[9] * qd[9] + qd[10] * qd[10]))
+                        + (0.061333332 * qd[6] * qd[6]
+                            + (0.061333332 * qd[0] * qd[0]
+                                + 0.061333332 * qd[3] * qd[3]))
                         + 0.16 * v31 * v31 * qd[2] * qd[2]
                         + (0.16 * v35 * v35 * qd[5] * qd[5]
                             + 0.16 * v39 * v39 * qd[8] * qd[8])

@@ -10,12 +10,12 @@
 //   dynamics_terms                               24     52      0      1
 //   inverse_dynamics                             35     62      0      0
 //   actuator_forces                               0      0      0      0
-//   kinetic_energy                               15     33      0      0
-//   potential_energy                              3      8      0      0
+//   kinetic_energy                               15     34      0      0
+//   potential_energy                              3      9      0      0
 //   marker_pose (tip)                            13     26      0      3
 //   marker_jacobian (tip)                        19     41      0      3
 //   marker_motion (tip)                          29     47      0      2
-//   total                                       177    342      0     13
+//   total                                       177    344      0     13
 // (constraints_and_jacobian computes constraints and constraint_jacobian in one program,
 // dynamics_terms mass_matrix, bias, constraint_jacobian and constraint_rhs)
 
@@ -258,20 +258,22 @@ impl flexdyn_runtime::Model<5, 1, 1, f32> for SpinUpBeam {
     fn kinetic_energy(&self, q: &SVector<f32, 5>, qd: &SVector<f32, 5>, _t: f32) -> f32 {
         let v0 = q[1] * q[1];
         let v1 = q[3] * q[3];
-        0.5 * qd[0] * qd[0] * (1.0 * v1 + (400.0 + 1.0 * v0))
-            + (0.5 * qd[4] * qd[4] + qd[0] * (19.704702 * qd[1] - 3.1442528 * qd[3])
-                + (1000.0 * qd[0] * qd[0] + 0.5 * qd[1] * qd[1]
-                    + (0.5 * qd[2] * qd[2] + 0.5 * qd[3] * qd[3])))
-            - 0.5 * qd[0] * qd[0]
-                * (1.3717085 * q[1] * q[3] + 1.3717085 * q[2] * q[4]
-                    + (1.1933364 * v0 + 6.4782233 * v1
-                        + (1.1933364 * q[2] * q[2] + 6.4782233 * q[4] * q[4])))
+        1000.0 * qd[0] * qd[0] + qd[0] * (19.704702 * qd[1] - 3.1442528 * qd[3])
+            + 0.5 * qd[0] * qd[0] * (1.0 * v1 + (400.0 + 1.0 * v0))
+            + (0.5
+                * (1.0 * qd[1] * qd[1] + 1.0 * qd[2] * qd[2]
+                    + (1.0 * qd[3] * qd[3] + 1.0 * qd[4] * qd[4]))
+                - 0.5 * qd[0] * qd[0]
+                    * (1.3717085 * q[1] * q[3] + 1.3717085 * q[2] * q[4]
+                        + (1.1933364 * v0 + 6.4782233 * v1
+                            + (1.1933364 * q[2] * q[2] + 6.4782233 * q[4] * q[4]))))
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]
     fn potential_energy(&self, q: &SVector<f32, 5>, _t: f32) -> f32 {
-        7.211391 * q[1] * q[1] + 283.23807 * q[3] * q[3]
-            + (7.211391 * q[2] * q[2] + 283.23807 * q[4] * q[4])
+        0.5
+            * (14.422782 * q[1] * q[1] + 566.47614 * q[3] * q[3]
+                + (14.422782 * q[2] * q[2] + 566.47614 * q[4] * q[4]))
     }
     const PARAMETERS: &'static [&'static str] = &["phase"];
     fn set_parameter(&mut self, name: &str, value: f32) -> bool {
