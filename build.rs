@@ -40,11 +40,12 @@ fn main() {
             // program).
             .scene("scenes/cart_pole.toml")
             .perturb_coefficient("cart_pole", "inverse_dynamics_derivatives", 12, 1e-6)
-            // Coefficient 55 of the double pendulum's
-            // forward_dynamics_derivatives is the second -0.336 of a sum
-            // read only by `d qdd/dqd`.
+            // Coefficient 51 of the double pendulum's
+            // forward_dynamics_derivatives is in a sum read only by
+            // `d qdd/dqd` (perturbing each coefficient of its tape in turn:
+            // 50 to 53 and 63 to 66 change entries of `d qdd/dqd` alone).
             .scene("scenes/double_pendulum.toml")
-            .perturb_coefficient("double_pendulum", "forward_dynamics_derivatives", 55, 1e-6)
+            .perturb_coefficient("double_pendulum", "forward_dynamics_derivatives", 51, 1e-6)
             .out_dir(out.join("perturbed"))
             .generate()
     });
