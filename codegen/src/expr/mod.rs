@@ -8,9 +8,10 @@
 //!   term, with like terms collected and zero terms dropped; a short sum
 //!   added to another is merged into it, a long one (more than
 //!   `FLATTEN_MAX_TERMS`, 8, terms) stays one term, a shared partial sum,
-//!   unless it has a term in common with the rest (then it is opened, so
-//!   that `a + b - a` is still `b`) or is only scaled
-//!   ([`Graph::linear_opening`] keeps scaled short sums too);
+//!   and so does a sum of more than `SCALED_MAX_TERMS`, 2, added with a
+//!   coefficient other than `+-1`, unless it has a term in common with the
+//!   rest (then it is opened, so that `a + b - a` is still `b`) or is the
+//!   only term, unscaled;
 //! * products are flat lists of `base ^ integer exponent`, sorted by base,
 //!   with equal bases merged; numeric factors move to the enclosing sum;
 //! * operations on constants are folded.
@@ -338,7 +339,7 @@ impl Graph {
         let mut constant = constant;
         let mut magnitude = constant.abs();
         let mut flat: Vec<(Id, f64)> = Vec::with_capacity(terms.len());
-        // A sum that is the only term is opened when it is not scaled.
+        // A sum that is the only term is opened when its coefficient is +-1.
         let single = terms
             .iter()
             .filter(|&&(id, c)| c != 0.0 && !matches!(self.node(id), Node::Const(_)))
