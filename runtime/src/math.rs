@@ -228,11 +228,28 @@ mod inline {
         )
     }
 
-    /// [`super::sin_cos_array`], two lanes at a time ([`Pair`]).
+    /// [`super::sin_cos_array`]: up to [`ALL_AT_ONCE`] lanes as one
+    /// [`Many`] (straight-line code, the compiler pairing the lanes into
+    /// SIMD instructions), more two at a time ([`Pair`]) in a loop (less
+    /// code for long batches).
+    ///
+    /// Short batches used the loop too until 2026-11-28. Where the
+    /// compiler left a loop of three or more pairs rolled, it ran the lanes
+    /// as scalars and passed the results through the stack, and the
+    /// generated programs that called it ran up to 2x slower. The Panda's
+    /// inverse dynamics, in a binary holding only that robot, took 265 ns
+    /// with the loop and 134 ns with [`Many`]; TIAGo's and Solo12's forward
+    /// dynamics ran about 30 % faster. TALOS's programs (27 angles) ran 8 %
+    /// to 10 % slower with one [`Many`] than with the loop
+    /// (docs/benchmarks.md).
     #[inline(always)]
     pub(super) fn sin_cos_array<const N: usize>(x: [f64; N]) -> [(f64, f64); N] {
         if !x.iter().all(|x| x.abs() <= REDUCED) {
             return x.map(sin_cos_out_of_line);
+        }
+        if N <= ALL_AT_ONCE {
+            let (s, c) = sin_cos_lanes(Many(x));
+            return core::array::from_fn(|i| (s.0[i], c.0[i]));
         }
         let mut out = [(0.0, 0.0); N];
         for (x, out) in x.chunks_exact(2).zip(out.chunks_exact_mut(2)) {
@@ -244,6 +261,57 @@ mod inline {
             out[N - 1] = sin_cos_lanes(x[N - 1]);
         }
         out
+    }
+
+    /// Most lanes that [`sin_cos_array`] computes as one [`Many`].
+    const ALL_AT_ONCE: usize = 16;
+
+    /// `N` lanes, operated on element by element.
+    #[derive(Clone, Copy)]
+    struct Many<const N: usize>([f64; N]);
+
+    impl<const N: usize> core::ops::Add for Many<N> {
+        type Output = Self;
+        #[inline(always)]
+        fn add(self, o: Self) -> Self {
+            Many(core::array::from_fn(|i| self.0[i] + o.0[i]))
+        }
+    }
+    impl<const N: usize> core::ops::Sub for Many<N> {
+        type Output = Self;
+        #[inline(always)]
+        fn sub(self, o: Self) -> Self {
+            Many(core::array::from_fn(|i| self.0[i] - o.0[i]))
+        }
+    }
+    impl<const N: usize> core::ops::Mul for Many<N> {
+        type Output = Self;
+        #[inline(always)]
+        fn mul(self, o: Self) -> Self {
+            Many(core::array::from_fn(|i| self.0[i] * o.0[i]))
+        }
+    }
+    impl<const N: usize> Lanes for Many<N> {
+        #[inline(always)]
+        fn splat(x: f64) -> Self {
+            Many([x; N])
+        }
+        #[inline(always)]
+        fn xor(self, o: Self) -> Self {
+            Many(core::array::from_fn(|i| self.0[i].xor(o.0[i])))
+        }
+        #[inline(always)]
+        fn and(self, o: Self) -> Self {
+            Many(core::array::from_fn(|i| self.0[i].and(o.0[i])))
+        }
+        #[inline(always)]
+        fn odd_mask(self) -> Self {
+            Many(self.0.map(Lanes::odd_mask))
+        }
+        #[inline(always)]
+        fn sign_of_quadrant(self, offset: u64) -> Self {
+            Many(self.0.map(|x| x.sign_of_quadrant(offset)))
+        }
     }
 
     /// One lane of [`sin_cos_array`] when some lane is not reduced inline:
@@ -262,7 +330,8 @@ mod inline {
 
 /// Sines and cosines of several arguments, lane by lane bitwise
 /// [`sin_cos`]. On x86-64 and AArch64 computed inline, two lanes per SIMD
-/// instruction; generated code computes the sines and cosines of all its
+/// instruction (straight-line code for up to 16 lanes, a loop over pairs
+/// for more); generated code computes the sines and cosines of all its
 /// angles that depend on the inputs only in one call. Elsewhere (e.g. a
 /// Cortex-M, whose `f64` arithmetic is emulated in software) `libm`'s
 /// `sincos` lane by lane.
@@ -538,6 +607,18 @@ mod tests {
         }
         for (sc, i) in inline.iter().zip([0, 1, 3, 5]) {
             assert_eq!(bits(*sc), bits(all[i]));
+        }
+        // Batches of every size take one of two paths (all lanes at once, or
+        // two at a time in a loop past `ALL_AT_ONCE`): the same bits.
+        let many: [f64; 21] = core::array::from_fn(|i| (i as f64 - 10.0) * 0.77 + 0.01);
+        let long = sin_cos_array(many);
+        let short = sin_cos_array::<3>(core::array::from_fn(|i| many[i]));
+        let sixteen = sin_cos_array::<16>(core::array::from_fn(|i| many[i]));
+        for (i, &x) in many.iter().enumerate() {
+            assert_eq!(bits(long[i]), bits(sin_cos(x)), "{x}");
+        }
+        for (i, sc) in short.iter().enumerate().chain(sixteen.iter().enumerate()) {
+            assert_eq!(bits(*sc), bits(long[i]));
         }
     }
 
