@@ -51,10 +51,11 @@ def main(argv: list[str]) -> int:
     out_dir, name = Path(argv[2]), argv[3]
     nq = len(export["coordinates"])
     npar = len(export["runtime_parameters"])
-    func, shapes = validate.derive(export, False, False)
+    func, shapes = validate.derive(export, False, False, False)
     q, qd, qdd = ca.SX.sym("q", nq), ca.SX.sym("qd", nq), ca.SX.sym("qdd", nq)
+    tau = ca.SX.sym("tau", len(export["actuators"]))
     t, p = ca.SX.sym("t"), ca.SX.sym("p", npar)
-    terms = dict(zip([n for n, _ in shapes], func(q, qd, qdd, t, p)))
+    terms = dict(zip([n for n, _ in shapes], func(q, qd, qdd, tau, t, p)))
     wanted = ["mass_matrix", "bias", "constraint_jacobian", "constraint_rhs"]
     f = ca.Function(f"{name}_terms", [q, qd, t, p], [ca.densify(terms[w]) for w in wanted],
                     ["q", "qd", "t", "p"], ["M", "h", "phi_q", "gamma"], {"cse": True})
