@@ -131,49 +131,49 @@ mod inline {
         }
     }
 
-    /// Two `f64` lanes, operated on element by element: the compiler makes one
-    /// SIMD instruction of each operation where the target has them (SSE2 on
-    /// every x86-64 target, NEON on AArch64).
+    /// `N` `f64` lanes, operated on element by element: the compiler makes
+    /// one SIMD instruction of each two lanes' operation where the target
+    /// has them (SSE2 on every x86-64 target, NEON on AArch64).
     #[derive(Clone, Copy)]
-    struct Pair([f64; 2]);
+    struct Many<const N: usize>([f64; N]);
 
-    macro_rules! pair_operators {
+    macro_rules! lane_operators {
         ($($trait:ident $method:ident;)*) => {$(
-            impl core::ops::$trait for Pair {
-                type Output = Pair;
+            impl<const N: usize> core::ops::$trait for Many<N> {
+                type Output = Self;
                 #[inline(always)]
-                fn $method(self, o: Pair) -> Pair {
-                    Pair([self.0[0].$method(o.0[0]), self.0[1].$method(o.0[1])])
+                fn $method(self, o: Self) -> Self {
+                    Many(core::array::from_fn(|i| self.0[i].$method(o.0[i])))
                 }
             }
         )*};
     }
-    pair_operators! {
+    lane_operators! {
         Add add;
         Sub sub;
         Mul mul;
     }
 
-    impl Lanes for Pair {
+    impl<const N: usize> Lanes for Many<N> {
         #[inline(always)]
         fn splat(x: f64) -> Self {
-            Pair([x, x])
+            Many([x; N])
         }
         #[inline(always)]
         fn xor(self, o: Self) -> Self {
-            Pair([self.0[0].xor(o.0[0]), self.0[1].xor(o.0[1])])
+            Many(core::array::from_fn(|i| self.0[i].xor(o.0[i])))
         }
         #[inline(always)]
         fn and(self, o: Self) -> Self {
-            Pair([self.0[0].and(o.0[0]), self.0[1].and(o.0[1])])
+            Many(core::array::from_fn(|i| self.0[i].and(o.0[i])))
         }
         #[inline(always)]
         fn odd_mask(self) -> Self {
-            Pair(self.0.map(Lanes::odd_mask))
+            Many(self.0.map(Lanes::odd_mask))
         }
         #[inline(always)]
         fn sign_of_quadrant(self, offset: u64) -> Self {
-            Pair(self.0.map(|x| x.sign_of_quadrant(offset)))
+            Many(self.0.map(|x| x.sign_of_quadrant(offset)))
         }
     }
 
@@ -230,7 +230,7 @@ mod inline {
 
     /// [`super::sin_cos_array`]: up to [`ALL_AT_ONCE`] lanes as one
     /// [`Many`] (straight-line code, the compiler pairing the lanes into
-    /// SIMD instructions), more two at a time ([`Pair`]) in a loop (less
+    /// SIMD instructions), more two at a time (`Many<2>`) in a loop (less
     /// code for long batches).
     ///
     /// Short batches used the loop too until 2026-11-28. Where the
@@ -253,7 +253,7 @@ mod inline {
         }
         let mut out = [(0.0, 0.0); N];
         for (x, out) in x.chunks_exact(2).zip(out.chunks_exact_mut(2)) {
-            let (s, c) = sin_cos_lanes(Pair([x[0], x[1]]));
+            let (s, c) = sin_cos_lanes(Many([x[0], x[1]]));
             out[0] = (s.0[0], c.0[0]);
             out[1] = (s.0[1], c.0[1]);
         }
@@ -265,54 +265,6 @@ mod inline {
 
     /// Most lanes that [`sin_cos_array`] computes as one [`Many`].
     const ALL_AT_ONCE: usize = 16;
-
-    /// `N` lanes, operated on element by element.
-    #[derive(Clone, Copy)]
-    struct Many<const N: usize>([f64; N]);
-
-    impl<const N: usize> core::ops::Add for Many<N> {
-        type Output = Self;
-        #[inline(always)]
-        fn add(self, o: Self) -> Self {
-            Many(core::array::from_fn(|i| self.0[i] + o.0[i]))
-        }
-    }
-    impl<const N: usize> core::ops::Sub for Many<N> {
-        type Output = Self;
-        #[inline(always)]
-        fn sub(self, o: Self) -> Self {
-            Many(core::array::from_fn(|i| self.0[i] - o.0[i]))
-        }
-    }
-    impl<const N: usize> core::ops::Mul for Many<N> {
-        type Output = Self;
-        #[inline(always)]
-        fn mul(self, o: Self) -> Self {
-            Many(core::array::from_fn(|i| self.0[i] * o.0[i]))
-        }
-    }
-    impl<const N: usize> Lanes for Many<N> {
-        #[inline(always)]
-        fn splat(x: f64) -> Self {
-            Many([x; N])
-        }
-        #[inline(always)]
-        fn xor(self, o: Self) -> Self {
-            Many(core::array::from_fn(|i| self.0[i].xor(o.0[i])))
-        }
-        #[inline(always)]
-        fn and(self, o: Self) -> Self {
-            Many(core::array::from_fn(|i| self.0[i].and(o.0[i])))
-        }
-        #[inline(always)]
-        fn odd_mask(self) -> Self {
-            Many(self.0.map(Lanes::odd_mask))
-        }
-        #[inline(always)]
-        fn sign_of_quadrant(self, offset: u64) -> Self {
-            Many(self.0.map(|x| x.sign_of_quadrant(offset)))
-        }
-    }
 
     /// One lane of [`sin_cos_array`] when some lane is not reduced inline:
     /// [`super::sin_cos`] for the lanes that are, `libm`'s `sincos` for the
