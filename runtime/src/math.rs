@@ -137,13 +137,21 @@ mod inline {
     #[derive(Clone, Copy)]
     struct Many<const N: usize>([f64; N]);
 
+    impl<const N: usize> Many<N> {
+        /// `f` of the two operands' lanes, lane by lane.
+        #[inline(always)]
+        fn zip(self, o: Self, f: impl Fn(f64, f64) -> f64) -> Self {
+            Many(core::array::from_fn(|i| f(self.0[i], o.0[i])))
+        }
+    }
+
     macro_rules! lane_operators {
         ($($trait:ident $method:ident;)*) => {$(
             impl<const N: usize> core::ops::$trait for Many<N> {
                 type Output = Self;
                 #[inline(always)]
                 fn $method(self, o: Self) -> Self {
-                    Many(core::array::from_fn(|i| self.0[i].$method(o.0[i])))
+                    self.zip(o, <f64 as core::ops::$trait>::$method)
                 }
             }
         )*};
@@ -161,11 +169,11 @@ mod inline {
         }
         #[inline(always)]
         fn xor(self, o: Self) -> Self {
-            Many(core::array::from_fn(|i| self.0[i].xor(o.0[i])))
+            self.zip(o, Lanes::xor)
         }
         #[inline(always)]
         fn and(self, o: Self) -> Self {
-            Many(core::array::from_fn(|i| self.0[i].and(o.0[i])))
+            self.zip(o, Lanes::and)
         }
         #[inline(always)]
         fn odd_mask(self) -> Self {
