@@ -368,6 +368,25 @@ pub fn vector(n: usize, f: impl FnOnce(&mut [f64])) -> DVector<f64> {
     v
 }
 
+/// What a failed factorisation of the mass matrix says about `model`'s
+/// coordinates: `" (coordinate `c`: ...)"` for a pivot that is not positive,
+/// empty for any other error.
+pub fn no_mass_hint(model: &dyn DynModel, e: &flexdyn_runtime::Error) -> String {
+    match e.kind {
+        flexdyn_runtime::ErrorKind::MassMatrixNotPositiveDefinite { pivot, .. } => model
+            .coordinates()
+            .get(pivot)
+            .map(|c| {
+                format!(
+                    " (coordinate `{c}`: no mass or inertia moves with it apart from the \
+                     coordinates before it)"
+                )
+            })
+            .unwrap_or_default(),
+        _ => String::new(),
+    }
+}
+
 /// A model with its dimensions as const parameters.
 pub struct Erased<M, const NQ: usize, const NC: usize, const NU: usize>(pub M);
 

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use std::collections::BTreeMap;
 
-use crate::dynamic::{matrix, vector, DynModel, Fused, IdDerivatives, MarkerPose};
+use crate::dynamic::{matrix, no_mass_hint, vector, DynModel, Fused, IdDerivatives, MarkerPose};
 use nalgebra::{DMatrix, DVector, Dyn};
 
 /// One state to evaluate at.
@@ -109,6 +109,12 @@ pub struct Terms {
     /// (`M qdd - Phi_q^T lambda = B tau - h`, `Phi_q qdd = gamma`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub forward_dynamics: Option<Vec<f64>>,
+    /// Why the forward dynamics (and their derivatives) are left out at this
+    /// state: the runtime's error, e.g. a mass matrix that is not positive
+    /// definite because a coordinate moves no mass (the other terms are
+    /// still written).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forward_dynamics_error: Option<String>,
     /// `d qdd / d q` of the forward dynamics, for a scene that generates
     /// `dynamics_derivatives`.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -303,9 +309,13 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         s.tau.clone()
     };
     let generated = id_derivatives.is_some();
-    let forward = (nc == 0 || generated)
+    let (forward, forward_dynamics_error) = match (nc == 0 || generated)
         .then(|| forward_dynamics(model, q, qd, t, &tau, generated))
-        .transpose()?;
+        .transpose()
+    {
+        Ok(forward) => (forward, None),
+        Err(e) => (None, Some(e)),
+    };
     let derivatives = forward.as_ref().and_then(|f| f.derivatives.as_ref());
     let constrained = derivatives.filter(|_| nc > 0);
     let terms = Terms {
@@ -338,6 +348,7 @@ pub fn evaluate(model: &mut dyn DynModel, s: &State) -> Result<Terms, String> {
         inverse_dynamics_q: id_derivatives.as_ref().map(|(_, a, _)| rows(a)),
         inverse_dynamics_qd: id_derivatives.as_ref().map(|(.., b)| rows(b)),
         forward_dynamics: forward.as_ref().map(|f| f.qdd.as_slice().to_vec()),
+        forward_dynamics_error,
         forward_dynamics_q: derivatives.map(|d| rows(&d.qdd_q)),
         forward_dynamics_qd: derivatives.map(|d| rows(&d.qdd_qd)),
         forward_dynamics_tau: derivatives.map(|d| rows(&d.qdd_tau)),
@@ -388,7 +399,7 @@ fn forward_dynamics(
         DVector::from_column_slice(qd),
     );
     let tau = DVector::from_column_slice(tau);
-    let failed = |e: flexdyn_runtime::Error| format!("forward dynamics: {e}");
+    let failed = |e: flexdyn_runtime::Error| format!("{e}{}", no_mass_hint(model, &e));
     if derivatives {
         let d = flexdyn_runtime::forward_dynamics_derivatives(model, &q, &qd, t, &tau)
             .map_err(failed)?;

@@ -200,21 +200,21 @@ fn import_refuses_bad_urdf_and_writes_nothing() {
     );
 }
 
+/// A scene whose coordinate `b` turns a massless body: its mass matrix is
+/// singular at every state.
+const MASSLESS: &str = "name = \"massless\"\n[[coordinates]]\nname = \"a\"\n\
+    [[coordinates]]\nname = \"b\"\n\
+    [[frames]]\nname = \"f\"\nrotation = [{ axis = \"z\", angle = \"a\" }]\n\
+    [[frames]]\nname = \"g\"\nparent = \"f\"\ntranslation = [1, 0, 0]\n\
+    rotation = [{ axis = \"y\", angle = \"b\" }]\n\
+    [[components]]\ntype = \"rigid_body\"\nframe = \"f\"\nmass = 1\ninertia = [1, 1, 1]\n\
+    [[components]]\ntype = \"rigid_body\"\nframe = \"g\"\nmass = 0\ninertia = [0, 0, 0]\n";
+
 #[test]
 fn simulate_names_a_coordinate_that_moves_no_mass() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // `b` turns a massless body.
-    std::fs::write(
-        d.join("massless.toml"),
-        "name = \"massless\"\n[[coordinates]]\nname = \"a\"\n[[coordinates]]\nname = \"b\"\n\
-         [[frames]]\nname = \"f\"\nrotation = [{ axis = \"z\", angle = \"a\" }]\n\
-         [[frames]]\nname = \"g\"\nparent = \"f\"\ntranslation = [1, 0, 0]\n\
-         rotation = [{ axis = \"y\", angle = \"b\" }]\n\
-         [[components]]\ntype = \"rigid_body\"\nframe = \"f\"\nmass = 1\ninertia = [1, 1, 1]\n\
-         [[components]]\ntype = \"rigid_body\"\nframe = \"g\"\nmass = 0\ninertia = [0, 0, 0]\n",
-    )
-    .unwrap();
+    std::fs::write(d.join("massless.toml"), MASSLESS).unwrap();
     // (simulate prints its integrator first, so not `refused`.)
     let (code, err) = cli::run(&[
         "simulate",
@@ -233,4 +233,96 @@ fn simulate_names_a_coordinate_that_moves_no_mass() {
     );
     assert!(!err.contains("panicked"), "{err}");
     assert!(!d.join("out.csv").exists());
+}
+
+/// `eval` of a scene without forward dynamics writes every other term, and
+/// says at each state why the forward dynamics are left out.
+#[test]
+fn eval_leaves_out_the_forward_dynamics_of_a_coordinate_that_moves_no_mass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("massless.toml"), MASSLESS).unwrap();
+    std::fs::write(
+        d.join("states.json"),
+        r#"{"states": [{"q": [0.1, 0.2], "qd": [0.3, 0.4], "t": 0}, {"q": [1, 2], "qd": [0, 0], "t": 0}]}"#,
+    )
+    .unwrap();
+    let (code, err) = cli::run(&[
+        "eval",
+        "--scene",
+        &p(d, "massless.toml"),
+        "--states",
+        &p(d, "states.json"),
+        "--out",
+        &p(d, "out.json"),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("warning: the forward dynamics are left out at 2 of 2 states"),
+        "{err}"
+    );
+    let out: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("out.json")).unwrap()).unwrap();
+    for r in out["results"].as_array().unwrap() {
+        assert!(r.get("forward_dynamics").is_none(), "{r}");
+        let why = r["forward_dynamics_error"].as_str().unwrap();
+        assert!(why.contains("coordinate `b`: no mass or inertia"), "{why}");
+        // The mass matrix is there, with `b`'s row zero.
+        assert_eq!(r["mass_matrix"][1], serde_json::json!([0.0, 0.0]), "{r}");
+        assert!(r["mass_matrix"][0][0].as_f64().unwrap() > 0.0, "{r}");
+    }
+}
+
+/// The URDF import names the joints that move no mass (a massless finger).
+#[test]
+fn import_notes_joints_that_move_no_mass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let link = |name: &str, mass: f64| {
+        format!(
+            "<link name=\"{name}\"><inertial><mass value=\"{mass}\"/>\
+             <inertia ixx=\"{mass}\" ixy=\"0\" ixz=\"0\" iyy=\"{mass}\" iyz=\"0\" izz=\"{mass}\"/>\
+             </inertial></link>"
+        )
+    };
+    let joint = |name: &str, parent: &str, child: &str| {
+        format!(
+            "<joint name=\"{name}\" type=\"revolute\"><parent link=\"{parent}\"/>\
+             <child link=\"{child}\"/><origin xyz=\"0.1 0 0\"/><axis xyz=\"0 0 1\"/>\
+             <limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/></joint>"
+        )
+    };
+    let urdf = format!(
+        "<robot name=\"hand\">{}{}{}{}{}</robot>",
+        link("base", 1.0),
+        link("palm", 1.0),
+        link("finger", 0.0),
+        joint("wrist", "base", "palm"),
+        joint("knuckle", "palm", "finger"),
+    );
+    std::fs::write(d.join("hand.urdf"), urdf).unwrap();
+    let (code, err) = cli::run(&[
+        "import",
+        "urdf",
+        &p(d, "hand.urdf"),
+        "--out",
+        &p(d, "hand.toml"),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("note: 1 of the 2 coordinates move no mass or inertia (`knuckle`)"),
+        "{err}"
+    );
+    // Held fixed, the finger is part of the palm: nothing to note.
+    let (code, err) = cli::run(&[
+        "import",
+        "urdf",
+        &p(d, "hand.urdf"),
+        "--fix",
+        "knuckle",
+        "--out",
+        &p(d, "held.toml"),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!err.contains("note"), "{err}");
 }

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use quote::quote;
 
-use crate::checks::{energy_signs, f32_literals, largest_component};
+use crate::checks::{energy_signs, f32_literals, largest_component, massless_coordinates};
 use crate::derive::{derive, Equations};
 use crate::emit::{emit, struct_name, CoefficientPerturbation, FunctionReport};
 use crate::emit_c::CInterface;
@@ -88,6 +88,9 @@ impl Model {
             return Err(error("the equations of motion", overflow_message(&what)));
         }
         energy_signs(self).map_err(|f| error(&f.context, f.message))?;
+        if let Some(note) = massless_coordinates(self, &eq) {
+            self.notes.push(note);
+        }
         // A mass matrix singular by construction (a coordinate that moves
         // no mass: a zero pivot, `1 / 0`) has no forward dynamics to
         // generate; the runtime's factorisation reports it.

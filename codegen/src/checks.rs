@@ -2,8 +2,10 @@
 //! derivation whose constants overflow `f64`, and `energy` components whose
 //! kinetic energy or dissipation decreases along a velocity (a negative
 //! mass, a damper that feeds energy in) at the sample states of pruning,
-//! and the literals of an `f32` module outside `f32`'s normal range.
+//! the literals of an `f32` module outside `f32`'s normal range, and the
+//! coordinates of an unconstrained scene that move no mass.
 
+use crate::derive::Equations;
 use crate::expr::{Graph, Id, Node, Symbol};
 use crate::model::{Component, Model};
 use crate::samples::Samples;
@@ -99,6 +101,33 @@ pub(crate) fn energy_signs(model: &mut Model) -> Result<(), Failure> {
         }
     }
     Ok(())
+}
+
+/// A note naming the coordinates of an unconstrained scene whose diagonal
+/// entry of the mass matrix is identically zero (no mass or inertia moves
+/// with them: a URDF's massless fingers): its mass matrix is singular at
+/// every state, so it has no forward dynamics. A constrained scene's
+/// constraints may still determine such a coordinate.
+pub(crate) fn massless_coordinates(model: &Model, eq: &Equations) -> Option<String> {
+    if !model.constraints.is_empty() {
+        return None;
+    }
+    let zero = |id: Id| matches!(model.graph.node(id), Node::Const(k) if k.get() == 0.0);
+    let names: Vec<String> = (0..eq.mass.len())
+        .filter(|&i| zero(eq.mass[i][i]))
+        .map(|i| format!("`{}`", model.coordinates[i].name))
+        .collect();
+    (!names.is_empty()).then(|| {
+        format!(
+            "{} of the {} coordinates move no mass or inertia ({}): the mass matrix is \
+             singular at every state, so the scene has no forward dynamics (`simulate` stops, \
+             `eval` leaves them out); give them inertia (a body, or an actuator's `armature`) \
+             or hold them fixed (`flexdyn import urdf --fix JOINT`)",
+            names.len(),
+            eq.mass.len(),
+            names.join(", ")
+        )
+    })
 }
 
 /// The literals of `code`, coefficients and constants of sums included.

@@ -77,6 +77,19 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
         }
         results.push(evaluate(model.as_mut(), s).map_err(|e| format!("state {k}: {e}"))?);
     }
+    let undefined: Vec<(usize, &String)> = results
+        .iter()
+        .enumerate()
+        .filter_map(|(k, r)| r.forward_dynamics_error.as_ref().map(|e| (k, e)))
+        .collect();
+    if let Some((k, e)) = undefined.first() {
+        eprintln!(
+            "warning: the forward dynamics are left out at {} of {} states \
+             (`forward_dynamics_error` in each); state {k}: {e}",
+            undefined.len(),
+            results.len()
+        );
+    }
     let json = serde_json::json!({ "scene": parsed.name, "results": results });
     let text = serde_json::to_string(&json).map_err(|e| e.to_string())?;
     match &args.out {

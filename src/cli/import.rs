@@ -61,11 +61,17 @@ pub fn run(args: &Args) -> Result<(), String> {
         outputs: args.outputs.clone(),
     };
     let scene = import_urdf(&Source::new(&args.urdf, text), &options).map_err(|e| e.to_string())?;
-    Model::from_source(&Source::new(&args.out, scene.clone())).map_err(|e| {
+    let not_loaded = |e: crate::codegen::Error| {
         format!(
             "the scene imported from {} does not load (not written): {e}",
             args.urdf.display()
         )
-    })?;
+    };
+    let mut model =
+        Model::from_source(&Source::new(&args.out, scene.clone())).map_err(not_loaded)?;
+    // Derived once, for what the derivation notes (coordinates that move no
+    // mass).
+    model.equations().map_err(not_loaded)?;
+    super::tell_notes(&model, false);
     crate::table::write_atomic(&args.out, &scene)
 }

@@ -27,7 +27,7 @@ use nalgebra::{DVector, Dyn};
 
 use crate::codegen::TimeFunction;
 use crate::compiled::Compiled;
-use crate::dynamic::{matrix, vector, DynModel};
+use crate::dynamic::{matrix, no_mass_hint, vector, DynModel};
 use crate::error_estimate::{Companion, ErrorEstimate, LOOSENED};
 use crate::plot::{line_plot, Decimated, Labels, Series, PLOT_ROWS};
 use crate::progress::Progress;
@@ -1111,17 +1111,7 @@ impl Run<'_, '_> {
                         .join(", ")
                 )
             }
-            ErrorKind::MassMatrixNotPositiveDefinite { pivot, .. } => self
-                .model
-                .coordinates()
-                .get(pivot)
-                .map(|c| {
-                    format!(
-                        " (coordinate `{c}`: no mass or inertia moves with it apart from the \
-                         coordinates before it)"
-                    )
-                })
-                .unwrap_or_default(),
+            ErrorKind::MassMatrixNotPositiveDefinite { .. } => no_mass_hint(self.model, &e),
             _ => singular_rows(self.model, self.constraints, &e, state),
         };
         format!(
