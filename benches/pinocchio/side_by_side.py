@@ -15,7 +15,9 @@ Each build has its own target directory (``target/pinbench``,
 of each compiles Pinocchio's templates twice (over double for the shim,
 over ``casadi::SX`` for the generator of C: minutes, about 3 GB). The load
 average before and after each run is printed with it, and the lines of the
-run that give agreement and operation counts. The robots are those of the
+run that give agreement and operation counts. A robot without forward
+dynamics (a singular mass matrix: Romeo as published) has ``-`` in those
+cells. The robots are those of the
 run (``FLEXDYN_BENCH_ROBOTS``, see ``build.rs``; the default five when it
 is unset). Stdlib only.
 
@@ -86,6 +88,8 @@ def main() -> int:
     extra = sys.argv[2:]
     results = {}
     compared = set()
+    # Robots whose mass matrix is singular (no forward dynamics to time).
+    no_forward = set()
     for build, target, env in builds:
         print(f"{build}: load average before {load()}", flush=True)
         run = subprocess.run(
@@ -98,6 +102,10 @@ def main() -> int:
             robot = re.match(r"(\w+): \d+ joints;", line)
             if robot:
                 compared.add(robot.group(1))
+            singular = re.match(r"(\w+): no forward dynamics", line)
+            if singular:
+                print(f"{build}: {line}")
+                no_forward.add(singular.group(1))
         if run.returncode != 0:
             print(f"error: the {build} run failed:\n{run.stderr[-4000:]}", file=sys.stderr)
             return 1
@@ -115,6 +123,9 @@ def main() -> int:
         for build, _, _ in builds:
             cells = []
             for names in TERMS:
+                if robot in no_forward and names == TERMS[2]:
+                    cells += ["-"] * 5
+                    continue
                 try:
                     ours, templated, generated = (results[build][(robot, n)] for n in names)
                 except KeyError as missing:
