@@ -235,6 +235,29 @@ fn simulate_names_a_coordinate_that_moves_no_mass() {
     assert!(!d.join("out.csv").exists());
 }
 
+#[test]
+fn linearize_names_a_coordinate_that_moves_no_mass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = MASSLESS.replacen('\n', "\noutputs = [\"dynamics_derivatives\"]\n", 1);
+    std::fs::write(d.join("massless.toml"), scene).unwrap();
+    std::fs::write(d.join("state.json"), r#"{"q": [0.1, 0.2], "qd": [0, 0]}"#).unwrap();
+    refused(
+        d,
+        &["massless.toml", "state.json"],
+        &[
+            "linearize",
+            "--scene",
+            &p(d, "massless.toml"),
+            "--state",
+            &p(d, "state.json"),
+            "--out",
+            &p(d, "out.json"),
+        ],
+        "coordinate `b`: no mass or inertia",
+    );
+}
+
 /// `eval` of a scene without forward dynamics writes every other term, and
 /// says at each state why the forward dynamics are left out.
 #[test]

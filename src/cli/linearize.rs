@@ -17,6 +17,7 @@ use std::path::PathBuf;
 use nalgebra::{DMatrix, DVector};
 
 use crate::compiled::Compiled;
+use crate::dynamic::no_mass_hint;
 use crate::table::write_atomic;
 
 /// Linearize a scene at a state: `A = df/dx`, `B = df/du` of `x' = f(x, u)`
@@ -152,7 +153,13 @@ pub fn run(args: &Args, compiled: &Compiled) -> Result<(), String> {
     let tau = DVector::from_column_slice(&u0);
     let d =
         flexdyn_runtime::forward_dynamics_derivatives(model.as_ref(), &at.q, &at.qd, at.t, &tau)
-            .map_err(|e| format!("linearize at {}: {e}", args.state.display()))?;
+            .map_err(|e| {
+                format!(
+                    "linearize at {}: {e}{}",
+                    args.state.display(),
+                    no_mass_hint(model.as_ref(), &e)
+                )
+            })?;
     // The independent coordinates, and dq/dz, dqd/dz (both nq x nz).
     let (independent, reduction, s_mat, s_dot) = if nc == 0 {
         let all: Vec<usize> = (0..nq).collect();
