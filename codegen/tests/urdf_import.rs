@@ -394,6 +394,44 @@ fn angles_within_their_written_precision_of_a_multiple_of_pi_over_twelve_are_sna
 }
 
 #[test]
+fn round_off_of_zero_in_axes_and_origins_is_zero() {
+    let noisy = ARM
+        .replace(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="0 1 6.12323e-17"/>"#)
+        .replace(
+            r#"<origin xyz="0 0 0.2" rpy="0 1.5707963267948966 0"/>"#,
+            r#"<origin xyz="0 -1.36916e-17 0.2" rpy="0 1.5707963267948966 0"/>"#,
+        );
+    assert_ne!(noisy, ARM);
+    let uncommented = |s: &str| -> String {
+        s.lines()
+            .filter(|l| !l.starts_with('#'))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let snapped = import(&noisy).unwrap();
+    // The same scene as the exact file's: a turn about `y`, no tiny terms.
+    assert_eq!(uncommented(&snapped), uncommented(&import(ARM).unwrap()));
+    assert!(
+        snapped.contains("# 2 axis components and origin coordinates within 1e-12 of zero"),
+        "{snapped}"
+    );
+    // Kept as written on request, and where it is not round-off (1e-9 of
+    // the axis).
+    let options = UrdfOptions {
+        keep_angles: true,
+        ..Default::default()
+    };
+    let kept = import_urdf(&Source::new(Path::new("robot.urdf"), noisy), &options).unwrap();
+    assert!(
+        kept.contains("6.12323e-17") && kept.contains("-1.36916e-17"),
+        "{kept}"
+    );
+    let tilted = ARM.replace(r#"<axis xyz="0 1 0"/>"#, r#"<axis xyz="0 1 1e-9"/>"#);
+    assert!(import(&tilted).unwrap().contains("1e-9"));
+    load(&snapped);
+}
+
+#[test]
 fn an_unphysical_inertia_is_accepted_only_where_no_energy_depends_on_it() {
     // The base is fixed to the world: it carries no energy (as TIAGo's
     // 1e-6 kg antennas, whose tensors are not positive semi-definite).

@@ -681,7 +681,8 @@ fn load(path: PathBuf) -> PyResult<Model> {
 
 /// Import a URDF robot (`flexdyn import urdf`): joints in `fix` held at
 /// zero, `outputs` the scene's optional outputs, `keep_angles` keeps every
-/// angle as written.
+/// angle, axis and origin as written (no snapping of near-multiples of
+/// `pi/12` or of round-off of zero).
 #[pyfunction]
 #[pyo3(signature = (path, fix = Vec::new(), outputs = Vec::new(), keep_angles = false))]
 fn from_urdf(

@@ -41,7 +41,9 @@ pub struct UrdfArgs {
     /// with a multiple of pi/12 to within one unit of its last written digit
     /// (and 1e-5 rad), or to within 1e-12 rad however written, is taken as
     /// exact: `1.57079632679` as pi/2, which keeps `cos` of it an exact zero
-    /// in the generated code.
+    /// in the generated code; likewise an axis component or origin
+    /// coordinate within 1e-12 of zero (relative to its vector), such as
+    /// `6.12323e-17`, is zero. This keeps those as written too.
     #[arg(long)]
     pub keep_angles: bool,
     /// An optional output for the scene to generate (its `outputs` list,

@@ -44,7 +44,9 @@ pub struct UrdfOptions {
     /// Keep every angle as written: by default an `rpy` angle that agrees
     /// with a multiple of `pi/12` to within one unit of its last written
     /// digit (and at most [`SNAP_LIMIT`] rad), or to within [`SNAP_NOISE`],
-    /// is taken to be that multiple.
+    /// is taken to be that multiple, and an axis component or origin
+    /// coordinate within [`SNAP_NOISE`] of zero relative to its vector is
+    /// zero (`read::snap_noise`); with this set, all are kept as written.
     pub keep_angles: bool,
     /// Optional outputs the scene asks for (its `outputs` list: names of
     /// [`crate::model::OUTPUTS`]).
@@ -83,12 +85,15 @@ struct Pose {
 }
 
 /// An `<origin>` as read: `rpy` after snapping ([`read::snap_angle`]),
-/// `snapped` the change of each angle (zero where it was kept).
+/// `snapped` the change of each angle (zero where it was kept); `xyz` with
+/// its round-off of zero taken as zero ([`read::snap_noise`]), `zeroed` how
+/// many coordinates that was.
 #[derive(Debug, Clone, Copy, Default)]
 struct Origin {
     xyz: [f64; 3],
     rpy: [f64; 3],
     snapped: [f64; 3],
+    zeroed: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -118,6 +123,8 @@ struct Joint {
     child: usize,
     origin: Origin,
     axis: [f64; 3],
+    /// Components of the written axis taken as zero ([`read::snap_noise`]).
+    axis_zeroed: usize,
     limit: Option<[f64; 2]>,
     velocity: Option<f64>,
     damping: f64,

@@ -101,11 +101,31 @@ fn origin(source: &Source, parent: roxmltree::Node, keep_angles: bool) -> Result
             *angle = snap_angle(word, *angle);
         }
     }
+    let (xyz, zeroed) = match keep_angles {
+        true => (read("xyz")?, 0),
+        false => snap_noise(read("xyz")?),
+    };
     Ok(Origin {
-        xyz: read("xyz")?,
+        xyz,
         rpy,
         snapped: std::array::from_fn(|k| rpy[k] - written[k]),
+        zeroed,
     })
+}
+
+/// `v` with every component within [`super::SNAP_NOISE`] of zero, relative
+/// to its largest component, taken as zero, and how many were: an
+/// exporter's round-off of zero (`6.12323e-17`, `cos(pi/2)` in an axis
+/// `0 1 6.12323e-17` or in a translation's `-1.36916e-17`), which would
+/// otherwise make a joint's turn one about a general axis and keep every
+/// product with it in the generated code.
+pub(super) fn snap_noise(v: [f64; 3]) -> ([f64; 3], usize) {
+    let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let noise = |x: f64| x != 0.0 && x.abs() <= super::SNAP_NOISE * largest;
+    (
+        v.map(|x| if noise(x) { 0.0 } else { x }),
+        v.iter().filter(|&&x| noise(x)).count(),
+    )
 }
 
 /// The angle `value`, written as `text`, snapped to the multiple of
@@ -208,20 +228,23 @@ pub(super) fn read_robot(
             ));
         }
         // A fixed joint's axis is not used (URDF files leave it zero).
-        let axis = match child(node, "axis").filter(|_| kind != Kind::Fixed) {
+        let (axis, axis_zeroed) = match child(node, "axis").filter(|_| kind != Kind::Fixed) {
             Some(a) => {
                 let v = numbers::<3>(source, a, "xyz", attribute(source, a, "xyz")?)?;
+                let (v, zeroed) = match options.keep_angles {
+                    true => (v, 0),
+                    false => snap_noise(v),
+                };
                 let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
                 if n < 1e-12 {
                     return Err(at(source, a, format!("{ctx}: the axis is zero")));
                 }
-                if (n - 1.0).abs() < 1e-15 {
-                    v
-                } else {
-                    v.map(|x| x / n)
+                match (n - 1.0).abs() < 1e-15 {
+                    true => (v, zeroed),
+                    false => (v.map(|x| x / n), zeroed),
                 }
             }
-            None => [1.0, 0.0, 0.0],
+            None => ([1.0, 0.0, 0.0], 0),
         };
         let (mut limit, mut velocity) = (None, None);
         if let Some(l) = child(node, "limit") {
@@ -262,6 +285,7 @@ pub(super) fn read_robot(
             child: child_link,
             origin: origin(source, node, options.keep_angles)?,
             axis,
+            axis_zeroed,
             limit,
             velocity,
             damping,

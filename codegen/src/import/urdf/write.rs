@@ -183,6 +183,23 @@ pub(super) fn write_scene(
             changes.len()
         );
     }
+    let zeroed: usize = joints
+        .iter()
+        .map(|j| j.origin.zeroed + j.axis_zeroed)
+        .chain(
+            links
+                .iter()
+                .filter_map(|l| l.inertial.as_ref().map(|i| i.origin.zeroed)),
+        )
+        .sum();
+    if zeroed > 0 {
+        let _ = writeln!(
+            w,
+            "# {zeroed} axis components and origin coordinates within 1e-12 of zero, relative to \
+             their vector,\n# are taken as zero (round-off such as `6.12323e-17`; \
+             `--keep-angles` keeps them as written)."
+        );
+    }
     let _ = writeln!(w, "name = {}", quoted(&scene_name));
     let _ = writeln!(
         w,
