@@ -11,8 +11,9 @@
 //! (19) and a fixed-base TALOS (32) prescribed, its torques against `rnea`
 //! along the motion. Every URDF file of example-robot-data as published
 //! (69 files, robots the project does not name among them) is checked the
-//! same way at 20 states, derivatives included, or refused with the
-//! expected error. Plus a negative run: with one inertia entry of
+//! same way at 20 states, derivatives included, and its default import
+//! (angles snapped, round-off of zero dropped) within ten times its largest
+//! snapped angle, or refused with the expected error. Plus a negative run: with one inertia entry of
 //! each imported scene changed by a relative 1e-6 and its last marker moved
 //! by 1e-6 m, the comparison must fail.
 //! The shipped `scenes/ur5.toml` must be the import of today. The Python
