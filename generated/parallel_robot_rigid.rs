@@ -72,10 +72,12 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        let v14 = v3 * v13;
-        let v15 = v2 * v13;
-        let v18 = v7 * v17;
-        let v19 = v6 * v17;
+        let p0 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v17));
+        let v14 = p0.lo();
+        let v18 = p0.hi();
+        let p1 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v17));
+        let v15 = p1.lo();
+        let v19 = p1.hi();
         let v22 = v11 * v21;
         let v23 = v10 * v21;
         *m = SMatrix::zeros();
@@ -194,34 +196,41 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        let v51 = qd[0] * qd[0];
-        let v18 = v1 * v51;
-        let v19 = v0 * v51;
-        let v52 = qd[1] * qd[1];
-        let v20 = v3 * v52;
-        let v21 = v2 * v52;
-        let v53 = qd[3] * qd[3];
-        let v22 = v5 * v53;
-        let v23 = v4 * v53;
-        let v54 = qd[4] * qd[4];
-        let v24 = v7 * v54;
-        let v25 = v6 * v54;
+        let p0 = math::F2::times(
+            math::F2::new(qd[0], qd[3]),
+            math::F2::new(qd[0], qd[3]),
+        );
+        let p2 = math::F2::times(math::F2::new(v1, v5), p0);
+        let v18 = p2.lo();
+        let v22 = p2.hi();
+        let p3 = math::F2::times(math::F2::new(v0, v4), p0);
+        let v19 = p3.lo();
+        let v23 = p3.hi();
+        let p1 = math::F2::times(
+            math::F2::new(qd[1], qd[4]),
+            math::F2::new(qd[1], qd[4]),
+        );
+        let p4 = math::F2::times(math::F2::new(v3, v7), p1);
+        let v20 = p4.lo();
+        let v24 = p4.hi();
+        let p5 = math::F2::times(math::F2::new(v2, v6), p1);
+        let v21 = p5.lo();
+        let v25 = p5.hi();
         let v55 = qd[6] * qd[6];
         let v26 = v9 * v55;
         let v27 = v8 * v55;
         let v56 = qd[7] * qd[7];
         let v28 = v11 * v56;
         let v29 = v10 * v56;
-        let v57 = v3 * v13;
+        let p6 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v15));
         let v58 = qd[2] * v12;
-        let v78 = qd[1] * v58;
         let v59 = qd[2] * qd[2];
-        let v60 = v2 * v13;
-        let v61 = v7 * v15;
+        let p7 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v15));
+        let v60 = p7.lo();
+        let v64 = p7.hi();
         let v62 = qd[5] * v14;
-        let v79 = qd[4] * v62;
+        let p8 = math::F2::times(math::F2::new(qd[1], qd[4]), math::F2::new(v58, v62));
         let v63 = qd[5] * qd[5];
-        let v64 = v6 * v15;
         let v65 = v11 * v17;
         let v66 = qd[8] * v16;
         let v80 = qd[7] * v66;
@@ -234,28 +243,41 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             0.32000000000000006,
             v81,
         );
-        let v70 = math::sub_mul(v54 * v61, 2.0, (v6 * v79));
-        let v82 = math::mul_add(v63, v61, v70);
-        let v49 = math::add_mul(
-            math::add_mul(0.24000000000000005 * v22, 0.06000000000000001, v24),
-            0.32000000000000006,
-            v82,
+        let p10 = math::F2::sub_mul(
+            math::F2::times(p1, p6),
+            math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v2, v6), p8),
         );
-        let v71 = math::sub_mul(v52 * v57, 2.0, (v2 * v78));
-        let v83 = math::mul_add(v59, v57, v71);
-        let v50 = math::add_mul(
-            math::add_mul(0.24000000000000005 * v18, 0.06000000000000001, v20),
-            0.32000000000000006,
-            v83,
+        let p12 = math::F2::mul_add(math::F2::new(v59, v63), p6, p10);
+        let v83 = p12.lo();
+        let v82 = p12.hi();
+        let p14 = math::F2::add_mul(
+            math::F2::add_mul(
+                math::F2::times(
+                    math::F2::new(0.24000000000000005, 0.24000000000000005),
+                    p2,
+                ),
+                math::F2::new(0.06000000000000001, 0.06000000000000001),
+                p4,
+            ),
+            math::F2::new(0.32000000000000006, 0.32000000000000006),
+            p12,
         );
-        let v72 = math::add_mul(v52 * v60, 2.0, (v3 * v78));
-        let v73 = math::add_mul(v19, 0.25, v21);
-        let v74 = math::add_mul(v54 * v64, 2.0, (v7 * v79));
-        let v75 = math::add_mul(v23, 0.25, v25);
+        let v50 = p14.lo();
+        let v49 = p14.hi();
+        let p11 = math::F2::add_mul(
+            math::F2::times(p1, p7),
+            math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v3, v7), p8),
+        );
+        let p9 = math::F2::add_mul(p3, math::F2::new(0.25, 0.25), p5);
+        let v73 = p9.lo();
+        let v75 = p9.hi();
         let v76 = math::add_mul(v56 * v68, 2.0, (v11 * v80));
         let v77 = math::add_mul(v27, 0.25, v29);
-        let v84 = math::mul_add(v59, v60, v72);
-        let v85 = math::mul_add(v63, v64, v74);
+        let p13 = math::F2::mul_add(math::F2::new(v59, v63), p7, p11);
+        let v84 = p13.lo();
+        let v85 = p13.hi();
         let v86 = math::mul_add(v67, v68, v76);
         h[0] = math::mul_add(
             v0,
@@ -551,26 +573,37 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        let v18 = qd[0] * qd[0];
-        let v19 = qd[1] * qd[1];
-        let v20 = v3 * v13;
+        let p0 = math::F2::times(
+            math::F2::new(qd[0], qd[3]),
+            math::F2::new(qd[0], qd[3]),
+        );
+        let v18 = p0.lo();
+        let v24 = p0.hi();
+        let p1 = math::F2::times(
+            math::F2::new(qd[1], qd[4]),
+            math::F2::new(qd[1], qd[4]),
+        );
+        let v19 = p1.lo();
+        let v25 = p1.hi();
+        let p2 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v15));
+        let v20 = p2.lo();
+        let v26 = p2.hi();
         let v21 = qd[2] * v12;
         let v22 = qd[2] * qd[2];
-        let v23 = v2 * v13;
-        let v24 = qd[3] * qd[3];
-        let v25 = qd[4] * qd[4];
-        let v26 = v7 * v15;
+        let p3 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v15));
+        let v23 = p3.lo();
+        let v29 = p3.hi();
         let v27 = qd[5] * v14;
         let v28 = qd[5] * qd[5];
-        let v29 = v6 * v15;
         let v30 = qd[6] * qd[6];
         let v31 = qd[7] * qd[7];
         let v32 = v11 * v17;
         let v33 = qd[8] * v16;
         let v34 = qd[8] * qd[8];
         let v35 = v10 * v17;
-        let v36 = qd[1] * v21;
-        let v37 = qd[4] * v27;
+        let p4 = math::F2::times(math::F2::new(qd[1], qd[4]), math::F2::new(v21, v27));
+        let v36 = p4.lo();
+        let v37 = p4.hi();
         let v38 = qd[7] * v33;
         gamma[0] = math::add_mul(0.8 * v19 * v20, 0.8 * v22, v20)
             + math::sub_mul(math::add_mul(0.4 * v1 * v18, 0.1 * v3, v19), 1.6 * v2, v36);
@@ -617,10 +650,12 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        let v14 = v3 * v13;
-        let v15 = v2 * v13;
-        let v18 = v7 * v17;
-        let v19 = v6 * v17;
+        let p0 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v17));
+        let v14 = p0.lo();
+        let v18 = p0.hi();
+        let p1 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v17));
+        let v15 = p1.lo();
+        let v19 = p1.hi();
         let v22 = v11 * v21;
         let v23 = v10 * v21;
         *phi_q = SMatrix::zeros();
@@ -717,27 +752,38 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        let v14 = v3 * v13;
-        let v15 = v2 * v13;
-        let v18 = v7 * v17;
-        let v19 = v6 * v17;
+        let p2 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v17));
+        let v14 = p2.lo();
+        let v18 = p2.hi();
+        let p3 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v17));
+        let v15 = p3.lo();
+        let v19 = p3.hi();
         let v22 = v11 * v21;
         let v23 = v10 * v21;
         let v24 = v10 * v20;
-        let v25 = v6 * v16;
-        let v26 = v2 * v12;
-        let v60 = qd[0] * qd[0];
-        let v27 = v1 * v60;
-        let v28 = v0 * v60;
-        let v61 = qd[1] * qd[1];
-        let v29 = v3 * v61;
-        let v30 = v2 * v61;
-        let v62 = qd[3] * qd[3];
-        let v31 = v5 * v62;
-        let v32 = v4 * v62;
-        let v63 = qd[4] * qd[4];
-        let v33 = v7 * v63;
-        let v34 = v6 * v63;
+        let p4 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v12, v16));
+        let v26 = p4.lo();
+        let v25 = p4.hi();
+        let p0 = math::F2::times(
+            math::F2::new(qd[0], qd[3]),
+            math::F2::new(qd[0], qd[3]),
+        );
+        let p5 = math::F2::times(math::F2::new(v1, v5), p0);
+        let v27 = p5.lo();
+        let v31 = p5.hi();
+        let p6 = math::F2::times(math::F2::new(v0, v4), p0);
+        let v28 = p6.lo();
+        let v32 = p6.hi();
+        let p1 = math::F2::times(
+            math::F2::new(qd[1], qd[4]),
+            math::F2::new(qd[1], qd[4]),
+        );
+        let p7 = math::F2::times(math::F2::new(v3, v7), p1);
+        let v29 = p7.lo();
+        let v33 = p7.hi();
+        let p8 = math::F2::times(math::F2::new(v2, v6), p1);
+        let v30 = p8.lo();
+        let v34 = p8.hi();
         let v64 = qd[6] * qd[6];
         let v35 = v9 * v64;
         let v36 = v8 * v64;
@@ -745,10 +791,9 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v37 = v11 * v65;
         let v38 = v10 * v65;
         let v66 = qd[2] * v12;
-        let v87 = qd[1] * v66;
         let v67 = qd[2] * qd[2];
         let v68 = qd[5] * v16;
-        let v88 = qd[4] * v68;
+        let p10 = math::F2::times(math::F2::new(qd[1], qd[4]), math::F2::new(v66, v68));
         let v69 = qd[5] * qd[5];
         let v70 = qd[8] * v20;
         let v89 = qd[7] * v70;
@@ -757,25 +802,44 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v73 = math::add_mul(v35, 0.25, v37);
         let v90 = math::mul_add(v71, v22, v72);
         let v57 = math::add_mul(0.24000000000000005 * v73, 0.32000000000000006, v90);
-        let v74 = math::sub_mul(v63 * v18, 2.0, (v6 * v88));
-        let v75 = math::add_mul(v31, 0.25, v33);
-        let v91 = math::mul_add(v69, v18, v74);
-        let v58 = math::add_mul(0.24000000000000005 * v75, 0.32000000000000006, v91);
-        let v76 = math::sub_mul(v61 * v14, 2.0, (v2 * v87));
-        let v77 = math::add_mul(v27, 0.25, v29);
-        let v92 = math::mul_add(v67, v14, v76);
-        let v59 = math::add_mul(0.24000000000000005 * v77, 0.32000000000000006, v92);
-        let v78 = v3 * v12;
-        let v79 = v7 * v16;
+        let p13 = math::F2::sub_mul(
+            math::F2::times(p1, p2),
+            math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v2, v6), p10),
+        );
+        let p11 = math::F2::add_mul(p5, math::F2::new(0.25, 0.25), p7);
+        let v77 = p11.lo();
+        let v75 = p11.hi();
+        let p15 = math::F2::mul_add(math::F2::new(v67, v69), p2, p13);
+        let v92 = p15.lo();
+        let v91 = p15.hi();
+        let p17 = math::F2::add_mul(
+            math::F2::times(
+                math::F2::new(0.24000000000000005, 0.24000000000000005),
+                p11,
+            ),
+            math::F2::new(0.32000000000000006, 0.32000000000000006),
+            p15,
+        );
+        let v59 = p17.lo();
+        let v58 = p17.hi();
+        let p9 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v12, v16));
+        let v78 = p9.lo();
+        let v79 = p9.hi();
         let v80 = v11 * v20;
-        let v81 = math::add_mul(v61 * v15, 2.0, (v3 * v87));
-        let v82 = math::add_mul(v28, 0.25, v30);
-        let v83 = math::add_mul(v63 * v19, 2.0, (v7 * v88));
-        let v84 = math::add_mul(v32, 0.25, v34);
+        let p14 = math::F2::add_mul(
+            math::F2::times(p1, p3),
+            math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v3, v7), p10),
+        );
+        let p12 = math::F2::add_mul(p6, math::F2::new(0.25, 0.25), p8);
+        let v82 = p12.lo();
+        let v84 = p12.hi();
         let v85 = math::add_mul(v65 * v23, 2.0, (v11 * v89));
         let v86 = math::add_mul(v36, 0.25, v38);
-        let v93 = math::mul_add(v67, v15, v81);
-        let v94 = math::mul_add(v69, v19, v83);
+        let p16 = math::F2::mul_add(math::F2::new(v67, v69), p3, p14);
+        let v93 = p16.lo();
+        let v94 = p16.hi();
         let v95 = math::mul_add(v71, v23, v85);
         *m = SMatrix::zeros();
         *phi_q = SMatrix::zeros();
@@ -1085,29 +1149,33 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        let v75 = qd[0] * qd[0];
-        let v76 = qd[1] * qd[1];
-        let v77 = qd[3] * qd[3];
-        let v78 = qd[4] * qd[4];
+        let p0 = math::F2::times(
+            math::F2::new(qd[0], qd[3]),
+            math::F2::new(qd[0], qd[3]),
+        );
+        let p1 = math::F2::times(
+            math::F2::new(qd[1], qd[4]),
+            math::F2::new(qd[1], qd[4]),
+        );
         let v79 = qd[6] * qd[6];
         let v80 = qd[7] * qd[7];
-        let v81 = v3 * v13;
+        let p2 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v15));
         let v82 = qd[2] * v12;
-        let v120 = qd[1] * v82;
         let v83 = qd[2] * qd[2];
-        let v84 = v2 * v13;
-        let v85 = v7 * v15;
+        let p3 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v15));
+        let v84 = p3.lo();
+        let v88 = p3.hi();
         let v86 = qd[5] * v14;
-        let v121 = qd[4] * v86;
+        let p9 = math::F2::times(math::F2::new(qd[1], qd[4]), math::F2::new(v82, v86));
         let v87 = qd[5] * qd[5];
-        let v88 = v6 * v15;
         let v89 = v11 * v17;
         let v90 = qd[8] * v16;
         let v122 = qd[7] * v90;
         let v91 = qd[8] * qd[8];
         let v92 = v10 * v17;
-        let v93 = v3 * v12;
-        let v94 = v7 * v14;
+        let p4 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v12, v14));
+        let v93 = p4.lo();
+        let v94 = p4.hi();
         let v95 = v11 * v16;
         let v96 = math::add_mul(v9 * v79, v8, qdd[6]);
         let v97 = math::add_mul(v11 * v80, v10, qdd[7]);
@@ -1120,48 +1188,89 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             0.32000000000000006,
             v132,
         );
-        let v100 = math::add_mul(v5 * v77, v4, qdd[3]);
-        let v101 = math::add_mul(v7 * v78, v6, qdd[4]);
-        let v102 = math::sub_mul(v78 * v85, 2.0, (v6 * v121));
-        let v103 = math::add_mul(v87 * v85, qdd[4], v88);
-        let v124 = math::mul_add(qdd[5], v94, v102);
-        let v133 = v103 + v124;
-        let v73 = math::add_mul(
-            math::add_mul(0.24000000000000005 * v100, 0.06000000000000001, v101),
-            0.32000000000000006,
-            v133,
+        let p5 = math::F2::add_mul(
+            math::F2::times(math::F2::new(v1, v5), p0),
+            math::F2::new(v0, v4),
+            math::F2::new(qdd[0], qdd[3]),
         );
-        let v104 = math::add_mul(v1 * v75, v0, qdd[0]);
-        let v105 = math::add_mul(v3 * v76, v2, qdd[1]);
-        let v106 = math::sub_mul(v76 * v81, 2.0, (v2 * v120));
-        let v107 = math::add_mul(v83 * v81, qdd[1], v84);
-        let v125 = math::mul_add(qdd[2], v93, v106);
-        let v134 = v107 + v125;
-        let v74 = math::add_mul(
-            math::add_mul(0.24000000000000005 * v104, 0.06000000000000001, v105),
-            0.32000000000000006,
-            v134,
+        let v104 = p5.lo();
+        let v100 = p5.hi();
+        let p6 = math::F2::add_mul(
+            math::F2::times(math::F2::new(v3, v7), p1),
+            math::F2::new(v2, v6),
+            math::F2::new(qdd[1], qdd[4]),
         );
-        let v108 = math::sub_mul(v0 * v75, v1, qdd[0]);
-        let v109 = math::sub_mul(v2 * v76, v3, qdd[1]);
-        let v110 = math::add_mul(v76 * v84, 2.0, (v3 * v120));
-        let v111 = math::sub_mul(v84 * v83, qdd[1], v81);
-        let v112 = math::sub_mul(v4 * v77, v5, qdd[3]);
-        let v113 = math::sub_mul(v6 * v78, v7, qdd[4]);
-        let v114 = math::add_mul(v78 * v88, 2.0, (v7 * v121));
-        let v115 = math::sub_mul(v88 * v87, qdd[4], v85);
+        let v105 = p6.lo();
+        let v101 = p6.hi();
+        let p13 = math::F2::sub_mul(
+            math::F2::times(p1, p2),
+            math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v2, v6), p9),
+        );
+        let p10 = math::F2::add_mul(
+            math::F2::times(math::F2::new(v83, v87), p2),
+            math::F2::new(qdd[1], qdd[4]),
+            p3,
+        );
+        let p15 = math::F2::mul_add(math::F2::new(qdd[2], qdd[5]), p4, p13);
+        let p17 = math::F2::plus(p10, p15);
+        let v134 = p17.lo();
+        let v133 = p17.hi();
+        let p19 = math::F2::add_mul(
+            math::F2::add_mul(
+                math::F2::times(
+                    math::F2::new(0.24000000000000005, 0.24000000000000005),
+                    p5,
+                ),
+                math::F2::new(0.06000000000000001, 0.06000000000000001),
+                p6,
+            ),
+            math::F2::new(0.32000000000000006, 0.32000000000000006),
+            p17,
+        );
+        let v74 = p19.lo();
+        let v73 = p19.hi();
+        let p7 = math::F2::sub_mul(
+            math::F2::times(math::F2::new(v0, v4), p0),
+            math::F2::new(v1, v5),
+            math::F2::new(qdd[0], qdd[3]),
+        );
+        let v108 = p7.lo();
+        let v112 = p7.hi();
+        let p8 = math::F2::sub_mul(
+            math::F2::times(math::F2::new(v2, v6), p1),
+            math::F2::new(v3, v7),
+            math::F2::new(qdd[1], qdd[4]),
+        );
+        let v109 = p8.lo();
+        let v113 = p8.hi();
+        let p14 = math::F2::add_mul(
+            math::F2::times(p1, p3),
+            math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v3, v7), p9),
+        );
+        let p11 = math::F2::sub_mul(
+            math::F2::times(p3, math::F2::new(v83, v87)),
+            math::F2::new(qdd[1], qdd[4]),
+            p2,
+        );
         let v116 = math::sub_mul(v8 * v79, v9, qdd[6]);
         let v117 = math::sub_mul(v10 * v80, v11, qdd[7]);
         let v118 = math::add_mul(v80 * v92, 2.0, (v11 * v122));
         let v119 = math::sub_mul(v92 * v91, qdd[7], v89);
-        let v126 = math::mul_add(v2 * v12, qdd[2], v110);
-        let v127 = math::add_mul(v108, 0.25, v109);
-        let v128 = math::mul_add(v6 * v14, qdd[5], v114);
-        let v129 = math::add_mul(v112, 0.25, v113);
+        let p16 = math::F2::mul_add(
+            math::F2::times(math::F2::new(v2, v6), math::F2::new(v12, v14)),
+            math::F2::new(qdd[2], qdd[5]),
+            p14,
+        );
+        let p12 = math::F2::add_mul(p7, math::F2::new(0.25, 0.25), p8);
+        let v127 = p12.lo();
+        let v129 = p12.hi();
         let v130 = math::mul_add(v10 * v16, qdd[8], v118);
         let v131 = math::add_mul(v116, 0.25, v117);
-        let v135 = v111 + v126;
-        let v136 = v115 + v128;
+        let p18 = math::F2::plus(p11, p16);
+        let v135 = p18.lo();
+        let v136 = p18.hi();
         let v137 = v119 + v130;
         tau[0] = math::mul_add(
             v0,
@@ -1386,18 +1495,28 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
             q[5],
             q[8],
         ]);
-        let v2 = v0 * qd[0];
-        let v3 = v1 * qd[0];
-        let v6 = v4 * qd[1];
-        let v7 = v5 * qd[1];
-        let v8 = math::sub_mul(-0.4 * v2, 0.1, v6);
-        let v9 = math::add_mul(0.4 * v3, 0.1, v7);
-        let v12 = v10 * qd[3];
-        let v13 = v11 * qd[3];
-        let v16 = v14 * qd[4];
-        let v17 = v15 * qd[4];
-        let v18 = math::sub_mul(-0.4 * v12, 0.1, v16);
-        let v19 = math::add_mul(0.4 * v13, 0.1, v17);
+        let p0 = math::F2::times(math::F2::new(v0, v10), math::F2::new(qd[0], qd[3]));
+        let v2 = p0.lo();
+        let v12 = p0.hi();
+        let p1 = math::F2::times(math::F2::new(v1, v11), math::F2::new(qd[0], qd[3]));
+        let v3 = p1.lo();
+        let v13 = p1.hi();
+        let p2 = math::F2::times(math::F2::new(v4, v14), math::F2::new(qd[1], qd[4]));
+        let p3 = math::F2::times(math::F2::new(v5, v15), math::F2::new(qd[1], qd[4]));
+        let p4 = math::F2::sub_mul(
+            math::F2::times(math::F2::negated(math::F2::new(0.4, 0.4)), p0),
+            math::F2::new(0.1, 0.1),
+            p2,
+        );
+        let v8 = p4.lo();
+        let v18 = p4.hi();
+        let p5 = math::F2::add_mul(
+            math::F2::times(math::F2::new(0.4, 0.4), p1),
+            math::F2::new(0.1, 0.1),
+            p3,
+        );
+        let v9 = p5.lo();
+        let v19 = p5.hi();
         let v22 = v20 * qd[6];
         let v23 = v21 * qd[6];
         let v26 = v24 * qd[7];
@@ -1405,11 +1524,33 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v28 = math::sub_mul(-0.4 * v22, 0.1, v26);
         let v29 = math::add_mul(0.4 * v23, 0.1, v27);
         let v42 = qd[2] * v30;
-        let v32 = v8 - math::add_mul(0.8 * v31 * v6, 0.8 * v5, v42);
-        let v33 = v9 + math::sub_mul(0.8 * v31 * v7, 0.8 * v4, v42);
         let v43 = qd[5] * v34;
-        let v36 = v18 - math::add_mul(0.8 * v35 * v16, 0.8 * v15, v43);
-        let v37 = v19 + math::sub_mul(0.8 * v35 * v17, 0.8 * v14, v43);
+        let p6 = math::F2::minus(
+            p4,
+            math::F2::add_mul(
+                math::F2::times(
+                    math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v31, v35)),
+                    p2,
+                ),
+                math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v5, v15)),
+                math::F2::new(v42, v43),
+            ),
+        );
+        let v32 = p6.lo();
+        let v36 = p6.hi();
+        let p7 = math::F2::plus(
+            p5,
+            math::F2::sub_mul(
+                math::F2::times(
+                    math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v31, v35)),
+                    p3,
+                ),
+                math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v4, v14)),
+                math::F2::new(v42, v43),
+            ),
+        );
+        let v33 = p7.lo();
+        let v37 = p7.hi();
         let v44 = qd[8] * v38;
         let v40 = v28 - math::add_mul(0.8 * v39 * v26, 0.8 * v25, v44);
         let v41 = v29 + math::sub_mul(0.8 * v39 * v27, 0.8 * v24, v44);

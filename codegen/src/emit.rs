@@ -10,8 +10,8 @@ use quote::{format_ident, quote};
 use crate::expr::Symbol;
 use crate::model::{Model, Precision};
 use crate::schedule::{
-    lower, Binary, Code, Fused, Inputs, Lowered, Op, OpCount, Operand, OutputSpec, Program,
-    Scheduled, Shape, Stmt, Value,
+    lower, mirror_coordinates, plan, Binary, Code, Fused, Inputs, Lowered, Mirror, Op, OpCount,
+    Operand, OutputSpec, Plan, Program, Scheduled, Shape, Step, Stmt, Value,
 };
 
 /// Operation counts of one emitted function.
@@ -50,6 +50,8 @@ pub fn struct_name(scene: &str) -> String {
 
 struct Emitter<'a> {
     model: &'a Model,
+    /// The coordinates of mirror-image limbs, computed on two lanes.
+    mirror: Mirror,
     reports: Vec<FunctionReport>,
     perturbation: Option<&'a CoefficientPerturbation>,
     perturbed: bool,
@@ -287,6 +289,87 @@ impl Printer<'_, '_> {
         }
     }
 }
+impl Printer<'_, '_> {
+    /// Two units' statements as one, on two lanes: `p<n> = ...;`, then the
+    /// lanes that other statements read as numbers.
+    fn pair(
+        &mut self,
+        lowered: &Lowered,
+        plan: &Plan,
+        (a, b): (usize, usize),
+        n: u32,
+        out: &mut TokenStream,
+    ) {
+        let bind = self.bind.clone();
+        let p = pair(n);
+        let [ra, rb] = [a, b].map(|u| &lowered.ops[*plan.units[u].last().expect("a statement")]);
+        let (Op::Bind { var: va, value: xa }, Op::Bind { var: vb, value: xb }) = (ra, rb) else {
+            unreachable!("only statements that bind a variable are paired");
+        };
+        let e = self.lanes(lowered, plan, *xa, *xb);
+        out.extend(quote!(#bind #p = #e;));
+        for (v, lane) in [(*va, quote!(lo)), (*vb, quote!(hi))] {
+            if plan.scalar.contains(&v) {
+                let v = var(v);
+                out.extend(quote!(#bind #v = #p.#lane();));
+            }
+        }
+    }
+
+    /// The two-lane expression of two operands of the same shape.
+    fn lanes(&mut self, lowered: &Lowered, plan: &Plan, a: Operand, b: Operand) -> TokenStream {
+        if let Some(n) = plan.held(a, b) {
+            let p = pair(n);
+            return quote!(#p);
+        }
+        let (Value::Temp(s), Value::Temp(t)) = (a.value, b.value) else {
+            let (x, y) = (self.operand(a, SUM), self.operand(b, SUM));
+            return quote!(math::F2::new(#x, #y));
+        };
+        let (p, q) = (
+            &lowered.ops[plan.writer[s as usize]],
+            &lowered.ops[plan.writer[t as usize]],
+        );
+        let mut args = p.operands().into_iter().zip(q.operands());
+        let mut next = || {
+            let (x, y) = args
+                .next()
+                .expect("paired operations have the same operands");
+            self.lanes(lowered, plan, x, y)
+        };
+        match p {
+            Op::Binary { op, .. } => {
+                let (x, y) = (next(), next());
+                let f = match op {
+                    Binary::Add => quote!(plus),
+                    Binary::Sub => quote!(minus),
+                    Binary::Mul => quote!(times),
+                    Binary::Div => quote!(over),
+                };
+                quote!(math::F2::#f(#x, #y))
+            }
+            Op::Fused { form, .. } => {
+                let (x, y, c) = (next(), next(), next());
+                let name = format_ident!("{}", form.name());
+                match form {
+                    Fused::AddMul | Fused::SubMul => quote!(math::F2::#name(#c, #x, #y)),
+                    Fused::MulAdd | Fused::MulSub => quote!(math::F2::#name(#x, #y, #c)),
+                }
+            }
+            Op::Neg { .. } => {
+                let x = next();
+                quote!(math::F2::negated(#x))
+            }
+            _ => unreachable!("paired statements have two-lane operations only"),
+        }
+    }
+}
+
+/// The two-lane variable of pair `n`.
+fn pair(n: u32) -> proc_macro2::Ident {
+    format_ident!("p{}", n)
+}
+
 impl Emitter<'_> {
     fn lit(&self, x: f64) -> TokenStream {
         lit(x, self.model.precision)
@@ -451,6 +534,16 @@ impl Emitter<'_> {
         tail: &mut TokenStream,
     ) -> TokenStream {
         let real = self.real();
+        let plan = plan(
+            lowered,
+            &self.mirror,
+            self.model.precision == Precision::F64,
+        );
+        let pairs = plan
+            .order
+            .iter()
+            .filter(|s| matches!(s, Step::Two(..)))
+            .count();
         let vars: Vec<proc_macro2::Ident> = lowered
             .ops
             .iter()
@@ -460,6 +553,7 @@ impl Emitter<'_> {
                 Op::SinCosArray(batch) => batch.iter().flat_map(|(s, c, _)| [*s, *c]).collect(),
                 _ => Vec::new(),
             })
+            .filter(|v| !plan.resident.contains_key(v) || plan.scalar.contains(v))
             .map(var)
             .collect();
         let statements = lowered
@@ -478,6 +572,11 @@ impl Emitter<'_> {
                 let n = usize_lit(group.len());
                 body.extend(quote!(let [#(#group),*]: [#real; #n];));
             }
+            let lanes: Vec<proc_macro2::Ident> = (0..pairs as u32).map(pair).collect();
+            for group in lanes.chunks(DECLARATION_GROUP) {
+                let n = usize_lit(group.len());
+                body.extend(quote!(let [#(#group),*]: [math::F2; #n];));
+            }
         }
         let mut printer = Printer {
             emitter: self,
@@ -487,8 +586,15 @@ impl Emitter<'_> {
             texts: vec![None; lowered.temps as usize],
             bind: if flat { quote!(let) } else { quote!() },
         };
-        for op in &lowered.ops {
-            printer.op(op, &mut body, tail);
+        for step in &plan.order {
+            match *step {
+                Step::One(u) => {
+                    for &k in &plan.units[u] {
+                        printer.op(&lowered.ops[k], &mut body, tail);
+                    }
+                }
+                Step::Two(a, b, n) => printer.pair(lowered, &plan, (a, b), n, &mut body),
+            }
         }
         body
     }
@@ -503,8 +609,27 @@ pub fn emit(
     runtime: &syn::Path,
     perturbation: Option<&CoefficientPerturbation>,
 ) -> (Emitted, bool) {
+    let parents: Vec<Option<usize>> = model.placements.iter().map(|p| p.parent).collect();
+    let coordinates: Vec<Vec<u32>> = model
+        .placements
+        .iter()
+        .map(|p| {
+            let mut own: Vec<u32> = model
+                .graph
+                .symbols(&p.twist)
+                .into_iter()
+                .filter_map(|s| match s {
+                    Symbol::Qd(i) => Some(i),
+                    _ => None,
+                })
+                .collect();
+            own.sort_unstable();
+            own
+        })
+        .collect();
     let mut e = Emitter {
         model,
+        mirror: mirror_coordinates(&parents, &coordinates, model.nq()),
         reports: Vec::new(),
         perturbation,
         perturbed: false,

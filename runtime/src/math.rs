@@ -359,6 +359,205 @@ fused_or_written! {
     mul_sub(x, y, b) = x.mul_add(y, -b), x * y - b;
 }
 
+/// Two `f64` lanes, for the statements of a generated program that
+/// compute the same expression for two mirror-image limbs (a humanoid's
+/// legs, two fingers): each lane is bitwise the scalar expression, the
+/// pair one SIMD instruction per operation on x86-64 (SSE2, in every
+/// x86-64 target), which halves those statements' instructions and the
+/// registers they hold. Elsewhere two scalars.
+#[derive(Clone, Copy, Debug)]
+pub struct F2(pair::Repr);
+
+impl F2 {
+    /// The lanes `a` and `b`.
+    #[inline(always)]
+    pub fn new(a: f64, b: f64) -> F2 {
+        F2(pair::new(a, b))
+    }
+    /// The first lane.
+    #[inline(always)]
+    pub fn lo(self) -> f64 {
+        pair::lo(self.0)
+    }
+    /// The second lane.
+    #[inline(always)]
+    pub fn hi(self) -> f64 {
+        pair::hi(self.0)
+    }
+    /// `a + b`, lane by lane.
+    #[inline(always)]
+    pub fn plus(a: F2, b: F2) -> F2 {
+        F2(pair::add(a.0, b.0))
+    }
+    /// `a - b`, lane by lane.
+    #[inline(always)]
+    pub fn minus(a: F2, b: F2) -> F2 {
+        F2(pair::sub(a.0, b.0))
+    }
+    /// `a * b`, lane by lane.
+    #[inline(always)]
+    pub fn times(a: F2, b: F2) -> F2 {
+        F2(pair::mul(a.0, b.0))
+    }
+    /// `a / b`, lane by lane.
+    #[inline(always)]
+    pub fn over(a: F2, b: F2) -> F2 {
+        F2(pair::div(a.0, b.0))
+    }
+    /// `-a`, lane by lane (the sign bit flipped).
+    #[inline(always)]
+    pub fn negated(a: F2) -> F2 {
+        F2(pair::neg(a.0))
+    }
+    /// [`mul_add`] lane by lane.
+    #[inline(always)]
+    pub fn mul_add(x: F2, y: F2, c: F2) -> F2 {
+        #[cfg(all(feature = "std", target_feature = "fma"))]
+        {
+            F2(pair::fused(x.0, y.0, c.0))
+        }
+        #[cfg(not(all(feature = "std", target_feature = "fma")))]
+        {
+            F2::plus(F2::times(x, y), c)
+        }
+    }
+    /// [`add_mul`] lane by lane.
+    #[inline(always)]
+    pub fn add_mul(a: F2, x: F2, y: F2) -> F2 {
+        #[cfg(all(feature = "std", target_feature = "fma"))]
+        {
+            F2(pair::fused(x.0, y.0, a.0))
+        }
+        #[cfg(not(all(feature = "std", target_feature = "fma")))]
+        {
+            F2::plus(a, F2::times(x, y))
+        }
+    }
+    /// [`sub_mul`] lane by lane.
+    #[inline(always)]
+    pub fn sub_mul(a: F2, x: F2, y: F2) -> F2 {
+        #[cfg(all(feature = "std", target_feature = "fma"))]
+        {
+            F2(pair::fused(pair::neg(x.0), y.0, a.0))
+        }
+        #[cfg(not(all(feature = "std", target_feature = "fma")))]
+        {
+            F2::minus(a, F2::times(x, y))
+        }
+    }
+    /// [`mul_sub`] lane by lane.
+    #[inline(always)]
+    pub fn mul_sub(x: F2, y: F2, b: F2) -> F2 {
+        #[cfg(all(feature = "std", target_feature = "fma"))]
+        {
+            F2(pair::fused(x.0, y.0, pair::neg(b.0)))
+        }
+        #[cfg(not(all(feature = "std", target_feature = "fma")))]
+        {
+            F2::minus(F2::times(x, y), b)
+        }
+    }
+}
+
+/// [`F2`]'s lanes in one SSE2 register.
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod pair {
+    use core::arch::x86_64::{
+        __m128d, _mm_add_pd, _mm_cvtsd_f64, _mm_div_pd, _mm_mul_pd, _mm_set1_pd, _mm_set_pd,
+        _mm_sub_pd, _mm_unpackhi_pd, _mm_xor_pd,
+    };
+
+    pub(super) type Repr = __m128d;
+
+    // SAFETY (every block of this module): SSE2, the one target feature
+    // these intrinsics need, is part of every x86-64 target; they read and
+    // write registers only.
+    #[inline(always)]
+    pub(super) fn new(a: f64, b: f64) -> Repr {
+        unsafe { _mm_set_pd(b, a) }
+    }
+    #[inline(always)]
+    pub(super) fn lo(x: Repr) -> f64 {
+        unsafe { _mm_cvtsd_f64(x) }
+    }
+    #[inline(always)]
+    pub(super) fn hi(x: Repr) -> f64 {
+        unsafe { _mm_cvtsd_f64(_mm_unpackhi_pd(x, x)) }
+    }
+    #[inline(always)]
+    pub(super) fn add(a: Repr, b: Repr) -> Repr {
+        unsafe { _mm_add_pd(a, b) }
+    }
+    #[inline(always)]
+    pub(super) fn sub(a: Repr, b: Repr) -> Repr {
+        unsafe { _mm_sub_pd(a, b) }
+    }
+    #[inline(always)]
+    pub(super) fn mul(a: Repr, b: Repr) -> Repr {
+        unsafe { _mm_mul_pd(a, b) }
+    }
+    #[inline(always)]
+    pub(super) fn div(a: Repr, b: Repr) -> Repr {
+        unsafe { _mm_div_pd(a, b) }
+    }
+    #[inline(always)]
+    pub(super) fn neg(a: Repr) -> Repr {
+        unsafe { _mm_xor_pd(a, _mm_set1_pd(-0.0)) }
+    }
+    /// `x * y + c` with one rounding (the target has FMA).
+    #[cfg(all(feature = "std", target_feature = "fma"))]
+    #[inline(always)]
+    pub(super) fn fused(x: Repr, y: Repr, c: Repr) -> Repr {
+        unsafe { core::arch::x86_64::_mm_fmadd_pd(x, y, c) }
+    }
+}
+
+/// [`F2`]'s lanes as two scalars.
+#[cfg(not(target_arch = "x86_64"))]
+mod pair {
+    pub(super) type Repr = [f64; 2];
+
+    #[inline(always)]
+    pub(super) fn new(a: f64, b: f64) -> Repr {
+        [a, b]
+    }
+    #[inline(always)]
+    pub(super) fn lo(x: Repr) -> f64 {
+        x[0]
+    }
+    #[inline(always)]
+    pub(super) fn hi(x: Repr) -> f64 {
+        x[1]
+    }
+    #[inline(always)]
+    pub(super) fn add(a: Repr, b: Repr) -> Repr {
+        [a[0] + b[0], a[1] + b[1]]
+    }
+    #[inline(always)]
+    pub(super) fn sub(a: Repr, b: Repr) -> Repr {
+        [a[0] - b[0], a[1] - b[1]]
+    }
+    #[inline(always)]
+    pub(super) fn mul(a: Repr, b: Repr) -> Repr {
+        [a[0] * b[0], a[1] * b[1]]
+    }
+    #[inline(always)]
+    pub(super) fn div(a: Repr, b: Repr) -> Repr {
+        [a[0] / b[0], a[1] / b[1]]
+    }
+    #[inline(always)]
+    pub(super) fn neg(a: Repr) -> Repr {
+        [-a[0], -a[1]]
+    }
+    /// `x * y + c` with one rounding.
+    #[cfg(all(feature = "std", target_feature = "fma"))]
+    #[inline(always)]
+    pub(super) fn fused(x: Repr, y: Repr, c: Repr) -> Repr {
+        [x[0].mul_add(y[0], c[0]), x[1].mul_add(y[1], c[1])]
+    }
+}
+
 /// The same functions in `f32`, for modules generated with
 /// `precision = "f32"` (which import them as `math`), the same with or
 /// without `std` so that an `f32` model computes the same on a host as on a
@@ -549,6 +748,60 @@ mod tests {
         }
         assert!(sin_cos(f64::NAN).0.is_nan() && sin_cos(f64::INFINITY).1.is_nan());
         assert_eq!(sin_cos(0.0), (0.0, 1.0));
+    }
+
+    /// Every two-lane operation is, in each lane, bitwise the scalar
+    /// operation the generated scalar code performs (signed zeros, NaN and
+    /// infinities included).
+    #[test]
+    fn two_lanes_are_bitwise_the_scalar_operations() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e-300,
+            -3.7e300,
+            0.1,
+            7.25e-12,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        for &a in &values {
+            for &b in &values {
+                for &c in &values {
+                    let (x, y, z) = (F2::new(a, b), F2::new(b, c), F2::new(c, a));
+                    let lanes = |p: F2, lo: f64, hi: f64| same(p.lo(), lo) && same(p.hi(), hi);
+                    assert!(lanes(x, a, b));
+                    assert!(lanes(F2::plus(x, y), a + b, b + c));
+                    assert!(lanes(F2::minus(x, y), a - b, b - c));
+                    assert!(lanes(F2::times(x, y), a * b, b * c));
+                    assert!(lanes(F2::over(x, y), a / b, b / c));
+                    assert!(lanes(F2::negated(x), -a, -b));
+                    assert!(lanes(
+                        F2::mul_add(x, y, z),
+                        mul_add(a, b, c),
+                        mul_add(b, c, a)
+                    ));
+                    assert!(lanes(
+                        F2::add_mul(x, y, z),
+                        add_mul(a, b, c),
+                        add_mul(b, c, a)
+                    ));
+                    assert!(lanes(
+                        F2::sub_mul(x, y, z),
+                        sub_mul(a, b, c),
+                        sub_mul(b, c, a)
+                    ));
+                    assert!(lanes(
+                        F2::mul_sub(x, y, z),
+                        mul_sub(a, b, c),
+                        mul_sub(b, c, a)
+                    ));
+                }
+            }
+        }
     }
 
     #[test]

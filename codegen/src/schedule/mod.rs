@@ -14,6 +14,7 @@
 mod code;
 mod cse;
 mod functions;
+mod lanes;
 mod lower;
 mod share;
 
@@ -21,6 +22,7 @@ pub use code::{Code, OpCount, Program, Stmt};
 #[cfg(test)]
 pub use functions::Terms;
 pub use functions::{functions, Dim, Function, Inputs, OutputSpec, Scheduled, Shape, Spec};
+pub use lanes::{mirror_coordinates, plan, Mirror, Plan, Step};
 pub use lower::{lower, Binary, Fused, Lowered, Op, Operand, Value};
 
 use crate::expr::{Graph, Id};
