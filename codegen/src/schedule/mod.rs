@@ -9,7 +9,9 @@
 //! pairs like any factor ([`share`]); a program carries its
 //! operation count ([`code`]). Each
 //! program is then lowered once ([`lower()`]) into operations in evaluation
-//! order, which the emitter prints and the interpreter runs.
+//! order, which the emitter prints and the interpreter runs; [`plan`]
+//! pairs the statements of mirror-image limbs, which the Rust emitter prints
+//! on two lanes ([`lanes`]).
 
 mod code;
 mod cse;
