@@ -627,9 +627,31 @@ pub fn emit(
             own
         })
         .collect();
+    // A frame's placement as far as the programs' shapes go: which axes its
+    // translation and turns have, and which turns are fixed.
+    let descriptions: Vec<String> = model
+        .placements
+        .iter()
+        .map(|p| {
+            let pattern = |v: [f64; 3]| -> String {
+                v.iter()
+                    .map(|x| if *x == 0.0 { '0' } else { '1' })
+                    .collect()
+            };
+            let translation = p
+                .translation
+                .map(|t| model.graph.as_const(t).unwrap_or(f64::NAN));
+            let mut text = format!("t{}", pattern(translation));
+            for (axis, angle) in &p.rotations {
+                let fixed = model.graph.as_const(*angle).is_some();
+                text += &format!("r{}{}", pattern(*axis), if fixed { 'c' } else { 'q' });
+            }
+            text
+        })
+        .collect();
     let mut e = Emitter {
         model,
-        mirror: mirror_coordinates(&parents, &coordinates, model.nq()),
+        mirror: mirror_coordinates(&parents, &coordinates, &descriptions, model.nq()),
         reports: Vec::new(),
         perturbation,
         perturbed: false,

@@ -29,10 +29,15 @@ use crate::expr::Symbol;
 pub type Mirror = Vec<Option<(u32, u8)>>;
 
 /// The mirror images among the coordinates of a kinematic tree given by
-/// each frame's parent and own coordinates (`nq` coordinates in all).
+/// each frame's parent, own coordinates and a description of its placement
+/// (`nq` coordinates in all). Sibling subtrees pair first where their
+/// frames' descriptions agree all the way down (mirror images written
+/// alike), then, among the others, where only their coordinates per frame
+/// and children do.
 pub fn mirror_coordinates(
     parents: &[Option<usize>],
     coordinates: &[Vec<u32>],
+    descriptions: &[String],
     nq: usize,
 ) -> Mirror {
     let n = parents.len();
@@ -44,31 +49,47 @@ pub fn mirror_coordinates(
             None => roots.push(a),
         }
     }
-    // Shapes from the leaves (children follow their parents).
-    let mut shape: Vec<String> = vec![String::new(); n];
+    // Shapes from the leaves (children follow their parents): coarse
+    // (coordinates and children) and detailed (descriptions too).
+    let mut coarse: Vec<String> = vec![String::new(); n];
+    let mut detailed: Vec<String> = vec![String::new(); n];
     for a in (0..n).rev() {
-        let mut inner: Vec<&str> = children[a].iter().map(|&c| shape[c].as_str()).collect();
-        inner.sort_unstable();
-        shape[a] = format!("{}({})", coordinates[a].len(), inner.join(","));
+        for (shape, own) in [
+            (&mut coarse, coordinates[a].len().to_string()),
+            (
+                &mut detailed,
+                format!("{}{}", coordinates[a].len(), descriptions[a]),
+            ),
+        ] {
+            let mut inner: Vec<&str> = children[a].iter().map(|&c| shape[c].as_str()).collect();
+            inner.sort_unstable();
+            let joined = inner.join(",");
+            shape[a] = format!("{own}({joined})");
+        }
     }
     let mut mirror: Mirror = vec![None; nq];
     let mut stack = vec![roots];
     while let Some(siblings) = stack.pop() {
-        let mut groups: Vec<Vec<usize>> = Vec::new();
-        for &a in &siblings {
-            match groups.iter_mut().find(|g| shape[g[0]] == shape[a]) {
-                Some(g) => g.push(a),
-                None => groups.push(vec![a]),
+        let mut left = siblings;
+        for shape in [&detailed, &coarse] {
+            let mut groups: Vec<Vec<usize>> = Vec::new();
+            for &a in &left {
+                match groups.iter_mut().find(|g| shape[g[0]] == shape[a]) {
+                    Some(g) => g.push(a),
+                    None => groups.push(vec![a]),
+                }
+            }
+            left = Vec::new();
+            for g in groups {
+                let mut members = g.chunks_exact(2);
+                for two in members.by_ref() {
+                    match_subtrees(two[0], two[1], &children, shape, coordinates, &mut mirror);
+                }
+                left.extend(members.remainder());
             }
         }
-        for g in groups {
-            let mut members = g.chunks_exact(2);
-            for two in members.by_ref() {
-                match_subtrees(two[0], two[1], &children, &shape, coordinates, &mut mirror);
-            }
-            for &a in members.remainder() {
-                stack.push(children[a].clone());
-            }
+        for a in left {
+            stack.push(children[a].clone());
         }
     }
     mirror
@@ -554,7 +575,8 @@ mod tests {
             vec![5],
             vec![6],
         ];
-        let mirror = mirror_coordinates(&parents, &coordinates, 7);
+        let mut descriptions = vec![String::new(); 8];
+        let mirror = mirror_coordinates(&parents, &coordinates, &descriptions, 7);
         assert_eq!(
             mirror,
             vec![
@@ -567,5 +589,17 @@ mod tests {
                 Some((5, 1)),
             ]
         );
+        // Described differently, the arms still pair, after the frames
+        // described alike: a third arm on the base like the second pairs
+        // with it, the first stays alone.
+        let parents = [None, Some(0), Some(0), Some(0)];
+        let coordinates = [vec![], vec![0], vec![1], vec![2]];
+        descriptions = vec!["".into(), "x".into(), "y".into(), "y".into()];
+        let mirror = mirror_coordinates(&parents, &coordinates, &descriptions[..4], 3);
+        assert_eq!(mirror, vec![None, Some((2, 0)), Some((1, 1))]);
+        // And two arms described differently pair by their coarse shape.
+        descriptions = vec!["".into(), "x".into(), "y".into(), "z".into()];
+        let mirror = mirror_coordinates(&parents[..3], &coordinates[..3], &descriptions[..3], 2);
+        assert_eq!(mirror, vec![Some((1, 0)), Some((0, 1))]);
     }
 }
