@@ -613,19 +613,7 @@ pub fn emit(
     let coordinates: Vec<Vec<u32>> = model
         .placements
         .iter()
-        .map(|p| {
-            let mut own: Vec<u32> = model
-                .graph
-                .symbols(&p.twist)
-                .into_iter()
-                .filter_map(|s| match s {
-                    Symbol::Qd(i) => Some(i),
-                    _ => None,
-                })
-                .collect();
-            own.sort_unstable();
-            own
-        })
+        .map(|p| p.own_coordinates(&model.graph))
         .collect();
     // A frame's placement as far as the programs' shapes go: which axes its
     // translation and turns have, and which turns are fixed.

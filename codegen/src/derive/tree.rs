@@ -101,16 +101,7 @@ impl Tree {
         let columns: Vec<Vec<(usize, [Id; 6])>> = placements
             .iter()
             .map(|p| {
-                let mut coordinates: Vec<u32> = g
-                    .symbols(&p.twist)
-                    .into_iter()
-                    .filter_map(|s| match s {
-                        Symbol::Qd(i) => Some(i),
-                        _ => None,
-                    })
-                    .collect();
-                coordinates.sort_unstable();
-                coordinates
+                p.own_coordinates(g)
                     .into_iter()
                     .map(|i| {
                         let s = g.diff_many(&p.twist, Symbol::Qd(i));

@@ -28,7 +28,7 @@ use std::path::PathBuf;
 
 use nalgebra::DMatrix;
 
-use crate::expr::{Graph, Id};
+use crate::expr::{Graph, Id, Symbol};
 use crate::fem::{FeModel, Invariants, ModalBasis};
 
 pub(crate) use assemble::build;
@@ -137,6 +137,20 @@ pub struct Placement {
 }
 
 impl Placement {
+    /// The coordinates whose velocities its twist reads, in order.
+    pub fn own_coordinates(&self, g: &Graph) -> Vec<u32> {
+        let mut own: Vec<u32> = g
+            .symbols(&self.twist)
+            .into_iter()
+            .filter_map(|s| match s {
+                Symbol::Qd(i) => Some(i),
+                _ => None,
+            })
+            .collect();
+        own.sort_unstable();
+        own
+    }
+
     /// Its nodes: translation, angles, twist, velocity.
     fn nodes(&self) -> impl Iterator<Item = Id> + '_ {
         self.translation

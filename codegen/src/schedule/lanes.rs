@@ -211,8 +211,12 @@ pub fn plan(lowered: &Lowered, mirror: &Mirror, double: bool) -> Plan {
     } else {
         Vec::new()
     };
-    plan.order = order(lowered, &plan, &pairs);
-    plan.scalar = scalar_reads(lowered, &plan);
+    if pairs.is_empty() {
+        plan.order = (0..plan.units.len()).map(Step::One).collect();
+    } else {
+        plan.order = order(lowered, &plan, &pairs);
+        plan.scalar = scalar_reads(lowered, &plan);
+    }
     plan
 }
 
