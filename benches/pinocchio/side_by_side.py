@@ -21,7 +21,7 @@ cells. The robots are those of the
 run (``FLEXDYN_BENCH_ROBOTS``, see ``build.rs``; the default five when it
 is unset). Stdlib only.
 
-Usage (from the repository root):
+Usage (from any directory; cargo runs in the repository root):
 
     python3 benches/pinocchio/side_by_side.py [default|native|both] [CRITERION ARGS...]
 
@@ -95,7 +95,7 @@ def main() -> int:
         run = subprocess.run(
             ["cargo", "bench", "--manifest-path", str(MANIFEST), "--", *extra],
             env={**os.environ, **env, "CARGO_TARGET_DIR": str(target)},
-            capture_output=True, text=True)
+            cwd=REPO, capture_output=True, text=True)
         for line in run.stdout.splitlines():
             if "largest relative difference" in line or "operations" in line:
                 print(f"{build}: {line}")
