@@ -10,8 +10,8 @@ use quote::{format_ident, quote};
 use crate::expr::Symbol;
 use crate::model::{Model, Precision};
 use crate::schedule::{
-    lower, mirror_coordinates, plan, Binary, Code, Fused, Inputs, Lowered, Mirror, Op, OpCount,
-    Operand, OutputSpec, Plan, Program, Scheduled, Shape, Step, Stmt, Value,
+    lower, mirror_coordinates, plan, Binary, Code, Form, Fused, Inputs, Lanes, Lowered, Mirror, Op,
+    OpCount, Operand, OutputSpec, Plan, Program, Scheduled, Shape, Step, Stmt, Value,
 };
 
 /// Operation counts of one emitted function.
@@ -303,10 +303,10 @@ impl Printer<'_, '_> {
         let bind = self.bind.clone();
         let p = pair(n);
         let [ra, rb] = [a, b].map(|u| &lowered.ops[*plan.units[u].last().expect("a statement")]);
-        let (Op::Bind { var: va, value: xa }, Op::Bind { var: vb, value: xb }) = (ra, rb) else {
+        let (Op::Bind { var: va, .. }, Op::Bind { var: vb, .. }) = (ra, rb) else {
             unreachable!("only statements that bind a variable are paired");
         };
-        let e = self.lanes(lowered, plan, *xa, *xb);
+        let e = self.lanes(plan, &plan.trees[n as usize]);
         out.extend(quote!(#bind #p = #e;));
         for (v, lane) in [(*va, quote!(lo)), (*vb, quote!(hi))] {
             if plan.scalar.contains(&v) {
@@ -316,52 +316,124 @@ impl Printer<'_, '_> {
         }
     }
 
-    /// The two-lane expression of two operands of the same shape.
-    fn lanes(&mut self, lowered: &Lowered, plan: &Plan, a: Operand, b: Operand) -> TokenStream {
-        if let Some(n) = plan.held(a, b) {
-            let p = pair(n);
-            return quote!(#p);
-        }
-        let (Value::Temp(s), Value::Temp(t)) = (a.value, b.value) else {
-            let (x, y) = (self.operand(a, SUM), self.operand(b, SUM));
-            return quote!(math::F2::new(#x, #y));
-        };
-        let (p, q) = (
-            &lowered.ops[plan.writer[s as usize]],
-            &lowered.ops[plan.writer[t as usize]],
-        );
-        let mut args = p.operands().into_iter().zip(q.operands());
-        let mut next = || {
-            let (x, y) = args
-                .next()
-                .expect("paired operations have the same operands");
-            self.lanes(lowered, plan, x, y)
-        };
-        match p {
-            Op::Binary { op, .. } => {
-                let (x, y) = (next(), next());
-                let f = match op {
-                    Binary::Add => quote!(plus),
-                    Binary::Sub => quote!(minus),
-                    Binary::Mul => quote!(times),
-                    Binary::Div => quote!(over),
-                };
-                quote!(math::F2::#f(#x, #y))
-            }
-            Op::Fused { form, .. } => {
-                let (x, y, c) = (next(), next(), next());
-                let name = format_ident!("{}", form.name());
-                match form {
-                    Fused::AddMul | Fused::SubMul => quote!(math::F2::#name(#c, #x, #y)),
-                    Fused::MulAdd | Fused::MulSub => quote!(math::F2::#name(#x, #y, #c)),
+    /// The two-lane expression of a paired statement's tree: its signs
+    /// where they cost nothing (a literal's sign, `minus` for a subtrahend
+    /// negated on both lanes, `sub_mul` and `mul_sub`), else as a negation
+    /// of a lane or of both.
+    fn lanes(&mut self, plan: &Plan, tree: &Lanes) -> TokenStream {
+        let (e, signs) = match tree {
+            Lanes::Leaf([a, b], signs) => {
+                if let Some(n) = plan.held(*a, *b) {
+                    let p = pair(n);
+                    (quote!(#p), *signs)
+                } else {
+                    let [x, y] =
+                        [(*a, signs[0]), (*b, signs[1])].map(|(o, negated)| match o.value {
+                            Value::Literal(x) if negated => self.emitter.lit(-x),
+                            _ if negated => {
+                                let x = self.operand(o, ATOM);
+                                quote!(-#x)
+                            }
+                            _ => self.operand(o, SUM),
+                        });
+                    (quote!(math::F2::new(#x, #y)), [false; 2])
                 }
             }
-            Op::Neg { .. } => {
-                let x = next();
-                quote!(math::F2::negated(#x))
+            Lanes::Node(form, args, signs) => {
+                let both = |t: &Lanes| t.signs() == [true; 2];
+                let e = match form {
+                    Form::Plus if both(&args[1]) && !both(&args[0]) => {
+                        let (a, b) = (
+                            self.lanes(plan, &args[0]),
+                            self.lanes(plan, &args[1].flipped([true; 2])),
+                        );
+                        quote!(math::F2::minus(#a, #b))
+                    }
+                    Form::Plus if both(&args[0]) && !both(&args[1]) => {
+                        let (a, b) = (
+                            self.lanes(plan, &args[1]),
+                            self.lanes(plan, &args[0].flipped([true; 2])),
+                        );
+                        quote!(math::F2::minus(#a, #b))
+                    }
+                    Form::Plus => {
+                        let (a, b) = (self.lanes(plan, &args[0]), self.lanes(plan, &args[1]));
+                        quote!(math::F2::plus(#a, #b))
+                    }
+                    Form::Times | Form::Over => {
+                        let f = if *form == Form::Times {
+                            quote!(times)
+                        } else {
+                            quote!(over)
+                        };
+                        let (x, y) = literal_sign(plan, &args[0], &args[1], *form == Form::Times);
+                        let (a, b) = (self.lanes(plan, &x), self.lanes(plan, &y));
+                        quote!(math::F2::#f(#a, #b))
+                    }
+                    Form::MulAdd => {
+                        let (x, y) = literal_sign(plan, &args[0], &args[1], false);
+                        let (x, y, c) = (&x, &y, &args[2]);
+                        if both(c) && !both(x) {
+                            let (x, y, c) = (
+                                self.lanes(plan, x),
+                                self.lanes(plan, y),
+                                self.lanes(plan, &c.flipped([true; 2])),
+                            );
+                            quote!(math::F2::mul_sub(#x, #y, #c))
+                        } else if both(x) {
+                            let (x, y, c) = (
+                                self.lanes(plan, &x.flipped([true; 2])),
+                                self.lanes(plan, y),
+                                self.lanes(plan, c),
+                            );
+                            quote!(math::F2::sub_mul(#c, #x, #y))
+                        } else {
+                            let (x, y, c) = (
+                                self.lanes(plan, x),
+                                self.lanes(plan, y),
+                                self.lanes(plan, c),
+                            );
+                            quote!(math::F2::add_mul(#c, #x, #y))
+                        }
+                    }
+                };
+                let signs = if matches!(form, Form::Plus | Form::MulAdd) {
+                    *signs
+                } else {
+                    [false; 2]
+                };
+                (e, signs)
             }
-            _ => unreachable!("paired statements have two-lane operations only"),
+        };
+        match signs {
+            [false, false] => e,
+            [true, true] => quote!(math::F2::negated(#e)),
+            [true, false] => quote!(math::F2::negated_lo(#e)),
+            [false, true] => quote!(math::F2::negated_hi(#e)),
         }
+    }
+}
+
+/// The two factors of a product (or a quotient's numerator and
+/// denominator) with the sign of the first moved onto the second where
+/// that is a literal on each lane the sign is on (a negated literal costs
+/// nothing): exact, `(-a) b = a (-b)`, `(-a) / b = a / (-b)`. A sign on
+/// both lanes stays unless `both` (a multiply-add prints it as `sub_mul`).
+fn literal_sign(plan: &Plan, x: &Lanes, y: &Lanes, both: bool) -> (Lanes, Lanes) {
+    let signs = x.signs();
+    let literal = |l: usize| match y {
+        Lanes::Leaf(o, _) => {
+            plan.held(o[0], o[1]).is_none() && matches!(o[l].value, Value::Literal(_))
+        }
+        Lanes::Node(..) => false,
+    };
+    let movable = signs != [false; 2]
+        && (signs != [true; 2] || both)
+        && (0..2).all(|l| !signs[l] || literal(l));
+    if movable {
+        (x.flipped(signs), y.flipped(signs))
+    } else {
+        (x.clone(), y.clone())
     }
 }
 

@@ -409,6 +409,16 @@ impl F2 {
     pub fn negated(a: F2) -> F2 {
         F2(pair::neg(a.0))
     }
+    /// `a` with its first lane negated (the sign bit flipped).
+    #[inline(always)]
+    pub fn negated_lo(a: F2) -> F2 {
+        F2(pair::flip(a.0, true, false))
+    }
+    /// `a` with its second lane negated (the sign bit flipped).
+    #[inline(always)]
+    pub fn negated_hi(a: F2) -> F2 {
+        F2(pair::flip(a.0, false, true))
+    }
     /// [`mul_add`] lane by lane.
     #[inline(always)]
     pub fn mul_add(x: F2, y: F2, c: F2) -> F2 {
@@ -505,6 +515,11 @@ mod pair {
     pub(super) fn neg(a: Repr) -> Repr {
         unsafe { _mm_xor_pd(a, _mm_set1_pd(-0.0)) }
     }
+    #[inline(always)]
+    pub(super) fn flip(a: Repr, lo: bool, hi: bool) -> Repr {
+        let sign = |x: bool| if x { -0.0 } else { 0.0 };
+        unsafe { _mm_xor_pd(a, _mm_set_pd(sign(hi), sign(lo))) }
+    }
     /// `x * y + c` with one rounding (the target has FMA).
     #[cfg(all(feature = "std", target_feature = "fma"))]
     #[inline(always)]
@@ -549,6 +564,10 @@ mod pair {
     #[inline(always)]
     pub(super) fn neg(a: Repr) -> Repr {
         [-a[0], -a[1]]
+    }
+    #[inline(always)]
+    pub(super) fn flip(a: Repr, lo: bool, hi: bool) -> Repr {
+        [if lo { -a[0] } else { a[0] }, if hi { -a[1] } else { a[1] }]
     }
     /// `x * y + c` with one rounding.
     #[cfg(all(feature = "std", target_feature = "fma"))]
@@ -799,6 +818,46 @@ mod tests {
                         mul_sub(a, b, c),
                         mul_sub(b, c, a)
                     ));
+                }
+            }
+        }
+    }
+
+    /// The rewrites that let two statements pair where their signs sit
+    /// differently (`codegen`'s `schedule::lanes`) are exact, signed zeros,
+    /// infinities and NaN included: a subtraction is the addition of the
+    /// negated operand, a product's or quotient's sign moves between its
+    /// operands, multiply-adds take their signs on an operand, sums and
+    /// products commute; and negating one lane flips that lane only.
+    #[test]
+    fn sign_rewrites_of_paired_statements_are_exact() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e-300,
+            -3.7e300,
+            0.1,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        for &a in &values {
+            for &b in &values {
+                assert!(same(a - b, a + -b));
+                assert!(same(a + b, b + a));
+                assert!(same(a * b, b * a));
+                assert!(same(-(a * b), -a * b) && same(a * -b, -a * b));
+                assert!(same(-(a / b), -a / b) && same(a / -b, -a / b));
+                let p = F2::new(a, b);
+                assert!(same(F2::negated_lo(p).lo(), -a) && same(F2::negated_lo(p).hi(), b));
+                assert!(same(F2::negated_hi(p).lo(), a) && same(F2::negated_hi(p).hi(), -b));
+                for &c in &values {
+                    assert!(same(sub_mul(c, a, b), add_mul(c, -a, b)));
+                    assert!(same(mul_sub(a, b, c), add_mul(-c, a, b)));
+                    assert!(same(mul_add(a, b, c), add_mul(c, a, b)));
+                    assert!(same(add_mul(c, a, b), add_mul(c, b, a)));
                 }
             }
         }

@@ -144,6 +144,8 @@ pub struct Plan {
     pub scalar: HashSet<u32>,
     /// The writer of each intermediate.
     pub writer: Vec<usize>,
+    /// Each pair's two-lane expression, by pair number.
+    pub trees: Vec<Lanes>,
 }
 
 impl Plan {
@@ -161,16 +163,202 @@ impl Plan {
     }
 }
 
-/// A token of a statement's shape for pairing.
+/// An operation of a statement in the form the two lanes share: an
+/// addition or subtraction is a sum of two signed operands, a multiply-add
+/// in any of its four forms is `x * y + c` with signed operands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Form {
+    /// `a + b`.
+    Plus,
+    /// `a * b`.
+    Times,
+    /// `a / b`.
+    Over,
+    /// `x * y + c` (operands `x`, `y`, `c`).
+    MulAdd,
+}
+
+/// One lane's statement as a tree of [`Form`]s whose signs sit where the
+/// two lanes can agree on them: a negation or subtraction becomes a sign on
+/// the negated operand, and within a product (or quotient) every sign moves
+/// to its first factor. Each of these is exact in IEEE arithmetic: `a - b`
+/// is `a + (-b)`, `-(a b) = (-a) b`, `-(a / b) = (-a) / b`, `c - x y = c +
+/// (-x) y` (also fused), and negating a result flips its sign bit only. A
+/// sum's sign stays on the sum (`-(a + b)` and `-a - b` differ in the sign
+/// of a zero).
+#[derive(Debug, Clone)]
+enum View {
+    /// An operand read as it is, negated or not.
+    Leaf(Operand, bool),
+    /// An operation, its result negated or not (never for products and
+    /// quotients, whose sign is on the first factor).
+    Node(Form, Vec<View>, bool),
+}
+
+impl View {
+    /// The view negated.
+    fn negate(&mut self) {
+        match self {
+            View::Leaf(_, sign) | View::Node(Form::Plus | Form::MulAdd, _, sign) => *sign = !*sign,
+            View::Node(Form::Times | Form::Over, args, _) => args[0].negate(),
+        }
+    }
+
+    /// The sign where [`View::negate`] puts it.
+    fn sign(&self) -> bool {
+        match self {
+            View::Leaf(_, sign) | View::Node(Form::Plus | Form::MulAdd, _, sign) => *sign,
+            View::Node(Form::Times | Form::Over, args, _) => args[0].sign(),
+        }
+    }
+}
+
+/// A token of a view's shape, for pairing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 enum Token {
-    Binary(u8),
-    Fused(u8),
-    Neg,
+    Form(u8),
     /// An operand of a pair (its number).
     Pair(u32),
     /// Another operand.
     Any,
+}
+
+/// The two lanes of a paired statement: the two views zipped.
+#[derive(Debug, Clone)]
+pub enum Lanes {
+    /// Two operands (lane 0, lane 1), each negated where its flag says.
+    Leaf([Operand; 2], [bool; 2]),
+    /// An operation on both lanes, its result negated on the lanes whose
+    /// flag says so.
+    Node(Form, Vec<Lanes>, [bool; 2]),
+}
+
+impl Lanes {
+    /// The signs on both lanes where [`View::sign`] reads them.
+    pub fn signs(&self) -> [bool; 2] {
+        match self {
+            Lanes::Leaf(_, signs) | Lanes::Node(Form::Plus | Form::MulAdd, _, signs) => *signs,
+            Lanes::Node(Form::Times | Form::Over, args, _) => args[0].signs(),
+        }
+    }
+
+    /// The same lanes with the signs that [`Lanes::signs`] reads flipped
+    /// where `flip` says.
+    pub fn flipped(&self, flip: [bool; 2]) -> Lanes {
+        let xor = |s: [bool; 2]| [s[0] ^ flip[0], s[1] ^ flip[1]];
+        match self {
+            Lanes::Leaf(o, s) => Lanes::Leaf(*o, xor(*s)),
+            Lanes::Node(f @ (Form::Plus | Form::MulAdd), args, s) => {
+                Lanes::Node(*f, args.clone(), xor(*s))
+            }
+            Lanes::Node(f, args, s) => {
+                let mut args = args.clone();
+                args[0] = args[0].flipped(flip);
+                Lanes::Node(*f, args, *s)
+            }
+        }
+    }
+
+    /// The operand pairs at its leaves.
+    fn leaves(&self, out: &mut Vec<[Operand; 2]>) {
+        match self {
+            Lanes::Leaf(o, _) => out.push(*o),
+            Lanes::Node(_, args, _) => args.iter().for_each(|a| a.leaves(out)),
+        }
+    }
+}
+
+/// The view of an operand of a statement (`None` where its tree has an
+/// operation without a two-lane form), its operands that commute put in an
+/// order both lanes share (by their shapes: `key`).
+fn view(
+    lowered: &Lowered,
+    writer: &[usize],
+    o: Operand,
+    key: &mut dyn FnMut(&View) -> Vec<Token>,
+) -> Option<View> {
+    let Value::Temp(t) = o.value else {
+        return Some(View::Leaf(o, false));
+    };
+    let go = |o: Operand, key: &mut dyn FnMut(&View) -> Vec<Token>| view(lowered, writer, o, key);
+    let op = &lowered.ops[writer[t as usize]];
+    let (form, mut args) = match *op {
+        Op::Neg { a, .. } => {
+            let mut v = go(a, key)?;
+            v.negate();
+            return Some(v);
+        }
+        Op::Binary { op, a, b, .. } => {
+            let (a, mut b) = (go(a, key)?, go(b, key)?);
+            let form = match op {
+                Binary::Add => Form::Plus,
+                Binary::Sub => {
+                    b.negate();
+                    Form::Plus
+                }
+                Binary::Mul => Form::Times,
+                Binary::Div => Form::Over,
+            };
+            (form, vec![a, b])
+        }
+        Op::Fused { form, x, y, c, .. } => {
+            let (mut x, y, mut c) = (go(x, key)?, go(y, key)?, go(c, key)?);
+            match form {
+                Fused::AddMul | Fused::MulAdd => {}
+                Fused::SubMul => x.negate(),
+                Fused::MulSub => c.negate(),
+            }
+            (Form::MulAdd, vec![x, y, c])
+        }
+        _ => return None,
+    };
+    // Operands that commute in an order of their shapes (exact: `a + b =
+    // b + a`, `a b = b a`), then a product's signs on its first factor.
+    if form != Form::Over && key(&args[1]) < key(&args[0]) {
+        args.swap(0, 1);
+    }
+    if matches!(form, Form::Times | Form::Over | Form::MulAdd) && args[1].sign() {
+        args[1].negate();
+        args[0].negate();
+    }
+    Some(View::Node(form, args, false))
+}
+
+/// The tokens of a view: its forms and operands, without signs.
+fn tokens(
+    v: &View,
+    leaf: &mut dyn FnMut(Operand) -> Option<(u32, u8)>,
+    out: &mut Vec<Token>,
+    lanes: &mut Vec<u8>,
+) {
+    match v {
+        View::Leaf(o, _) => match leaf(*o) {
+            Some((n, lane)) => {
+                out.push(Token::Pair(n));
+                lanes.push(lane);
+            }
+            None => out.push(Token::Any),
+        },
+        View::Node(form, args, _) => {
+            out.push(Token::Form(*form as u8));
+            for a in args {
+                tokens(a, leaf, out, lanes);
+            }
+        }
+    }
+}
+
+/// Two views of the same tokens as one two-lane tree.
+fn zip(a: &View, b: &View) -> Lanes {
+    match (a, b) {
+        (View::Leaf(x, s), View::Leaf(y, t)) => Lanes::Leaf([*x, *y], [*s, *t]),
+        (View::Node(form, xs, s), View::Node(_, ys, t)) => Lanes::Node(
+            *form,
+            xs.iter().zip(ys).map(|(x, y)| zip(x, y)).collect(),
+            [*s, *t],
+        ),
+        _ => unreachable!("paired views have the same tokens"),
+    }
 }
 
 /// The units of `lowered`, paired (where `mirror` has pairs and the
@@ -336,30 +524,30 @@ fn pair_units(lowered: &Lowered, plan: &mut Plan, mirror: &Mirror) -> Vec<(usize
     let mut pairs = Vec::new();
     for units in by_level {
         let mut candidates: HashMap<Vec<Token>, [Vec<usize>; 2]> = HashMap::new();
+        let mut views: HashMap<usize, View> = HashMap::new();
         for u in units {
             let Op::Bind { value, .. } = ops[roots(plan, u)] else {
                 continue;
             };
-            let mut tokens = Vec::new();
-            let mut lanes = Vec::new();
             let mut leaf = |o: Operand| match o.value {
                 Value::Var(v) => var_pair.get(&v).copied(),
                 Value::Input(s) => numbers.input(s, mirror),
                 _ => None,
             };
-            if !shape(
-                lowered,
-                &plan.writer,
-                value,
-                &mut leaf,
-                &mut tokens,
-                &mut lanes,
-            ) {
+            let mut key = |v: &View| {
+                let (mut out, mut lanes) = (Vec::new(), Vec::new());
+                tokens(v, &mut leaf, &mut out, &mut lanes);
+                out
+            };
+            let Some(v) = view(lowered, &plan.writer, value, &mut key) else {
                 continue;
-            }
+            };
+            let (mut shape, mut lanes) = (Vec::new(), Vec::new());
+            tokens(&v, &mut leaf, &mut shape, &mut lanes);
             match lanes.first() {
                 Some(&lane) if lanes.iter().all(|&l| l == lane) => {
-                    candidates.entry(tokens).or_default()[lane as usize].push(u);
+                    candidates.entry(shape).or_default()[lane as usize].push(u);
+                    views.insert(u, v);
                 }
                 _ => {}
             }
@@ -378,63 +566,11 @@ fn pair_units(lowered: &Lowered, plan: &mut Plan, mirror: &Mirror) -> Vec<(usize
                     plan.resident.insert(var, (held, lane));
                 }
             }
+            plan.trees.push(zip(&views[&a], &views[&b]));
             pairs.push((a, b));
         }
     }
     pairs
-}
-
-/// The tokens of an operand's tree and the lanes of its operands that
-/// belong to pairs (`leaf`); `false` where the tree has an operation that
-/// has no two-lane form.
-fn shape(
-    lowered: &Lowered,
-    writer: &[usize],
-    o: Operand,
-    leaf: &mut dyn FnMut(Operand) -> Option<(u32, u8)>,
-    tokens: &mut Vec<Token>,
-    lanes: &mut Vec<u8>,
-) -> bool {
-    if let Value::Temp(t) = o.value {
-        let op = &lowered.ops[writer[t as usize]];
-        let token = match op {
-            Op::Binary { op, .. } => Token::Binary(binary_tag(*op)),
-            Op::Fused { form, .. } => Token::Fused(fused_tag(*form)),
-            Op::Neg { .. } => Token::Neg,
-            _ => return false,
-        };
-        tokens.push(token);
-        return op
-            .operands()
-            .into_iter()
-            .all(|x| shape(lowered, writer, x, leaf, tokens, lanes));
-    }
-    match leaf(o) {
-        Some((n, lane)) => {
-            tokens.push(Token::Pair(n));
-            lanes.push(lane);
-        }
-        None => tokens.push(Token::Any),
-    }
-    true
-}
-
-fn binary_tag(op: Binary) -> u8 {
-    match op {
-        Binary::Add => 0,
-        Binary::Sub => 1,
-        Binary::Mul => 2,
-        Binary::Div => 3,
-    }
-}
-
-fn fused_tag(form: Fused) -> u8 {
-    match form {
-        Fused::AddMul => 0,
-        Fused::MulAdd => 1,
-        Fused::SubMul => 2,
-        Fused::MulSub => 3,
-    }
 }
 
 /// The printing order: the original order where nothing is paired; a pair
@@ -523,21 +659,11 @@ fn scalar_reads(lowered: &Lowered, plan: &Plan) -> HashSet<u32> {
                     }
                 }
             }
-            Step::Two(a, b, _) => {
-                let (ra, rb) = (roots(plan, a), roots(plan, b));
-                let mut stack =
-                    vec![(lowered.ops[ra].operands()[0], lowered.ops[rb].operands()[0])];
-                while let Some((x, y)) = stack.pop() {
-                    match (x.value, y.value) {
-                        (Value::Temp(s), Value::Temp(t)) => {
-                            let (p, q) = (
-                                &lowered.ops[plan.writer[s as usize]],
-                                &lowered.ops[plan.writer[t as usize]],
-                            );
-                            stack.extend(p.operands().into_iter().zip(q.operands()));
-                        }
-                        _ => visit(x, Some(y), &mut scalar),
-                    }
+            Step::Two(_, _, n) => {
+                let mut leaves = Vec::new();
+                plan.trees[n as usize].leaves(&mut leaves);
+                for [x, y] in leaves {
+                    visit(x, Some(y), &mut scalar);
                 }
             }
         }
@@ -553,6 +679,99 @@ fn roots(plan: &Plan, u: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::schedule::Function;
+
+    /// Statements of two mirrored coordinates (`q0`, `qd0` and `q1`, `qd1`)
+    /// that differ only where their signs sit pair, each lane keeping its
+    /// own signs: a sum negated whole on one lane and term by term on the
+    /// other too (its lanes then differ in a zero's sign, as their
+    /// statements do).
+    #[test]
+    fn statements_that_differ_in_signs_pair() {
+        let o = |value| Operand {
+            value,
+            paren: false,
+        };
+        let (q, qd) = (
+            |i| o(Value::Input(Symbol::Q(i))),
+            |i| o(Value::Input(Symbol::Qd(i))),
+        );
+        let (t, k) = (|i| o(Value::Temp(i)), |x| o(Value::Literal(x)));
+        let fused = |dst, form, x, y, c| Op::Fused { dst, form, x, y, c };
+        let binary = |dst, op, a, b| Op::Binary { dst, op, a, b };
+        let bind = |var, value| Op::Bind { var, value };
+        let ops = vec![
+            // qd0 + 2 q0 and qd1 - q1 2: a sign on a factor, factors swapped.
+            fused(0, Fused::AddMul, k(2.0), q(0), qd(0)),
+            bind(0, t(0)),
+            fused(1, Fused::SubMul, q(1), k(2.0), qd(1)),
+            bind(1, t(1)),
+            // -(q0 qd0) and (-q1) qd1: a negation moved onto a factor.
+            binary(2, Binary::Mul, q(0), qd(0)),
+            Op::Neg { dst: 3, a: t(2) },
+            bind(2, t(3)),
+            Op::Neg { dst: 4, a: q(1) },
+            binary(5, Binary::Mul, t(4), qd(1)),
+            bind(3, t(5)),
+            // q0 - qd0 and q1 + qd1: a sign on a term.
+            binary(6, Binary::Sub, q(0), qd(0)),
+            bind(4, t(6)),
+            binary(7, Binary::Add, q(1), qd(1)),
+            bind(5, t(7)),
+            // -(q0 + qd0) and (-q1) - qd1: the sum's sign on lane 0 only.
+            binary(8, Binary::Add, q(0), qd(0)),
+            Op::Neg { dst: 9, a: t(8) },
+            bind(6, t(9)),
+            Op::Neg { dst: 10, a: q(1) },
+            binary(11, Binary::Sub, t(10), qd(1)),
+            bind(7, t(11)),
+        ];
+        let lowered = Lowered {
+            function: Function::ALL[0],
+            shapes: Vec::new(),
+            ops,
+            temps: 12,
+        };
+        let mirror: Mirror = vec![Some((1, 0)), Some((0, 1))];
+        let plan = plan(&lowered, &mirror, true);
+        let var = |u: usize| match lowered.ops[roots(&plan, u)] {
+            Op::Bind { var, .. } => var,
+            _ => unreachable!(),
+        };
+        let pairs: Vec<(u32, u32)> = plan
+            .order
+            .iter()
+            .filter_map(|s| match *s {
+                Step::Two(a, b, _) => Some((var(a), var(b))),
+                Step::One(_) => None,
+            })
+            .collect();
+        assert_eq!(pairs, vec![(0, 1), (2, 3), (4, 5), (6, 7)]);
+        // Every pair keeps a sign on one lane: the factor `q1`, `-q0`, the
+        // term `-qd0`, the sum on lane 0 and both terms on lane 1.
+        let signs: Vec<Vec<[bool; 2]>> = plan
+            .trees
+            .iter()
+            .map(|tree| {
+                let mut out = Vec::new();
+                fn walk(t: &Lanes, out: &mut Vec<[bool; 2]>) {
+                    match t {
+                        Lanes::Leaf(_, s) => out.push(*s),
+                        Lanes::Node(_, args, s) => {
+                            out.push(*s);
+                            args.iter().for_each(|a| walk(a, out));
+                        }
+                    }
+                }
+                walk(tree, &mut out);
+                out
+            })
+            .collect();
+        assert!(
+            signs.iter().all(|s| s.iter().any(|&l| l != [false; 2])),
+            "{signs:?}"
+        );
+    }
 
     /// A base (frame 0, no coordinate) with two arms of two joints each
     /// (frames 1-2 and 3-4) and a one-joint head (5); a second pair of
