@@ -13,11 +13,15 @@
 //! * [`plan`]: statements are paired level by level (a statement's level is
 //!   one more than the deepest statement it reads, so statements of one
 //!   level never read each other): two statements pair when their operation
-//!   trees are the same and every operand that belongs to a pair (an input
-//!   of mirrored coordinates, a sine of one, a paired statement) is lane 0 of
-//!   that pair in one and lane 1 in the other; other operands may be
-//!   anything. Then the statements are ordered again (each pair where both
-//!   its statements' operands are ready, otherwise the original order).
+//!   trees are the same up to signs ([`View`]: a subtraction is a signed
+//!   term, the four multiply-adds one form, a product's sign on its first
+//!   factor, commuting operands in an order both share) and every operand
+//!   that belongs to a pair (an input of mirrored coordinates, a sine of
+//!   one, a paired statement) is lane 0 of that pair in one and lane 1 in
+//!   the other; other operands may be anything. Each lane keeps its own
+//!   signs ([`Lanes`]). Then the statements are ordered again (each pair
+//!   where both its statements' operands are ready, otherwise the original
+//!   order).
 
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap, HashSet};
