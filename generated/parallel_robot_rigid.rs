@@ -245,37 +245,37 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         );
         let p10 = math::F2::sub_mul(
             math::F2::times(p1, p6),
-            math::F2::times(math::F2::new(v2, v6), p8),
             math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v2, v6), p8),
         );
-        let p12 = math::F2::add_mul(p10, p6, math::F2::new(v59, v63));
+        let p12 = math::F2::mul_add(math::F2::new(v59, v63), p6, p10);
         let v83 = p12.lo();
         let v82 = p12.hi();
         let p14 = math::F2::add_mul(
             math::F2::add_mul(
                 math::F2::times(
-                    p2,
                     math::F2::new(0.24000000000000005, 0.24000000000000005),
+                    p2,
                 ),
-                p4,
                 math::F2::new(0.06000000000000001, 0.06000000000000001),
+                p4,
             ),
-            p12,
             math::F2::new(0.32000000000000006, 0.32000000000000006),
+            p12,
         );
         let v50 = p14.lo();
         let v49 = p14.hi();
         let p11 = math::F2::add_mul(
             math::F2::times(p1, p7),
-            math::F2::times(math::F2::new(v3, v7), p8),
             math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v3, v7), p8),
         );
-        let p9 = math::F2::add_mul(p3, p5, math::F2::new(0.25, 0.25));
+        let p9 = math::F2::add_mul(p3, math::F2::new(0.25, 0.25), p5);
         let v73 = p9.lo();
         let v75 = p9.hi();
         let v76 = math::add_mul(v56 * v68, 2.0, (v11 * v80));
         let v77 = math::add_mul(v27, 0.25, v29);
-        let p13 = math::F2::add_mul(p11, p7, math::F2::new(v59, v63));
+        let p13 = math::F2::mul_add(math::F2::new(v59, v63), p7, p11);
         let v84 = p13.lo();
         let v85 = p13.hi();
         let v86 = math::mul_add(v67, v68, v76);
@@ -804,22 +804,22 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v57 = math::add_mul(0.24000000000000005 * v73, 0.32000000000000006, v90);
         let p13 = math::F2::sub_mul(
             math::F2::times(p1, p2),
-            math::F2::times(math::F2::new(v2, v6), p10),
             math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v2, v6), p10),
         );
-        let p11 = math::F2::add_mul(p5, p7, math::F2::new(0.25, 0.25));
+        let p11 = math::F2::add_mul(p5, math::F2::new(0.25, 0.25), p7);
         let v77 = p11.lo();
         let v75 = p11.hi();
-        let p15 = math::F2::add_mul(p13, p2, math::F2::new(v67, v69));
+        let p15 = math::F2::mul_add(math::F2::new(v67, v69), p2, p13);
         let v92 = p15.lo();
         let v91 = p15.hi();
         let p17 = math::F2::add_mul(
             math::F2::times(
-                p11,
                 math::F2::new(0.24000000000000005, 0.24000000000000005),
+                p11,
             ),
-            p15,
             math::F2::new(0.32000000000000006, 0.32000000000000006),
+            p15,
         );
         let v59 = p17.lo();
         let v58 = p17.hi();
@@ -829,15 +829,15 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v80 = v11 * v20;
         let p14 = math::F2::add_mul(
             math::F2::times(p1, p3),
-            math::F2::times(math::F2::new(v3, v7), p10),
             math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v3, v7), p10),
         );
-        let p12 = math::F2::add_mul(p6, p8, math::F2::new(0.25, 0.25));
+        let p12 = math::F2::add_mul(p6, math::F2::new(0.25, 0.25), p8);
         let v82 = p12.lo();
         let v84 = p12.hi();
         let v85 = math::add_mul(v65 * v23, 2.0, (v11 * v89));
         let v86 = math::add_mul(v36, 0.25, v38);
-        let p16 = math::F2::add_mul(p14, p3, math::F2::new(v67, v69));
+        let p16 = math::F2::mul_add(math::F2::new(v67, v69), p3, p14);
         let v93 = p16.lo();
         let v94 = p16.hi();
         let v95 = math::mul_add(v71, v23, v85);
@@ -1204,29 +1204,29 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v101 = p6.hi();
         let p13 = math::F2::sub_mul(
             math::F2::times(p1, p2),
-            math::F2::times(math::F2::new(v2, v6), p9),
             math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v2, v6), p9),
         );
         let p10 = math::F2::add_mul(
-            math::F2::times(p2, math::F2::new(v83, v87)),
+            math::F2::times(math::F2::new(v83, v87), p2),
             math::F2::new(qdd[1], qdd[4]),
             p3,
         );
-        let p15 = math::F2::add_mul(p13, p4, math::F2::new(qdd[2], qdd[5]));
+        let p15 = math::F2::mul_add(math::F2::new(qdd[2], qdd[5]), p4, p13);
         let p17 = math::F2::plus(p10, p15);
         let v134 = p17.lo();
         let v133 = p17.hi();
         let p19 = math::F2::add_mul(
             math::F2::add_mul(
                 math::F2::times(
-                    p5,
                     math::F2::new(0.24000000000000005, 0.24000000000000005),
+                    p5,
                 ),
-                p6,
                 math::F2::new(0.06000000000000001, 0.06000000000000001),
+                p6,
             ),
-            p17,
             math::F2::new(0.32000000000000006, 0.32000000000000006),
+            p17,
         );
         let v74 = p19.lo();
         let v73 = p19.hi();
@@ -1246,8 +1246,8 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v113 = p8.hi();
         let p14 = math::F2::add_mul(
             math::F2::times(p1, p3),
-            math::F2::times(math::F2::new(v3, v7), p9),
             math::F2::new(2.0, 2.0),
+            math::F2::times(math::F2::new(v3, v7), p9),
         );
         let p11 = math::F2::sub_mul(
             math::F2::times(p3, math::F2::new(v83, v87)),
@@ -1258,12 +1258,12 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let v117 = math::sub_mul(v10 * v80, v11, qdd[7]);
         let v118 = math::add_mul(v80 * v92, 2.0, (v11 * v122));
         let v119 = math::sub_mul(v92 * v91, qdd[7], v89);
-        let p16 = math::F2::add_mul(
-            p14,
+        let p16 = math::F2::mul_add(
             math::F2::times(math::F2::new(v2, v6), math::F2::new(v12, v14)),
             math::F2::new(qdd[2], qdd[5]),
+            p14,
         );
-        let p12 = math::F2::add_mul(p7, p8, math::F2::new(0.25, 0.25));
+        let p12 = math::F2::add_mul(p7, math::F2::new(0.25, 0.25), p8);
         let v127 = p12.lo();
         let v129 = p12.hi();
         let v130 = math::mul_add(v10 * v16, qdd[8], v118);
@@ -1504,16 +1504,16 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         let p2 = math::F2::times(math::F2::new(v4, v14), math::F2::new(qd[1], qd[4]));
         let p3 = math::F2::times(math::F2::new(v5, v15), math::F2::new(qd[1], qd[4]));
         let p4 = math::F2::sub_mul(
-            math::F2::times(p0, math::F2::new(-0.4, -0.4)),
-            p2,
+            math::F2::times(math::F2::new(-0.4, -0.4), p0),
             math::F2::new(0.1, 0.1),
+            p2,
         );
         let v8 = p4.lo();
         let v18 = p4.hi();
         let p5 = math::F2::add_mul(
-            math::F2::times(p1, math::F2::new(0.4, 0.4)),
-            p3,
+            math::F2::times(math::F2::new(0.4, 0.4), p1),
             math::F2::new(0.1, 0.1),
+            p3,
         );
         let v9 = p5.lo();
         let v19 = p5.hi();
@@ -1532,22 +1532,22 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
                     math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v31, v35)),
                     p2,
                 ),
-                math::F2::times(math::F2::new(v5, v15), math::F2::new(0.8, 0.8)),
+                math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v5, v15)),
                 math::F2::new(v42, v43),
             ),
         );
         let v32 = p6.lo();
         let v36 = p6.hi();
         let p7 = math::F2::plus(
+            p5,
             math::F2::sub_mul(
                 math::F2::times(
                     math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v31, v35)),
                     p3,
                 ),
-                math::F2::times(math::F2::new(v4, v14), math::F2::new(0.8, 0.8)),
+                math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v4, v14)),
                 math::F2::new(v42, v43),
             ),
-            p5,
         );
         let v33 = p7.lo();
         let v37 = p7.hi();

@@ -339,26 +339,30 @@ impl Printer<'_, '_> {
                     (quote!(math::F2::new(#x, #y)), [false; 2])
                 }
             }
-            Lanes::Node(form, args, signs) => {
+            Lanes::Node(form, args, signs, written) => {
+                let mut args = args.clone();
+                if written.swapped {
+                    args.swap(0, 1);
+                }
                 let both = |t: &Lanes| t.signs() == [true; 2];
                 let e = match form {
-                    Form::Plus if both(&args[1]) && !both(&args[0]) => {
-                        let (a, b) = (
-                            self.lanes(plan, &args[0]),
-                            self.lanes(plan, &args[1].flipped([true; 2])),
-                        );
-                        quote!(math::F2::minus(#a, #b))
-                    }
-                    Form::Plus if both(&args[0]) && !both(&args[1]) => {
-                        let (a, b) = (
-                            self.lanes(plan, &args[1]),
-                            self.lanes(plan, &args[0].flipped([true; 2])),
-                        );
-                        quote!(math::F2::minus(#a, #b))
-                    }
                     Form::Plus => {
-                        let (a, b) = (self.lanes(plan, &args[0]), self.lanes(plan, &args[1]));
-                        quote!(math::F2::plus(#a, #b))
+                        let minus = |t: &Lanes| both(t).then(|| t.flipped([true; 2]));
+                        match (minus(&args[0]), minus(&args[1])) {
+                            (None, Some(b)) => {
+                                let (a, b) = (self.lanes(plan, &args[0]), self.lanes(plan, &b));
+                                quote!(math::F2::minus(#a, #b))
+                            }
+                            (Some(a), None) => {
+                                let (a, b) = (self.lanes(plan, &args[1]), self.lanes(plan, &a));
+                                quote!(math::F2::minus(#a, #b))
+                            }
+                            _ => {
+                                let (a, b) =
+                                    (self.lanes(plan, &args[0]), self.lanes(plan, &args[1]));
+                                quote!(math::F2::plus(#a, #b))
+                            }
+                        }
                     }
                     Form::Times | Form::Over => {
                         let f = if *form == Form::Times {
@@ -366,33 +370,28 @@ impl Printer<'_, '_> {
                         } else {
                             quote!(over)
                         };
-                        let (x, y) = literal_sign(plan, &args[0], &args[1], *form == Form::Times);
+                        let (x, y, negated) = product_signs(plan, &args[0], &args[1], false);
                         let (a, b) = (self.lanes(plan, &x), self.lanes(plan, &y));
-                        quote!(math::F2::#f(#a, #b))
+                        if negated {
+                            quote!(math::F2::negated(math::F2::#f(#a, #b)))
+                        } else {
+                            quote!(math::F2::#f(#a, #b))
+                        }
                     }
                     Form::MulAdd => {
-                        let (x, y) = literal_sign(plan, &args[0], &args[1], false);
-                        let (x, y, c) = (&x, &y, &args[2]);
-                        if both(c) && !both(x) {
-                            let (x, y, c) = (
-                                self.lanes(plan, x),
-                                self.lanes(plan, y),
-                                self.lanes(plan, &c.flipped([true; 2])),
-                            );
-                            quote!(math::F2::mul_sub(#x, #y, #c))
-                        } else if both(x) {
-                            let (x, y, c) = (
-                                self.lanes(plan, &x.flipped([true; 2])),
-                                self.lanes(plan, y),
-                                self.lanes(plan, c),
-                            );
+                        let (x, y, negated) = product_signs(plan, &args[0], &args[1], true);
+                        let (x, y) = (self.lanes(plan, &x), self.lanes(plan, &y));
+                        if negated {
+                            let c = self.lanes(plan, &args[2]);
                             quote!(math::F2::sub_mul(#c, #x, #y))
+                        } else if both(&args[2]) {
+                            let c = self.lanes(plan, &args[2].flipped([true; 2]));
+                            quote!(math::F2::mul_sub(#x, #y, #c))
+                        } else if written.product_first {
+                            let c = self.lanes(plan, &args[2]);
+                            quote!(math::F2::mul_add(#x, #y, #c))
                         } else {
-                            let (x, y, c) = (
-                                self.lanes(plan, x),
-                                self.lanes(plan, y),
-                                self.lanes(plan, c),
-                            );
+                            let c = self.lanes(plan, &args[2]);
                             quote!(math::F2::add_mul(#c, #x, #y))
                         }
                     }
@@ -415,25 +414,37 @@ impl Printer<'_, '_> {
 }
 
 /// The two factors of a product (or a quotient's numerator and
-/// denominator) with the sign of the first moved onto the second where
+/// denominator) with their signs gathered where they cost least (exact:
+/// `(-a) b = a (-b) = -(a b)`, and likewise for a quotient): on a factor
 /// that is a literal on each lane the sign is on (a negated literal costs
-/// nothing): exact, `(-a) b = a (-b)`, `(-a) / b = a / (-b)`. A sign on
-/// both lanes stays unless `both` (a multiply-add prints it as `sub_mul`).
-fn literal_sign(plan: &Plan, x: &Lanes, y: &Lanes, both: bool) -> (Lanes, Lanes) {
-    let signs = x.signs();
-    let literal = |l: usize| match y {
+/// nothing), else, where both lanes carry it, on the result (`true`: the
+/// caller negates the product or writes `sub_mul`, which a multiply-add,
+/// `fused`, prefers to a literal), else on the first factor (one lane
+/// negated).
+fn product_signs(plan: &Plan, x: &Lanes, y: &Lanes, fused: bool) -> (Lanes, Lanes, bool) {
+    let (sx, sy) = (x.signs(), y.signs());
+    let signs = [sx[0] ^ sy[0], sx[1] ^ sy[1]];
+    let (x, y) = (x.flipped(sx), y.flipped(sy));
+    let literal = |t: &Lanes| match t {
         Lanes::Leaf(o, _) => {
-            plan.held(o[0], o[1]).is_none() && matches!(o[l].value, Value::Literal(_))
+            plan.held(o[0], o[1]).is_none()
+                && (0..2).all(|l| !signs[l] || matches!(o[l].value, Value::Literal(_)))
         }
         Lanes::Node(..) => false,
     };
-    let movable = signs != [false; 2]
-        && (signs != [true; 2] || both)
-        && (0..2).all(|l| !signs[l] || literal(l));
-    if movable {
-        (x.flipped(signs), y.flipped(signs))
+    if signs == [false; 2] {
+        (x, y, false)
+    } else if fused && signs == [true; 2] {
+        (x, y, true)
+    } else if literal(&y) {
+        let y = y.flipped(signs);
+        (x, y, false)
+    } else if literal(&x) {
+        (x.flipped(signs), y, false)
+    } else if signs == [true; 2] {
+        (x, y, true)
     } else {
-        (x.clone(), y.clone())
+        (x.flipped(signs), y, false)
     }
 }
 

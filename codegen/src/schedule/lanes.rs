@@ -195,24 +195,38 @@ enum View {
     /// An operand read as it is, negated or not.
     Leaf(Operand, bool),
     /// An operation, its result negated or not (never for products and
-    /// quotients, whose sign is on the first factor).
-    Node(Form, Vec<View>, bool),
+    /// quotients, whose sign is on the first factor), and how it was
+    /// written.
+    Node(Form, Vec<View>, bool, Written),
+}
+
+/// How a statement wrote an operation that [`View`] puts in its shared
+/// form, so that a pair can be printed as its lane 0 was written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Written {
+    /// Whether its first two operands were exchanged.
+    pub swapped: bool,
+    /// Whether a multiply-add was written product first (`x y + c`, `x y -
+    /// c`).
+    pub product_first: bool,
 }
 
 impl View {
     /// The view negated.
     fn negate(&mut self) {
         match self {
-            View::Leaf(_, sign) | View::Node(Form::Plus | Form::MulAdd, _, sign) => *sign = !*sign,
-            View::Node(Form::Times | Form::Over, args, _) => args[0].negate(),
+            View::Leaf(_, sign) | View::Node(Form::Plus | Form::MulAdd, _, sign, _) => {
+                *sign = !*sign
+            }
+            View::Node(Form::Times | Form::Over, args, ..) => args[0].negate(),
         }
     }
 
     /// The sign where [`View::negate`] puts it.
     fn sign(&self) -> bool {
         match self {
-            View::Leaf(_, sign) | View::Node(Form::Plus | Form::MulAdd, _, sign) => *sign,
-            View::Node(Form::Times | Form::Over, args, _) => args[0].sign(),
+            View::Leaf(_, sign) | View::Node(Form::Plus | Form::MulAdd, _, sign, _) => *sign,
+            View::Node(Form::Times | Form::Over, args, ..) => args[0].sign(),
         }
     }
 }
@@ -233,16 +247,16 @@ pub enum Lanes {
     /// Two operands (lane 0, lane 1), each negated where its flag says.
     Leaf([Operand; 2], [bool; 2]),
     /// An operation on both lanes, its result negated on the lanes whose
-    /// flag says so.
-    Node(Form, Vec<Lanes>, [bool; 2]),
+    /// flag says so, and how lane 0 wrote it.
+    Node(Form, Vec<Lanes>, [bool; 2], Written),
 }
 
 impl Lanes {
     /// The signs on both lanes where [`View::sign`] reads them.
     pub fn signs(&self) -> [bool; 2] {
         match self {
-            Lanes::Leaf(_, signs) | Lanes::Node(Form::Plus | Form::MulAdd, _, signs) => *signs,
-            Lanes::Node(Form::Times | Form::Over, args, _) => args[0].signs(),
+            Lanes::Leaf(_, signs) | Lanes::Node(Form::Plus | Form::MulAdd, _, signs, _) => *signs,
+            Lanes::Node(Form::Times | Form::Over, args, ..) => args[0].signs(),
         }
     }
 
@@ -252,13 +266,13 @@ impl Lanes {
         let xor = |s: [bool; 2]| [s[0] ^ flip[0], s[1] ^ flip[1]];
         match self {
             Lanes::Leaf(o, s) => Lanes::Leaf(*o, xor(*s)),
-            Lanes::Node(f @ (Form::Plus | Form::MulAdd), args, s) => {
-                Lanes::Node(*f, args.clone(), xor(*s))
+            Lanes::Node(f @ (Form::Plus | Form::MulAdd), args, s, w) => {
+                Lanes::Node(*f, args.clone(), xor(*s), *w)
             }
-            Lanes::Node(f, args, s) => {
+            Lanes::Node(f, args, s, w) => {
                 let mut args = args.clone();
                 args[0] = args[0].flipped(flip);
-                Lanes::Node(*f, args, *s)
+                Lanes::Node(*f, args, *s, *w)
             }
         }
     }
@@ -267,7 +281,7 @@ impl Lanes {
     fn leaves(&self, out: &mut Vec<[Operand; 2]>) {
         match self {
             Lanes::Leaf(o, _) => out.push(*o),
-            Lanes::Node(_, args, _) => args.iter().for_each(|a| a.leaves(out)),
+            Lanes::Node(_, args, ..) => args.iter().for_each(|a| a.leaves(out)),
         }
     }
 }
@@ -286,6 +300,7 @@ fn view(
     };
     let go = |o: Operand, key: &mut dyn FnMut(&View) -> Vec<Token>| view(lowered, writer, o, key);
     let op = &lowered.ops[writer[t as usize]];
+    let mut product_first = false;
     let (form, mut args) = match *op {
         Op::Neg { a, .. } => {
             let mut v = go(a, key)?;
@@ -308,9 +323,13 @@ fn view(
         Op::Fused { form, x, y, c, .. } => {
             let (mut x, y, mut c) = (go(x, key)?, go(y, key)?, go(c, key)?);
             match form {
-                Fused::AddMul | Fused::MulAdd => {}
+                Fused::AddMul => {}
+                Fused::MulAdd => product_first = true,
                 Fused::SubMul => x.negate(),
-                Fused::MulSub => c.negate(),
+                Fused::MulSub => {
+                    c.negate();
+                    product_first = true;
+                }
             }
             (Form::MulAdd, vec![x, y, c])
         }
@@ -318,14 +337,19 @@ fn view(
     };
     // Operands that commute in an order of their shapes (exact: `a + b =
     // b + a`, `a b = b a`), then a product's signs on its first factor.
-    if form != Form::Over && key(&args[1]) < key(&args[0]) {
+    let swapped = form != Form::Over && key(&args[1]) < key(&args[0]);
+    if swapped {
         args.swap(0, 1);
     }
     if matches!(form, Form::Times | Form::Over | Form::MulAdd) && args[1].sign() {
         args[1].negate();
         args[0].negate();
     }
-    Some(View::Node(form, args, false))
+    let written = Written {
+        swapped,
+        product_first,
+    };
+    Some(View::Node(form, args, false, written))
 }
 
 /// The tokens of a view: its forms and operands, without signs.
@@ -343,7 +367,7 @@ fn tokens(
             }
             None => out.push(Token::Any),
         },
-        View::Node(form, args, _) => {
+        View::Node(form, args, ..) => {
             out.push(Token::Form(*form as u8));
             for a in args {
                 tokens(a, leaf, out, lanes);
@@ -356,10 +380,11 @@ fn tokens(
 fn zip(a: &View, b: &View) -> Lanes {
     match (a, b) {
         (View::Leaf(x, s), View::Leaf(y, t)) => Lanes::Leaf([*x, *y], [*s, *t]),
-        (View::Node(form, xs, s), View::Node(_, ys, t)) => Lanes::Node(
+        (View::Node(form, xs, s, written), View::Node(_, ys, t, _)) => Lanes::Node(
             *form,
             xs.iter().zip(ys).map(|(x, y)| zip(x, y)).collect(),
             [*s, *t],
+            *written,
         ),
         _ => unreachable!("paired views have the same tokens"),
     }
@@ -761,7 +786,7 @@ mod tests {
                 fn walk(t: &Lanes, out: &mut Vec<[bool; 2]>) {
                     match t {
                         Lanes::Leaf(_, s) => out.push(*s),
-                        Lanes::Node(_, args, s) => {
+                        Lanes::Node(_, args, s, _) => {
                             out.push(*s);
                             args.iter().for_each(|a| walk(a, out));
                         }
