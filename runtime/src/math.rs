@@ -769,24 +769,31 @@ mod tests {
         assert_eq!(sin_cos(0.0), (0.0, 1.0));
     }
 
+    /// Values for bitwise checks: signed zeros, extremes, infinity, NaN.
+    const EDGE_VALUES: [f64; 10] = [
+        0.0,
+        -0.0,
+        1.0,
+        -2.5,
+        1e-300,
+        -3.7e300,
+        0.1,
+        7.25e-12,
+        f64::INFINITY,
+        f64::NAN,
+    ];
+
+    /// The same bits, or both NaN.
+    fn same_bits(a: f64, b: f64) -> bool {
+        a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+    }
+
     /// Every two-lane operation is, in each lane, bitwise the scalar
     /// operation the generated scalar code performs (signed zeros, NaN and
     /// infinities included).
     #[test]
     fn two_lanes_are_bitwise_the_scalar_operations() {
-        let values = [
-            0.0,
-            -0.0,
-            1.0,
-            -2.5,
-            1e-300,
-            -3.7e300,
-            0.1,
-            7.25e-12,
-            f64::INFINITY,
-            f64::NAN,
-        ];
-        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        let (values, same) = (EDGE_VALUES, same_bits);
         for &a in &values {
             for &b in &values {
                 for &c in &values {
@@ -831,18 +838,7 @@ mod tests {
     /// products commute; and negating one lane flips that lane only.
     #[test]
     fn sign_rewrites_of_paired_statements_are_exact() {
-        let values = [
-            0.0,
-            -0.0,
-            1.0,
-            -2.5,
-            1e-300,
-            -3.7e300,
-            0.1,
-            f64::INFINITY,
-            f64::NAN,
-        ];
-        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        let (values, same) = (EDGE_VALUES, same_bits);
         for &a in &values {
             for &b in &values {
                 assert!(same(a - b, a + -b));
