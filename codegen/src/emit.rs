@@ -10,8 +10,8 @@ use quote::{format_ident, quote};
 use crate::expr::Symbol;
 use crate::model::{Model, Precision};
 use crate::schedule::{
-    lower, mirror_coordinates, plan, Binary, Code, Form, Fused, Inputs, Lanes, Lowered, Mirror, Op,
-    OpCount, Operand, OutputSpec, Plan, Program, Scheduled, Shape, Step, Stmt, Value,
+    lower, mirror_of, plan, printed, Binary, Code, Fused, Inputs, Lowered, Mirror, Op, OpCount,
+    Operand, OutputSpec, Plan, Print, Program, Scheduled, Shape, Step, Stmt, Value,
 };
 
 /// Operation counts of one emitted function.
@@ -306,7 +306,7 @@ impl Printer<'_, '_> {
         let (Op::Bind { var: va, .. }, Op::Bind { var: vb, .. }) = (ra, rb) else {
             unreachable!("only statements that bind a variable are paired");
         };
-        let e = self.lanes(plan, &plan.trees[n as usize]);
+        let e = self.lanes(&printed(plan, &plan.trees[n as usize]));
         out.extend(quote!(#bind #p = #e;));
         for (v, lane) in [(*va, quote!(lo)), (*vb, quote!(hi))] {
             if plan.scalar.contains(&v) {
@@ -316,135 +316,39 @@ impl Printer<'_, '_> {
         }
     }
 
-    /// The two-lane expression of a paired statement's tree: its signs
-    /// where they cost nothing (a literal's sign, `minus` for a subtrahend
-    /// negated on both lanes, `sub_mul` and `mul_sub`), else as a negation
-    /// of a lane or of both.
-    fn lanes(&mut self, plan: &Plan, tree: &Lanes) -> TokenStream {
-        let (e, signs) = match tree {
-            Lanes::Leaf([a, b], signs) => {
-                if let Some(n) = plan.held(*a, *b) {
-                    let p = pair(n);
-                    (quote!(#p), *signs)
-                } else {
-                    let [x, y] =
-                        [(*a, signs[0]), (*b, signs[1])].map(|(o, negated)| match o.value {
-                            Value::Literal(x) if negated => self.emitter.lit(-x),
-                            _ if negated => {
-                                let x = self.operand(o, ATOM);
-                                quote!(-#x)
-                            }
-                            _ => self.operand(o, SUM),
-                        });
-                    (quote!(math::F2::new(#x, #y)), [false; 2])
+    /// The two-lane expression of a paired statement, printed as
+    /// [`printed`] resolved its signs.
+    fn lanes(&mut self, e: &Print) -> TokenStream {
+        match e {
+            Print::Pair(n) => {
+                let p = pair(*n);
+                quote!(#p)
+            }
+            Print::Pack([a, b], signs) => {
+                let [x, y] = [(*a, signs[0]), (*b, signs[1])].map(|(o, negated)| match o.value {
+                    Value::Literal(x) if negated => self.emitter.lit(-x),
+                    _ if negated => {
+                        let x = self.operand(o, ATOM);
+                        quote!(-#x)
+                    }
+                    _ => self.operand(o, SUM),
+                });
+                quote!(math::F2::new(#x, #y))
+            }
+            Print::Apply(call, args) => {
+                let f = format_ident!("{}", call.name());
+                let args: Vec<TokenStream> = args.iter().map(|a| self.lanes(a)).collect();
+                quote!(math::F2::#f(#(#args),*))
+            }
+            Print::Negated(signs, e) => {
+                let e = self.lanes(e);
+                match signs {
+                    [true, false] => quote!(math::F2::negated_lo(#e)),
+                    [false, true] => quote!(math::F2::negated_hi(#e)),
+                    _ => quote!(math::F2::negated(#e)),
                 }
             }
-            Lanes::Node(form, args, signs, written) => {
-                let mut args = args.clone();
-                if written.swapped {
-                    args.swap(0, 1);
-                }
-                let both = |t: &Lanes| t.signs() == [true; 2];
-                let e = match form {
-                    Form::Plus => {
-                        let minus = |t: &Lanes| both(t).then(|| t.flipped([true; 2]));
-                        match (minus(&args[0]), minus(&args[1])) {
-                            (None, Some(b)) => {
-                                let (a, b) = (self.lanes(plan, &args[0]), self.lanes(plan, &b));
-                                quote!(math::F2::minus(#a, #b))
-                            }
-                            (Some(a), None) => {
-                                let (a, b) = (self.lanes(plan, &args[1]), self.lanes(plan, &a));
-                                quote!(math::F2::minus(#a, #b))
-                            }
-                            _ => {
-                                let (a, b) =
-                                    (self.lanes(plan, &args[0]), self.lanes(plan, &args[1]));
-                                quote!(math::F2::plus(#a, #b))
-                            }
-                        }
-                    }
-                    Form::Times | Form::Over => {
-                        let f = if *form == Form::Times {
-                            quote!(times)
-                        } else {
-                            quote!(over)
-                        };
-                        let (x, y, negated) = product_signs(plan, &args[0], &args[1], false);
-                        let (a, b) = (self.lanes(plan, &x), self.lanes(plan, &y));
-                        if negated {
-                            quote!(math::F2::negated(math::F2::#f(#a, #b)))
-                        } else {
-                            quote!(math::F2::#f(#a, #b))
-                        }
-                    }
-                    Form::MulAdd => {
-                        let (x, y, negated) = product_signs(plan, &args[0], &args[1], true);
-                        let (x, y) = (self.lanes(plan, &x), self.lanes(plan, &y));
-                        if negated {
-                            let c = self.lanes(plan, &args[2]);
-                            quote!(math::F2::sub_mul(#c, #x, #y))
-                        } else if both(&args[2]) {
-                            let c = self.lanes(plan, &args[2].flipped([true; 2]));
-                            quote!(math::F2::mul_sub(#x, #y, #c))
-                        } else if written.product_first {
-                            let c = self.lanes(plan, &args[2]);
-                            quote!(math::F2::mul_add(#x, #y, #c))
-                        } else {
-                            let c = self.lanes(plan, &args[2]);
-                            quote!(math::F2::add_mul(#c, #x, #y))
-                        }
-                    }
-                };
-                let signs = if matches!(form, Form::Plus | Form::MulAdd) {
-                    *signs
-                } else {
-                    [false; 2]
-                };
-                (e, signs)
-            }
-        };
-        match signs {
-            [false, false] => e,
-            [true, true] => quote!(math::F2::negated(#e)),
-            [true, false] => quote!(math::F2::negated_lo(#e)),
-            [false, true] => quote!(math::F2::negated_hi(#e)),
         }
-    }
-}
-
-/// The two factors of a product (or a quotient's numerator and
-/// denominator) with their signs gathered where they cost least (exact:
-/// `(-a) b = a (-b) = -(a b)`, and likewise for a quotient): on a factor
-/// that is a literal on each lane the sign is on (a negated literal costs
-/// nothing), else, where both lanes carry it, on the result (`true`: the
-/// caller negates the product or writes `sub_mul`, which a multiply-add,
-/// `fused`, prefers to a literal), else on the first factor (one lane
-/// negated).
-fn product_signs(plan: &Plan, x: &Lanes, y: &Lanes, fused: bool) -> (Lanes, Lanes, bool) {
-    let (sx, sy) = (x.signs(), y.signs());
-    let signs = [sx[0] ^ sy[0], sx[1] ^ sy[1]];
-    let (x, y) = (x.flipped(sx), y.flipped(sy));
-    let literal = |t: &Lanes| match t {
-        Lanes::Leaf(o, _) => {
-            plan.held(o[0], o[1]).is_none()
-                && (0..2).all(|l| !signs[l] || matches!(o[l].value, Value::Literal(_)))
-        }
-        Lanes::Node(..) => false,
-    };
-    if signs == [false; 2] {
-        (x, y, false)
-    } else if fused && signs == [true; 2] {
-        (x, y, true)
-    } else if literal(&y) {
-        let y = y.flipped(signs);
-        (x, y, false)
-    } else if literal(&x) {
-        (x.flipped(signs), y, false)
-    } else if signs == [true; 2] {
-        (x, y, true)
-    } else {
-        (x.flipped(signs), y, false)
     }
 }
 
@@ -519,7 +423,9 @@ impl Emitter<'_> {
                 let marker = f.marker.map(|k| self.model.markers[k].name.clone());
                 self.record(spec.name, marker, &mut f.program);
             }
-            lowered.push(lower(f, self.model.precision == Precision::F64));
+            let double = self.model.precision == Precision::F64;
+            let mirrored = double && self.mirror.iter().any(Option::is_some);
+            lowered.push(lower(f, double, mirrored));
         }
         let touched = |k: usize| {
             lowered.iter().flat_map(|l| &l.ops).any(
@@ -692,37 +598,9 @@ pub fn emit(
     runtime: &syn::Path,
     perturbation: Option<&CoefficientPerturbation>,
 ) -> (Emitted, bool) {
-    let parents: Vec<Option<usize>> = model.placements.iter().map(|p| p.parent).collect();
-    let coordinates: Vec<Vec<u32>> = model
-        .placements
-        .iter()
-        .map(|p| p.own_coordinates(&model.graph))
-        .collect();
-    // A frame's placement as far as the programs' shapes go: which axes its
-    // translation and turns have, and which turns are fixed.
-    let descriptions: Vec<String> = model
-        .placements
-        .iter()
-        .map(|p| {
-            let pattern = |v: [f64; 3]| -> String {
-                v.iter()
-                    .map(|x| if *x == 0.0 { '0' } else { '1' })
-                    .collect()
-            };
-            let translation = p
-                .translation
-                .map(|t| model.graph.as_const(t).unwrap_or(f64::NAN));
-            let mut text = format!("t{}", pattern(translation));
-            for (axis, angle) in &p.rotations {
-                let fixed = model.graph.as_const(*angle).is_some();
-                text += &format!("r{}{}", pattern(*axis), if fixed { 'c' } else { 'q' });
-            }
-            text
-        })
-        .collect();
     let mut e = Emitter {
         model,
-        mirror: mirror_coordinates(&parents, &coordinates, &descriptions, model.nq()),
+        mirror: mirror_of(model),
         reports: Vec::new(),
         perturbation,
         perturbed: false,

@@ -23,7 +23,7 @@ use std::path::Path;
 use crate::derive::Equations;
 use crate::error::{Error, Source};
 use crate::model::Model;
-use crate::schedule::{functions, lower, Inputs};
+use crate::schedule::{functions, lower, mirror_of, Inputs};
 
 pub use crate::schedule::Function;
 pub use tape::{Scratch, Tape, LANES};
@@ -63,12 +63,13 @@ impl Interpreted {
         let params = model.runtime_parameters.len();
         // Not `actuator_forces`: a tape reads inputs of NQ entries, and the
         // runtime forms `B tau` from the actuator map for these models.
+        let mirrored = mirror_of(model).iter().any(Option::is_some);
         let tapes = functions(model, eq)
             .iter()
             .filter(|f| f.function.spec().inputs != Inputs::Actuation)
             .enumerate()
             .map(|(index, f)| {
-                let mut tape = assemble::assemble(&lower(f, true), nq, params);
+                let mut tape = assemble::assemble(&lower(f, true, mirrored), nq, params);
                 tape.index = index;
                 (f.function, f.marker, tape)
             })
@@ -321,9 +322,9 @@ mod tests {
     }
 
     /// The printed association, not the program's tree: `2 a b` is
-    /// `(2 a) b`, a leading negative term negates its first operand, the
-    /// constant comes after the positive terms. Chosen so that the tree's
-    /// association rounds differently.
+    /// `(2 a) b`, a leading negative term negates its first operand, terms
+    /// ready first are added first (a quotient is ready last). Chosen so
+    /// that the tree's association rounds differently.
     #[test]
     fn sums_and_products_associate_as_printed() {
         use crate::schedule::{Code, Program, Scheduled};
@@ -337,9 +338,13 @@ mod tests {
             constant: 0.0,
             terms: vec![(c, prod.clone())],
         };
+        let ratio = Code::Prod {
+            num: vec![x.clone()],
+            den: vec![y.clone()],
+        };
         let sum = Code::Sum {
             constant: 0.3,
-            terms: vec![(-1.0, y.clone()), (1.0, x.clone())],
+            terms: vec![(-1.0, y.clone()), (1.0, ratio)],
         };
         let lead_negative = Code::Sum {
             constant: -0.7,
@@ -351,21 +356,15 @@ mod tests {
         };
         let outputs = vec![term(0.3), term(-0.3), sum, lead_negative, quotient];
         // The constraints of a scene of 2 coordinates and 5 constraints.
-        let f = Scheduled {
-            function: Function::Constraints,
-            marker: None,
-            dims: (2, outputs.len(), 0),
-            slots: (0..outputs.len()).map(|i| (0, i, 0)).collect(),
-            program: Program::new(Vec::new(), outputs),
-        };
-        let tape = assemble::assemble(&lower(&f, true), 2, 0);
+        let f = Scheduled::constraints(2, Program::new(Vec::new(), outputs));
+        let tape = assemble::assemble(&lower(&f, true, false), 2, 0);
         let mut got = vec![f64::NAN; 5];
         tape.eval(&[a, b], &[], 0.0, &[], &mut Scratch::default(), &mut got);
         // What Rust computes for the printed expressions.
         let want = [
             0.3 * a * b,
             -0.3 * a * b,
-            a + 0.3 - b,
+            0.3 - b + a / b,
             -0.7 - b - 2.0 * a,
             1.0 / (a * b),
         ];

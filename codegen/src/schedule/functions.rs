@@ -601,6 +601,20 @@ impl Scheduled {
         self.function.spec()
     }
 
+    /// For tests: `program` as the constraints of a scene of `nq`
+    /// coordinates, one constraint per output.
+    #[cfg(test)]
+    pub(crate) fn constraints(nq: usize, program: Program) -> Scheduled {
+        let nc = program.outputs.len();
+        Scheduled {
+            function: Function::Constraints,
+            marker: None,
+            dims: (nq, nc, 0),
+            slots: (0..nc).map(|i| (0, i, 0)).collect(),
+            program,
+        }
+    }
+
     /// The function of `terms`: one jointly optimised program for all
     /// outputs, so that they share their common subexpressions. Matrix
     /// entries that are structurally zero are not computed (the emitted

@@ -28,9 +28,44 @@ use std::collections::{BinaryHeap, HashMap, HashSet};
 
 use super::{Binary, Fused, Lowered, Op, Operand, Value};
 use crate::expr::Symbol;
+use crate::model::Model;
 
 /// Per coordinate, its mirror image and its lane (`0` or `1`), if any.
 pub type Mirror = Vec<Option<(u32, u8)>>;
+
+/// The mirror images among a model's coordinates ([`mirror_coordinates`]
+/// on its frames).
+pub fn mirror_of(model: &Model) -> Mirror {
+    let parents: Vec<Option<usize>> = model.placements.iter().map(|p| p.parent).collect();
+    let coordinates: Vec<Vec<u32>> = model
+        .placements
+        .iter()
+        .map(|p| p.own_coordinates(&model.graph))
+        .collect();
+    // A frame's placement as far as the programs' shapes go: which axes its
+    // translation and turns have, and which turns are fixed.
+    let descriptions: Vec<String> = model
+        .placements
+        .iter()
+        .map(|p| {
+            let pattern = |v: [f64; 3]| -> String {
+                v.iter()
+                    .map(|x| if *x == 0.0 { '0' } else { '1' })
+                    .collect()
+            };
+            let translation = p
+                .translation
+                .map(|t| model.graph.as_const(t).unwrap_or(f64::NAN));
+            let mut text = format!("t{}", pattern(translation));
+            for (axis, angle) in &p.rotations {
+                let fixed = model.graph.as_const(*angle).is_some();
+                text += &format!("r{}{}", pattern(*axis), if fixed { 'c' } else { 'q' });
+            }
+            text
+        })
+        .collect();
+    mirror_coordinates(&parents, &coordinates, &descriptions, model.nq())
+}
 
 /// The mirror images among the coordinates of a kinematic tree given by
 /// each frame's parent, own coordinates and a description of its placement
@@ -38,7 +73,7 @@ pub type Mirror = Vec<Option<(u32, u8)>>;
 /// frames' descriptions agree all the way down (mirror images written
 /// alike), then, among the others, where only their coordinates per frame
 /// and children do.
-pub fn mirror_coordinates(
+fn mirror_coordinates(
     parents: &[Option<usize>],
     coordinates: &[Vec<u32>],
     descriptions: &[String],
@@ -283,6 +318,163 @@ impl Lanes {
             Lanes::Leaf(o, _) => out.push(*o),
             Lanes::Node(_, args, ..) => args.iter().for_each(|a| a.leaves(out)),
         }
+    }
+}
+
+/// An operation of the runtime's two-lane type (`math::F2`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Call {
+    /// `a + b`.
+    Plus,
+    /// `a - b`.
+    Minus,
+    /// `a b`.
+    Times,
+    /// `a / b`.
+    Over,
+    /// `x y + c`, written `mul_add(x, y, c)`.
+    MulAdd,
+    /// `c + x y`, written `add_mul(c, x, y)`.
+    AddMul,
+    /// `c - x y`, written `sub_mul(c, x, y)`.
+    SubMul,
+    /// `x y - c`, written `mul_sub(x, y, c)`.
+    MulSub,
+}
+
+impl Call {
+    /// Its name in the runtime.
+    pub fn name(self) -> &'static str {
+        match self {
+            Call::Plus => "plus",
+            Call::Minus => "minus",
+            Call::Times => "times",
+            Call::Over => "over",
+            Call::MulAdd => "mul_add",
+            Call::AddMul => "add_mul",
+            Call::SubMul => "sub_mul",
+            Call::MulSub => "mul_sub",
+        }
+    }
+}
+
+/// A paired statement as the back end prints it, every sign where it costs
+/// least ([`printed`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Print {
+    /// The variable of pair `n`.
+    Pair(u32),
+    /// Two operands packed into two lanes, each negated where its flag
+    /// says (a literal's sign is free).
+    Pack([Operand; 2], [bool; 2]),
+    /// A two-lane operation on its arguments, in the order it takes them.
+    Apply(Call, Vec<Print>),
+    /// Its lanes negated where the flags say (one of them at least).
+    Negated([bool; 2], Box<Print>),
+}
+
+/// How a pair's tree is printed: a literal's sign on the literal, `minus`
+/// for a term negated on both lanes, `sub_mul` and `mul_sub` for a
+/// multiply-add's signs on both lanes, else a negation of a lane or of
+/// both.
+pub fn printed(plan: &Plan, tree: &Lanes) -> Print {
+    let (e, signs) = match tree {
+        Lanes::Leaf([a, b], signs) => match plan.held(*a, *b) {
+            Some(n) => (Print::Pair(n), *signs),
+            None => (Print::Pack([*a, *b], *signs), [false; 2]),
+        },
+        Lanes::Node(form, args, signs, written) => {
+            let mut args = args.clone();
+            if written.swapped {
+                args.swap(0, 1);
+            }
+            let both = |t: &Lanes| t.signs() == [true; 2];
+            let go = |t: &Lanes| printed(plan, t);
+            let e = match form {
+                Form::Plus => {
+                    let minus = |t: &Lanes| both(t).then(|| t.flipped([true; 2]));
+                    match (minus(&args[0]), minus(&args[1])) {
+                        (None, Some(b)) => Print::Apply(Call::Minus, vec![go(&args[0]), go(&b)]),
+                        (Some(a), None) => Print::Apply(Call::Minus, vec![go(&args[1]), go(&a)]),
+                        _ => Print::Apply(Call::Plus, vec![go(&args[0]), go(&args[1])]),
+                    }
+                }
+                Form::Times | Form::Over => {
+                    let call = if *form == Form::Times {
+                        Call::Times
+                    } else {
+                        Call::Over
+                    };
+                    let (x, y, negated) = product_signs(plan, &args[0], &args[1], false);
+                    let e = Print::Apply(call, vec![go(&x), go(&y)]);
+                    if negated {
+                        Print::Negated([true; 2], Box::new(e))
+                    } else {
+                        e
+                    }
+                }
+                Form::MulAdd => {
+                    let (x, y, negated) = product_signs(plan, &args[0], &args[1], true);
+                    let (x, y) = (go(&x), go(&y));
+                    if negated {
+                        Print::Apply(Call::SubMul, vec![go(&args[2]), x, y])
+                    } else if both(&args[2]) {
+                        let c = go(&args[2].flipped([true; 2]));
+                        Print::Apply(Call::MulSub, vec![x, y, c])
+                    } else if written.product_first {
+                        Print::Apply(Call::MulAdd, vec![x, y, go(&args[2])])
+                    } else {
+                        Print::Apply(Call::AddMul, vec![go(&args[2]), x, y])
+                    }
+                }
+            };
+            let signs = if matches!(form, Form::Plus | Form::MulAdd) {
+                *signs
+            } else {
+                [false; 2]
+            };
+            (e, signs)
+        }
+    };
+    if signs == [false; 2] {
+        e
+    } else {
+        Print::Negated(signs, Box::new(e))
+    }
+}
+
+/// The two factors of a product (or a quotient's numerator and
+/// denominator) with their signs gathered where they cost least (exact:
+/// `(-a) b = a (-b) = -(a b)`, and likewise for a quotient): on a factor
+/// that is a literal on each lane the sign is on (a negated literal costs
+/// nothing), else, where both lanes carry it, on the result (`true`: the
+/// caller negates the product or writes `sub_mul`, which a multiply-add,
+/// `fused`, prefers to a literal), else on the first factor (one lane
+/// negated).
+fn product_signs(plan: &Plan, x: &Lanes, y: &Lanes, fused: bool) -> (Lanes, Lanes, bool) {
+    let (sx, sy) = (x.signs(), y.signs());
+    let signs = [sx[0] ^ sy[0], sx[1] ^ sy[1]];
+    let (x, y) = (x.flipped(sx), y.flipped(sy));
+    let literal = |t: &Lanes| match t {
+        Lanes::Leaf(o, _) => {
+            plan.held(o[0], o[1]).is_none()
+                && (0..2).all(|l| !signs[l] || matches!(o[l].value, Value::Literal(_)))
+        }
+        Lanes::Node(..) => false,
+    };
+    if signs == [false; 2] {
+        (x, y, false)
+    } else if fused && signs == [true; 2] {
+        (x, y, true)
+    } else if literal(&y) {
+        let y = y.flipped(signs);
+        (x, y, false)
+    } else if literal(&x) {
+        (x.flipped(signs), y, false)
+    } else if signs == [true; 2] {
+        (x, y, true)
+    } else {
+        (x.flipped(signs), y, false)
     }
 }
 

@@ -10,8 +10,14 @@
 //!   of the processor's latencies (the longest path of operations from the
 //!   inputs: 4 cycles an addition or multiplication, 14 a division, 20 a
 //!   call), so that its last addition waits only for its latest term
-//!   rather than a chain through all of them; between terms ready together
-//!   the order is positive terms, the constant, negative terms. A negative
+//!   rather than a chain through all of them; terms ready together are
+//!   taken in the order of their shapes (a hash of the expression that
+//!   leaves out which coordinate an input is, the values and signs of
+//!   literals and coefficients, and the order of a sum's or product's
+//!   operands: [`Lowering::shape`]), so that the statements of two
+//!   mirror-image limbs are written alike and pair ([`super::lanes`]),
+//!   and in the order positive terms, the constant, negative terms where
+//!   their shapes agree. A negative
 //!   term is subtracted (`a - t`, `t` possibly a sum of negative terms
 //!   added first); when no positive term or constant leads, the first
 //!   negative term is negated (`-|c_k| t_k`), and a sum with no positive
@@ -26,7 +32,8 @@
 //!   lane).
 //!
 //! In `f64` code a product added to or subtracted from a value is one
-//! operation ([`Op::Fused`]): the emitter prints it as the runtime's
+//! operation ([`Op::Fused`]; of two products, the one of the larger shape,
+//! else the second): the emitter prints it as the runtime's
 //! multiply-add (one rounding where the target fuses them, else exactly the
 //! written expression), the interpreter runs it as one instruction
 //! computing the written expression. `f32` code computes the same on every
@@ -42,9 +49,11 @@
 
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
+use std::hash::{Hash, Hasher};
 
 use super::{Code, Function, Inputs, Program, Scheduled, Shape, Stmt};
 use crate::expr::{Func, Symbol};
+use crate::hash::FastHasher;
 
 /// A value an operation reads.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -302,10 +311,16 @@ fn precedence(c: &Code) -> u8 {
 /// Lower a scheduled function; for `f64` code (`double`), the sines and
 /// cosines of angles that read inputs only come first in one batch, and
 /// products added to or subtracted from a value are fused ([`Op::Fused`]).
-pub fn lower(f: &Scheduled, double: bool) -> Lowered {
+/// Where the scene has mirror-image limbs (`mirrored`), terms ready
+/// together are added, and of two products the one to fuse chosen, by
+/// their shapes ([`Lowering::shape`]), else in the program's order.
+pub fn lower(f: &Scheduled, double: bool, mirrored: bool) -> Lowered {
     let spec = f.spec();
     let shapes: Vec<(usize, usize)> = spec.outputs.iter().map(|o| o.shape.size(f.dims)).collect();
-    let mut l = Lowering::default();
+    let mut l = Lowering {
+        mirrored,
+        ..Lowering::default()
+    };
     let p = &f.program;
     if double {
         l.inline = products_read_once_as_terms(p);
@@ -380,7 +395,11 @@ pub fn lower(f: &Scheduled, double: bool) -> Lowered {
             });
         }
     }
-    let ops = if double { fuse(l.ops, l.temps) } else { l.ops };
+    let ops = if double {
+        fuse(l.ops, &l.shapes)
+    } else {
+        l.ops
+    };
     Lowered {
         function: f.function,
         shapes,
@@ -390,11 +409,12 @@ pub fn lower(f: &Scheduled, double: bool) -> Lowered {
 }
 
 /// `ops` with each addition or subtraction that reads a product (an
-/// intermediate, so read by it only) computing that product itself: a
-/// product second is preferred (`c + x * y`, `c - x * y`), as Rust's
-/// `a + b * c` reads.
-fn fuse(mut ops: Vec<Op>, temps: u32) -> Vec<Op> {
-    let mut product: Vec<Option<usize>> = vec![None; temps as usize];
+/// intermediate, so read by it only) computing that product itself; of
+/// two products, the one of the larger shape (`shapes`, by intermediate),
+/// else the second (`c + x * y`, `c - x * y`, as Rust's `a + b * c`
+/// reads).
+fn fuse(mut ops: Vec<Op>, shapes: &[u64]) -> Vec<Op> {
+    let mut product: Vec<Option<usize>> = vec![None; shapes.len()];
     for (k, op) in ops.iter().enumerate() {
         if let Op::Binary {
             dst,
@@ -421,11 +441,16 @@ fn fuse(mut ops: Vec<Op>, temps: u32) -> Vec<Op> {
         else {
             continue;
         };
-        let (form, m, c) = match (op, factors(a), factors(b)) {
+        let shape = |o: Operand| match o.value {
+            Value::Temp(t) => shapes[t as usize],
+            _ => 0,
+        };
+        let first = factors(b).is_none() || shape(a) > shape(b);
+        let (form, m, c) = match (op, factors(a).filter(|_| first), factors(b)) {
+            (Binary::Add, Some(m), _) => (Fused::MulAdd, m, b),
+            (Binary::Sub, Some(m), _) => (Fused::MulSub, m, b),
             (Binary::Add, _, Some(m)) => (Fused::AddMul, m, a),
-            (Binary::Add, Some(m), None) => (Fused::MulAdd, m, b),
             (Binary::Sub, _, Some(m)) => (Fused::SubMul, m, a),
-            (Binary::Sub, Some(m), None) => (Fused::MulSub, m, b),
             _ => continue,
         };
         let Op::Binary { a: x, b: y, .. } = ops[m] else {
@@ -497,6 +522,20 @@ struct Lowering {
     ready: Vec<u32>,
     /// When each bound variable is ready.
     var_ready: HashMap<u32, u32>,
+    /// Each intermediate's shape ([`Lowering::shape`]).
+    shapes: Vec<u64>,
+    /// Each bound variable's shape.
+    var_shapes: HashMap<u32, u64>,
+    /// Whether terms ready together are ordered by their shapes.
+    mirrored: bool,
+}
+
+/// A hash of a tag and words.
+fn mix(tag: impl Hash, words: &[u64]) -> u64 {
+    let mut h = FastHasher::default();
+    tag.hash(&mut h);
+    words.iter().for_each(|w| h.write_u64(*w));
+    h.finish()
 }
 
 /// Latencies, in cycles of a present-day processor, of the model by which
@@ -508,10 +547,11 @@ const NEGATION: u32 = 1;
 const CALL: u32 = 20;
 
 impl Lowering {
-    /// A new intermediate, ready `latency` after `operands`.
-    fn temp(&mut self, operands: &[Operand], latency: u32) -> u32 {
+    /// A new intermediate of a shape, ready `latency` after `operands`.
+    fn temp(&mut self, operands: &[Operand], latency: u32, shape: u64) -> u32 {
         let at = operands.iter().map(|o| self.ready(*o)).max().unwrap_or(0);
         self.ready.push(at + latency);
+        self.shapes.push(if self.mirrored { shape } else { 0 });
         self.temps += 1;
         self.temps - 1
     }
@@ -526,28 +566,67 @@ impl Lowering {
         }
     }
 
+    /// The shape of a value: a hash of its expression that leaves out
+    /// which coordinate an input belongs to, the values and signs of
+    /// literals (the two lanes may differ in them), the signs of terms, and
+    /// the order of the operands of a sum or product. The statements of two mirror-image limbs have the same
+    /// shapes, so where a sum's terms are ordered by their shapes (and a
+    /// product is fused by them) the two are written alike and can be
+    /// paired ([`super::lanes`]).
+    fn shape(&self, o: Operand) -> u64 {
+        if !self.mirrored {
+            return 0;
+        }
+        match o.value {
+            Value::Temp(t) => self.shapes[t as usize],
+            Value::Var(v) => self.var_shapes.get(&v).copied().unwrap_or_default(),
+            Value::Input(s) => match s {
+                Symbol::Q(_) => mix(1u8, &[]),
+                Symbol::Qd(_) => mix(2u8, &[]),
+                Symbol::Qdd(_) => mix(3u8, &[]),
+                Symbol::Time => mix(4u8, &[]),
+                Symbol::Param(i) => mix(5u8, &[i.into()]),
+            },
+            Value::Literal(_) => mix(6u8, &[]),
+        }
+    }
+
     fn binary(&mut self, op: Binary, a: Operand, b: Operand) -> Operand {
         let latency = if op == Binary::Div {
             DIVISION
         } else {
             ARITHMETIC
         };
-        let dst = self.temp(&[a, b], latency);
+        let (x, y) = (self.shape(a), self.shape(b));
+        let shape = match op {
+            Binary::Add | Binary::Sub => mix(7u8, &[x.min(y), x.max(y)]),
+            Binary::Mul => mix(8u8, &[x.min(y), x.max(y)]),
+            Binary::Div => mix(9u8, &[x, y]),
+        };
+        let dst = self.temp(&[a, b], latency, shape);
         self.ops.push(Op::Binary { dst, op, a, b });
         Operand::new(Value::Temp(dst))
     }
 
     fn neg(&mut self, a: Operand) -> Operand {
-        let dst = self.temp(&[a], NEGATION);
+        let dst = self.temp(&[a], NEGATION, self.shape(a));
         self.ops.push(Op::Neg { dst, a });
         Operand::new(Value::Temp(dst))
     }
 
-    /// Variables `vars` ready `latency` after `value`.
+    /// Variables `vars` ready `latency` after `value`, of its shape (a
+    /// sine and a cosine of it: `vars` two).
     fn bound(&mut self, vars: &[u32], value: Operand, latency: u32) {
         let at = self.ready(value) + latency;
-        for v in vars {
+        let shape = self.shape(value);
+        for (k, v) in vars.iter().enumerate() {
             self.var_ready.insert(*v, at);
+            let shape = if vars.len() == 1 {
+                shape
+            } else {
+                mix(11 + k as u8, &[shape])
+            };
+            self.var_shapes.insert(*v, shape);
         }
     }
 
@@ -579,13 +658,14 @@ impl Lowering {
             Code::Prod { num, den } => self.chain(None, false, num, den),
             Code::Call(f, a) => {
                 let a = self.operand(a, SUM);
-                let dst = self.temp(&[a], CALL);
+                let dst = self.temp(&[a], CALL, mix(f, &[self.shape(a)]));
                 self.ops.push(Op::Call { dst, f: *f, a });
                 Operand::new(Value::Temp(dst))
             }
             Code::Atan2(y, x) => {
                 let (y, x) = (self.operand(y, SUM), self.operand(x, SUM));
-                let dst = self.temp(&[y, x], CALL);
+                let shape = mix(10u8, &[self.shape(y), self.shape(x)]);
+                let dst = self.temp(&[y, x], CALL, shape);
                 self.ops.push(Op::Atan2 { dst, y, x });
                 Operand::new(Value::Temp(dst))
             }
@@ -641,8 +721,9 @@ impl Lowering {
 
     /// A sum as printed: its terms (positive ones, then the constant, then
     /// negative ones subtracted) added two at a time, always the two that
-    /// are ready first (the earlier one first, the order above between
-    /// terms ready together), so that the sum's last addition waits only
+    /// are ready first (the earlier one first; between terms ready
+    /// together, the one of the smaller shape, else the order above), so
+    /// that the sum's last addition waits only
     /// for its latest term, not for a chain of all the others. A partial
     /// sum of subtracted terms is subtracted as one; a positive term or the
     /// constant leads, else the first negative term is negated.
@@ -664,12 +745,13 @@ impl Lowering {
             items.push((self.term(*c, t, negate), !negate));
             negate = false;
         }
-        let mut queue: BinaryHeap<Reverse<(u32, usize)>> = items
+        let mut queue: BinaryHeap<Reverse<(u32, u64, usize)>> = items
             .iter()
             .enumerate()
-            .map(|(k, (v, _))| Reverse((self.ready(*v), k)))
+            .map(|(k, (v, _))| Reverse((self.ready(*v), self.shape(*v), k)))
             .collect();
-        while let (Some(Reverse((_, i))), Some(Reverse((_, j)))) = (queue.pop(), queue.pop()) {
+        while let (Some(Reverse((_, _, i))), Some(Reverse((_, _, j)))) = (queue.pop(), queue.pop())
+        {
             let ((a, a_sub), (b, b_sub)) = (items[i], items[j]);
             let (value, sub) = match (a_sub, b_sub) {
                 (false, false) => (self.binary(Binary::Add, a, b), false),
@@ -677,7 +759,7 @@ impl Lowering {
                 (true, false) => (self.binary(Binary::Sub, b, a), false),
                 (true, true) => (self.binary(Binary::Add, a, b), true),
             };
-            queue.push(Reverse((self.ready(value), items.len())));
+            queue.push(Reverse((self.ready(value), self.shape(value), items.len())));
             items.push((value, sub));
         }
         // What is left is positive: adding to a positive value gives one,
@@ -731,13 +813,7 @@ mod tests {
             Code::Var(1),
             sum(vec![(1.0, product(q(1), q(2))), (-1.0, q(0))]),
         ];
-        Scheduled {
-            function: Function::Constraints,
-            marker: None,
-            dims: (3, outputs.len(), 0),
-            slots: (0..outputs.len()).map(|i| (0, i, 0)).collect(),
-            program: Program::new(stmts, outputs),
-        }
+        Scheduled::constraints(3, Program::new(stmts, outputs))
     }
 
     #[test]
@@ -756,7 +832,7 @@ mod tests {
             });
             b.collect::<Vec<_>>()
         };
-        let double = lower(&scheduled(), true);
+        let double = lower(&scheduled(), true, false);
         // `v0` computed where it is read and fused; `v1` read twice stays
         // a variable, so `q1 - v1` is a plain difference.
         assert_eq!(binds(&double), [1]);
@@ -778,21 +854,53 @@ mod tests {
             )
         });
         assert_eq!(muls.count(), 1, "{:?}", double.ops);
-        let single = lower(&scheduled(), false);
+        let single = lower(&scheduled(), false, false);
         assert_eq!(binds(&single), [0, 1]);
         assert!(fused(&single).is_empty());
     }
 
+    /// Two sums of the same shape with their terms in other orders and
+    /// signs, as two mirror-image limbs give: `q0 qd0 + q0 q0` and `q1 q1 -
+    /// q1 qd1`. Where the scene is mirrored both fuse the product of the
+    /// same shape, so they can pair; in the program's order they do not.
+    #[test]
+    fn mirror_images_fuse_alike_where_the_scene_is_mirrored() {
+        let qd = |i| Code::Sym(Symbol::Qd(i));
+        let outputs = vec![
+            sum(vec![
+                (1.0, product(q(0), qd(0))),
+                (1.0, product(q(0), q(0))),
+            ]),
+            sum(vec![
+                (1.0, product(q(1), q(1))),
+                (-1.0, product(q(1), qd(1))),
+            ]),
+        ];
+        let f = Scheduled::constraints(2, Program::new(Vec::new(), outputs));
+        // Per fused operation, whether the product it fuses reads a velocity.
+        let velocities = |mirrored| {
+            let ops = lower(&f, true, mirrored).ops;
+            let f = ops.iter().filter_map(|op| match op {
+                Op::Fused { x, y, .. } => Some(
+                    [x, y]
+                        .iter()
+                        .any(|o| matches!(o.value, Value::Input(Symbol::Qd(_)))),
+                ),
+                _ => None,
+            });
+            f.collect::<Vec<bool>>()
+        };
+        let alike = velocities(true);
+        assert_eq!(alike.len(), 2);
+        assert_eq!(alike[0], alike[1]);
+        let written = velocities(false);
+        assert_ne!(written[0], written[1]);
+    }
+
     /// `sum` lowered alone as an output, `f32`-style (no fusing).
     fn lowered_sum(terms: Vec<(f64, Code)>) -> Vec<Op> {
-        let f = Scheduled {
-            function: Function::Constraints,
-            marker: None,
-            dims: (4, 1, 0),
-            slots: vec![(0, 0, 0)],
-            program: Program::new(Vec::new(), vec![sum(terms)]),
-        };
-        let mut ops = lower(&f, false).ops;
+        let f = Scheduled::constraints(4, Program::new(Vec::new(), vec![sum(terms)]));
+        let mut ops = lower(&f, false, false).ops;
         ops.retain(|op| !matches!(op, Op::Store { .. } | Op::Zero { .. }));
         ops
     }

@@ -24,7 +24,7 @@ pub use code::{Code, OpCount, Program, Stmt};
 #[cfg(test)]
 pub use functions::Terms;
 pub use functions::{functions, Dim, Function, Inputs, OutputSpec, Scheduled, Shape, Spec};
-pub use lanes::{mirror_coordinates, plan, Form, Lanes, Mirror, Plan, Step};
+pub use lanes::{mirror_of, plan, printed, Mirror, Plan, Print, Step};
 pub use lower::{lower, Binary, Fused, Lowered, Op, Operand, Value};
 
 use crate::expr::{Graph, Id};
