@@ -22,6 +22,13 @@
 //!   signs ([`Lanes`]). Then the statements are ordered again (each pair
 //!   where both its statements' operands are ready, otherwise the original
 //!   order).
+//! * [`printed`]: where a pair's signs go when it is printed (on a
+//!   literal, in `minus`, `sub_mul` or `mul_sub`, else a negation of one
+//!   lane or both), so that a back end only prints ([`Print`]).
+//!
+//! The lowering helps: in a mirrored scene it adds a sum's terms, and
+//! picks the product it fuses, in an order both limbs share
+//! ([`super::lower`]), so that their statements are written alike.
 
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap, HashSet};
