@@ -9,18 +9,19 @@
 //!   `|c0|`) two at a time, always the two that are ready first in a model
 //!   of the processor's latencies (the longest path of operations from the
 //!   inputs: 4 cycles an addition or multiplication, 14 a division, 20 a
-//!   call), so that its last addition waits only for its latest term
-//!   rather than a chain through all of them. Terms ready together are
-//!   taken in the order positive terms, the constant, negative terms; in a
-//!   scene with mirror-image limbs, first in the order of their shapes (a
-//!   hash of the expression that leaves out which coordinate an input is,
-//!   the values and signs of literals and coefficients, and the order of a
+//!   call), so that its last addition waits only for its latest term rather
+//!   than a chain through all of them. Terms ready together are taken in
+//!   the order positive terms, the constant, negative terms; in a scene
+//!   with mirror-image limbs, first in the order of their shapes (a hash of
+//!   the expression that leaves out which coordinate an input is, the
+//!   values and signs of literals and coefficients, and the order of a
 //!   sum's or product's operands: [`Lowering::shape`]), so that the
 //!   statements of two mirror-image limbs are written alike and pair
-//!   ([`super::lanes`]). A negative term is subtracted (`a - t`, `t` possibly a sum of negative terms
-//!   added first); when no positive term or constant leads, the first
-//!   negative term is negated (`-|c_k| t_k`), and a sum with no positive
-//!   term leads with its constant, negative or not;
+//!   ([`super::lanes`]). A negative term is subtracted (`a - t`, `t`
+//!   possibly a sum of negative terms added first); when no positive term
+//!   or constant leads, the first negative term is negated (`-|c_k| t_k`),
+//!   and a sum with no positive term leads with its constant, negative or
+//!   not;
 //! * a term `c * (a * b / d)` is printed without parentheses, so it is the
 //!   chain `((c * a) * b) / d`, and a leading minus negates the chain's first
 //!   operand (`(-c) * a`, `(-a) * b`);
@@ -32,11 +33,11 @@
 //!
 //! In `f64` code a product added to or subtracted from a value is one
 //! operation ([`Op::Fused`]; of two products the second, in a mirrored
-//! scene the one of the larger shape): the emitter prints it as the runtime's
-//! multiply-add (one rounding where the target fuses them, else exactly the
-//! written expression), the interpreter runs it as one instruction
-//! computing the written expression. `f32` code computes the same on every
-//! target, so it never fuses.
+//! scene the one of the larger shape): the emitter prints it as the
+//! runtime's multiply-add (one rounding where the target fuses them, else
+//! exactly the written expression), the interpreter runs it as one
+//! instruction computing the written expression. `f32` code computes the
+//! same on every target, so it never fuses.
 //!
 //! Each operand also says whether the printed text parenthesises it
 //! ([`Operand::paren`]): where the tree's precedence asks for it, also where
@@ -565,14 +566,15 @@ impl Lowering {
         }
     }
 
-    /// The shape of a value: a hash of its expression that leaves out
-    /// which coordinate an input belongs to, the values and signs of
-    /// literals (the two lanes may differ in them), the signs of terms, and
-    /// the order of the operands of a sum or product. The statements of two mirror-image limbs have the same
-    /// shapes, so where a sum's terms are ordered by their shapes (and a
-    /// product is fused by them) the two are written alike and can be
-    /// paired ([`super::lanes`]). In a scene without mirror-image limbs
-    /// every shape is `0`, which keeps the program's order.
+    /// The shape of a value: a hash of its expression that leaves out which
+    /// coordinate an input belongs to, the values and signs of literals
+    /// (the two lanes may differ in them), the signs of terms, and the
+    /// order of the operands of a sum or product. The statements of two
+    /// mirror-image limbs have the same shapes, so where a sum's terms are
+    /// ordered by their shapes (and a product is fused by them) the two are
+    /// written alike and can be paired ([`super::lanes`]). In a scene
+    /// without mirror-image limbs every shape is `0`, which keeps the
+    /// program's order.
     fn shape(&self, o: Operand) -> u64 {
         if !self.mirrored {
             return 0;
