@@ -339,14 +339,8 @@ pub enum Call {
     Times,
     /// `a / b`.
     Over,
-    /// `x y + c`, written `mul_add(x, y, c)`.
-    MulAdd,
-    /// `c + x y`, written `add_mul(c, x, y)`.
-    AddMul,
-    /// `c - x y`, written `sub_mul(c, x, y)`.
-    SubMul,
-    /// `x y - c`, written `mul_sub(x, y, c)`.
-    MulSub,
+    /// A multiply-add, its arguments in the order of its form's name.
+    Fused(Fused),
 }
 
 impl Call {
@@ -357,10 +351,7 @@ impl Call {
             Call::Minus => "minus",
             Call::Times => "times",
             Call::Over => "over",
-            Call::MulAdd => "mul_add",
-            Call::AddMul => "add_mul",
-            Call::SubMul => "sub_mul",
-            Call::MulSub => "mul_sub",
+            Call::Fused(form) => form.name(),
         }
     }
 }
@@ -424,14 +415,14 @@ pub fn printed(plan: &Plan, tree: &Lanes) -> Print {
                     let (x, y, negated) = product_signs(plan, &args[0], &args[1], true);
                     let (x, y) = (go(&x), go(&y));
                     if negated {
-                        Print::Apply(Call::SubMul, vec![go(&args[2]), x, y])
+                        Print::Apply(Call::Fused(Fused::SubMul), vec![go(&args[2]), x, y])
                     } else if both(&args[2]) {
                         let c = go(&args[2].flipped([true; 2]));
-                        Print::Apply(Call::MulSub, vec![x, y, c])
+                        Print::Apply(Call::Fused(Fused::MulSub), vec![x, y, c])
                     } else if written.product_first {
-                        Print::Apply(Call::MulAdd, vec![x, y, go(&args[2])])
+                        Print::Apply(Call::Fused(Fused::MulAdd), vec![x, y, go(&args[2])])
                     } else {
-                        Print::Apply(Call::AddMul, vec![go(&args[2]), x, y])
+                        Print::Apply(Call::Fused(Fused::AddMul), vec![go(&args[2]), x, y])
                     }
                 }
             };
