@@ -23,9 +23,16 @@ is unset). Stdlib only.
 
 Usage (from any directory; cargo runs in the repository root):
 
-    python3 benches/pinocchio/side_by_side.py [default|native|both] [CRITERION ARGS...]
+    python3 benches/pinocchio/side_by_side.py [default|native|both] [--interleaved] [CRITERION ARGS...]
 
 e.g. ``side_by_side.py default --warm-up-time 1 --measurement-time 3``.
+
+``--interleaved`` times without criterion (``FLEXDYN_BENCH_INTERLEAVED``):
+each term's functions (flexdyn's, Pinocchio's templated, Pinocchio's C) in
+turn, a batch of about 2 ms each per round, 201 rounds, and each ratio is
+the median over the rounds of the two batches' ratio, so that a shared
+machine whose speed drifts over minutes slows both sides of a ratio alike
+(criterion times one function after the other, several seconds each).
 """
 
 from __future__ import annotations
@@ -86,6 +93,11 @@ def main() -> int:
         print(f"error: no build named {wanted!r} (default, native, both)", file=sys.stderr)
         return 2
     extra = sys.argv[2:]
+    interleaved = "--interleaved" in extra
+    extra = [a for a in extra if a != "--interleaved"]
+    # (group, function) -> median ns, and that function's time relative to
+    # flexdyn's in the same round (median over rounds), per build.
+    timed: dict[str, dict[tuple[str, str], tuple[float, float]]] = {}
     results = {}
     compared = set()
     # Robots whose mass matrix is singular (no forward dynamics to time).
@@ -94,9 +106,17 @@ def main() -> int:
         print(f"{build}: load average before {load()}", flush=True)
         run = subprocess.run(
             ["cargo", "bench", "--manifest-path", str(MANIFEST), "--", *extra],
-            env={**os.environ, **env, "CARGO_TARGET_DIR": str(target)},
+            env={**os.environ, **env, "CARGO_TARGET_DIR": str(target),
+                 **({"FLEXDYN_BENCH_INTERLEAVED": "1"} if interleaved else {})},
             cwd=REPO, capture_output=True, text=True)
+        timed[build] = {}
         for line in run.stdout.splitlines():
+            found = re.match(r"interleaved (.+) / (.+): median ([\d.]+) ns; per round ([\d.]+) times",
+                             line)
+            if found:
+                print(f"{build}: {line}")
+                timed[build][(found.group(1), found.group(2))] = (float(found.group(3)),
+                                                                  float(found.group(4)))
             if "largest relative difference" in line or "operations" in line:
                 print(f"{build}: {line}")
             robot = re.match(r"(\w+): \d+ joints;", line)
@@ -110,7 +130,8 @@ def main() -> int:
             print(f"error: the {build} run failed:\n{run.stderr[-4000:]}", file=sys.stderr)
             return 1
         print(f"{build}: load average after {load()}", flush=True)
-        results[build] = medians(target / "criterion")
+        results[build] = ({key: t for key, (t, _) in timed[build].items()} if interleaved
+                          else medians(target / "criterion"))
     header = ["robot", "build"]
     for term in ("inverse dynamics", "M + h", "forward dynamics"):
         header += [f"{term}: flexdyn", "Pinocchio templated", "Pinocchio C", "vs templated",
@@ -132,8 +153,12 @@ def main() -> int:
                     print(f"error: no criterion result for {missing} in the {build} run",
                           file=sys.stderr)
                     return 1
+                # Interleaved: the medians of the per-round ratios, not the
+                # ratios of the medians.
+                vs_templated, vs_c = ((timed[build][(robot, n)][1] for n in names[1:])
+                                      if interleaved else (templated / ours, generated / ours))
                 cells += [duration(ours), duration(templated), duration(generated),
-                          ratio(templated / ours), f"**{ratio(generated / ours)}**"]
+                          ratio(vs_templated), f"**{ratio(vs_c)}**"]
             print(f"| {label} | {build} | " + " | ".join(cells) + " |")
     return 0
 

@@ -44,6 +44,11 @@
 //! not wall-clock time, so that other jobs on a shared machine, which take
 //! the core away for whole time slices, do not count (what they leave
 //! behind in the caches still does).
+//!
+//! With `FLEXDYN_BENCH_INTERLEAVED` set, criterion is not used: each
+//! comparison's functions are timed in turn, a batch of each per round, and
+//! every ratio is the median of the per-round ratios ([`interleaved`]), so
+//! that a host whose speed drifts over minutes slows both sides alike.
 
 use std::ffi::{c_char, c_void, CStr, CString};
 
@@ -515,8 +520,14 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
     // A robot whose mass matrix is singular (Romeo as published: finger
     // joints that move no mass) has no forward dynamics, on either side
     // (Pinocchio's `aba` is not finite there): compared and timed without.
-    let forward = match accelerations(&robot, &config, &states[0].q, &states[0].qd, 0.0, &states[0].tau)
-    {
+    let forward = match accelerations(
+        &robot,
+        &config,
+        &states[0].q,
+        &states[0].qd,
+        0.0,
+        &states[0].tau,
+    ) {
         Ok(_) => true,
         Err(e) => {
             println!("{name}: no forward dynamics ({e}): not compared, not timed");
@@ -632,7 +643,9 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
         }
     }
     let aba = |e: f64| match forward {
-        true => format!("{e:.1e} (cond(M) up to {conditioning:.0e}; accepted: that many times more)"),
+        true => {
+            format!("{e:.1e} (cond(M) up to {conditioning:.0e}; accepted: that many times more)")
+        }
         false => "none".to_owned(),
     };
     println!(
@@ -684,99 +697,87 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
         ops(&generated.aba),
     );
 
-    let mut g = c.benchmark_group(name);
-    let mut i = 0;
-    g.bench_function("flexdyn dynamics_terms", |b| {
-        let (mut m, mut h) = (SMatrix::<f64, N, N>::zeros(), SVector::<f64, N>::zeros());
-        let (mut phi_q, mut gamma) = (SMatrix::<f64, 0, N>::zeros(), SVector::<f64, 0>::zeros());
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            robot.dynamics_terms(&s.q, &s.qd, 0.0, &mut m, &mut h, &mut phi_q, &mut gamma);
-            black_box((&m, &h));
-        })
-    });
-    g.bench_function("pinocchio crba + nonLinearEffects", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            // SAFETY: arrays of N numbers for a model of N velocities.
-            unsafe { pin_bench_crba_nle(pin.handle, s.pin[0].as_ptr(), s.pin[1].as_ptr()) }
-        })
-    });
-    g.bench_function("pinocchio C crba + nle", |b| {
-        let (mut m, mut h) = (vec![0.0; N * N], vec![0.0; N]);
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            c_crba_nle.call(&[&s.pin[0], &s.pin[1]], &mut [&mut m, &mut h]);
-            black_box((&m, &h));
-        })
-    });
-    g.bench_function("pinocchio C crba, nle", |b| {
-        let (mut m, mut h) = (vec![0.0; N * N], vec![0.0; N]);
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            c_crba.call(&[&s.pin[0]], &mut [&mut m]);
-            c_nle.call(&[&s.pin[0], &s.pin[1]], &mut [&mut h]);
-            black_box((&m, &h));
-        })
-    });
-    g.bench_function("flexdyn inverse_dynamics", |b| {
-        b.iter(|| black_box(inverse_dynamics(&robot, next(&states, &mut i))))
-    });
-    g.bench_function("pinocchio rnea", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            // SAFETY: arrays of N numbers for a model of N velocities.
-            unsafe {
-                pin_bench_rnea(
-                    pin.handle,
-                    s.pin[0].as_ptr(),
-                    s.pin[1].as_ptr(),
-                    s.pin[2].as_ptr(),
-                )
-            }
-        })
-    });
-    g.bench_function("pinocchio C rnea", |b| {
-        let mut tau = vec![0.0; N];
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            c_rnea.call(&[&s.pin[0], &s.pin[1], &s.pin[2]], &mut [&mut tau]);
-            black_box(&tau);
-        })
-    });
-    if !forward {
-        g.finish();
-        return;
+    let (robot, states, config, pin) = (&robot, &states, &config, &pin);
+    let mut terms = vec![
+        vec![
+            timed("flexdyn dynamics_terms", {
+                let (mut m, mut h) = (SMatrix::<f64, N, N>::zeros(), SVector::<f64, N>::zeros());
+                let (mut phi_q, mut gamma) =
+                    (SMatrix::<f64, 0, N>::zeros(), SVector::<f64, 0>::zeros());
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    robot.dynamics_terms(&s.q, &s.qd, 0.0, &mut m, &mut h, &mut phi_q, &mut gamma);
+                    black_box((&m, &h));
+                }
+            }),
+            timed("pinocchio crba + nonLinearEffects", {
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    // SAFETY: arrays of N numbers for a model of N velocities.
+                    unsafe { pin_bench_crba_nle(pin.handle, s.pin[0].as_ptr(), s.pin[1].as_ptr()) }
+                }
+            }),
+            timed("pinocchio C crba + nle", {
+                let (mut m, mut h) = (vec![0.0; N * N], vec![0.0; N]);
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    c_crba_nle.call(&[&s.pin[0], &s.pin[1]], &mut [&mut m, &mut h]);
+                    black_box((&m, &h));
+                }
+            }),
+            timed("pinocchio C crba, nle", {
+                let (mut m, mut h) = (vec![0.0; N * N], vec![0.0; N]);
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    c_crba.call(&[&s.pin[0]], &mut [&mut m]);
+                    c_nle.call(&[&s.pin[0], &s.pin[1]], &mut [&mut h]);
+                    black_box((&m, &h));
+                }
+            }),
+        ],
+        vec![
+            timed("flexdyn inverse_dynamics", {
+                let mut i = 0;
+                move || black_box(inverse_dynamics(robot, next(states, &mut i)))
+            }),
+            templated("pinocchio rnea", pin, states, pin_bench_rnea, 2),
+            timed("pinocchio C rnea", {
+                let mut tau = vec![0.0; N];
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    c_rnea.call(&[&s.pin[0], &s.pin[1], &s.pin[2]], &mut [&mut tau]);
+                    black_box(&tau);
+                }
+            }),
+        ],
+    ];
+    if forward {
+        terms.push(vec![
+            timed("flexdyn forward dynamics", {
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    black_box(accelerations(robot, config, &s.q, &s.qd, 0.0, &s.tau).map(|a| a.qdd))
+                }
+            }),
+            templated("pinocchio aba", pin, states, pin_bench_aba, 3),
+            timed("pinocchio C aba", {
+                let mut ddq = vec![0.0; N];
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    c_aba.call(&[&s.pin[0], &s.pin[1], &s.pin[3]], &mut [&mut ddq]);
+                    black_box(&ddq);
+                }
+            }),
+        ]);
     }
-    g.bench_function("flexdyn forward dynamics", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            black_box(accelerations(&robot, &config, &s.q, &s.qd, 0.0, &s.tau).map(|a| a.qdd))
-        })
-    });
-    g.bench_function("pinocchio aba", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            // SAFETY: arrays of N numbers for a model of N velocities.
-            unsafe {
-                pin_bench_aba(
-                    pin.handle,
-                    s.pin[0].as_ptr(),
-                    s.pin[1].as_ptr(),
-                    s.pin[3].as_ptr(),
-                )
-            }
-        })
-    });
-    g.bench_function("pinocchio C aba", |b| {
-        let mut ddq = vec![0.0; N];
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            c_aba.call(&[&s.pin[0], &s.pin[1], &s.pin[3]], &mut [&mut ddq]);
-            black_box(&ddq);
-        })
-    });
-    g.finish();
+    time_group(c, name, terms);
 }
 
 /// The generated `inverse_dynamics_derivatives` (`d tau/dq`, `d tau/dqd`)
@@ -807,12 +808,13 @@ fn compare_derivatives<R: Model<N, 0, N> + Default, const N: usize>(
         let (mut tq, mut tv) = (SMatrix::<f64, N, N>::zeros(), SMatrix::<f64, N, N>::zeros());
         assert!(robot
             .inverse_dynamics_derivatives(&s.q, &s.qd, &s.qdd, 0.0, &mut tau, &mut tq, &mut tv));
-        let d = forward_dynamics_derivatives(&robot, &s.q, &s.qd, 0.0, &s.tau).unwrap_or_else(|e| {
-            panic!(
+        let d =
+            forward_dynamics_derivatives(&robot, &s.q, &s.qd, 0.0, &s.tau).unwrap_or_else(|e| {
+                panic!(
                 "{name}: no forward dynamics to differentiate ({e}); leave `;derivatives` out for \
                  this robot"
             )
-        });
+            });
         let (mut dq, mut dv, mut fq, mut fv, mut minv) = (
             vec![0.0; N * N],
             vec![0.0; N * N],
@@ -917,82 +919,82 @@ fn compare_derivatives<R: Model<N, 0, N> + Default, const N: usize>(
         worst.iter().all(|&e| e < derivative_agreement(name)),
         "{name}: flexdyn's and Pinocchio's derivatives disagree"
     );
-    let mut g = c.benchmark_group(format!("{name} derivatives"));
-    let mut i = 0;
-    g.bench_function("flexdyn inverse_dynamics_derivatives", |b| {
-        let mut tau = SVector::<f64, N>::zeros();
-        let (mut tq, mut tv) = (SMatrix::<f64, N, N>::zeros(), SMatrix::<f64, N, N>::zeros());
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            robot
-                .inverse_dynamics_derivatives(&s.q, &s.qd, &s.qdd, 0.0, &mut tau, &mut tq, &mut tv);
-            black_box((&tau, &tq, &tv));
-        })
-    });
-    g.bench_function("pinocchio computeRNEADerivatives", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            // SAFETY: arrays of N numbers for a model of N velocities.
-            unsafe {
-                pin_bench_rnea_derivatives(
-                    pin.handle,
-                    s.pin[0].as_ptr(),
-                    s.pin[1].as_ptr(),
-                    s.pin[2].as_ptr(),
-                )
-            }
-        })
-    });
-    g.bench_function("pinocchio C rnea derivatives", |b| {
-        let mut out = [vec![0.0; N], vec![0.0; N * N], vec![0.0; N * N]];
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            let [tau, tq, tv] = &mut out;
-            c_rnea.call(
-                &[&s.pin[0], &s.pin[1], &s.pin[2]],
-                &mut [tau.as_mut_slice(), tq, tv],
-            );
-            black_box(&out);
-        })
-    });
-    g.bench_function("flexdyn forward_dynamics_derivatives", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            black_box(forward_dynamics_derivatives(&robot, &s.q, &s.qd, 0.0, &s.tau).map(|d| d.qdd))
-        })
-    });
-    g.bench_function("pinocchio C aba derivatives", |b| {
-        let mut out = [
-            vec![0.0; N],
-            vec![0.0; N * N],
-            vec![0.0; N * N],
-            vec![0.0; N * N],
-        ];
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            let [ddq, fq, fv, minv] = &mut out;
-            c_aba.call(
-                &[&s.pin[0], &s.pin[1], &s.pin[3]],
-                &mut [ddq.as_mut_slice(), fq, fv, minv],
-            );
-            black_box(&out);
-        })
-    });
-    g.bench_function("pinocchio computeABADerivatives", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            // SAFETY: arrays of N numbers for a model of N velocities.
-            unsafe {
-                pin_bench_aba_derivatives(
-                    pin.handle,
-                    s.pin[0].as_ptr(),
-                    s.pin[1].as_ptr(),
-                    s.pin[3].as_ptr(),
-                )
-            }
-        })
-    });
-    g.finish();
+    let (robot, states, pin) = (&robot, &states, &pin);
+    let terms = vec![
+        vec![
+            timed("flexdyn inverse_dynamics_derivatives", {
+                let mut tau = SVector::<f64, N>::zeros();
+                let (mut tq, mut tv) =
+                    (SMatrix::<f64, N, N>::zeros(), SMatrix::<f64, N, N>::zeros());
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    robot.inverse_dynamics_derivatives(
+                        &s.q, &s.qd, &s.qdd, 0.0, &mut tau, &mut tq, &mut tv,
+                    );
+                    black_box((&tau, &tq, &tv));
+                }
+            }),
+            templated(
+                "pinocchio computeRNEADerivatives",
+                pin,
+                states,
+                pin_bench_rnea_derivatives,
+                2,
+            ),
+            timed("pinocchio C rnea derivatives", {
+                let mut out = [vec![0.0; N], vec![0.0; N * N], vec![0.0; N * N]];
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    let [tau, tq, tv] = &mut out;
+                    c_rnea.call(
+                        &[&s.pin[0], &s.pin[1], &s.pin[2]],
+                        &mut [tau.as_mut_slice(), tq, tv],
+                    );
+                    black_box(&out);
+                }
+            }),
+        ],
+        vec![
+            timed("flexdyn forward_dynamics_derivatives", {
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    black_box(
+                        forward_dynamics_derivatives(robot, &s.q, &s.qd, 0.0, &s.tau)
+                            .map(|d| d.qdd),
+                    )
+                }
+            }),
+            timed("pinocchio C aba derivatives", {
+                let mut out = [
+                    vec![0.0; N],
+                    vec![0.0; N * N],
+                    vec![0.0; N * N],
+                    vec![0.0; N * N],
+                ];
+                let mut i = 0;
+                move || {
+                    let s = next(states, &mut i);
+                    let [ddq, fq, fv, minv] = &mut out;
+                    c_aba.call(
+                        &[&s.pin[0], &s.pin[1], &s.pin[3]],
+                        &mut [ddq.as_mut_slice(), fq, fv, minv],
+                    );
+                    black_box(&out);
+                }
+            }),
+            templated(
+                "pinocchio computeABADerivatives",
+                pin,
+                states,
+                pin_bench_aba_derivatives,
+                3,
+            ),
+        ],
+    ];
+    time_group(c, &format!("{name} derivatives"), terms);
 }
 
 /// The generated pose and Jacobian of marker `marker` against Pinocchio's
@@ -1094,31 +1096,141 @@ fn compare_marker<R: Model<N, 0, N> + Default, const N: usize>(
         worst_c < agreement(name),
         "{name}: flexdyn and Pinocchio's generated C disagree"
     );
-    let mut g = c.benchmark_group(format!("{name} {marker}"));
-    let mut i = 0;
-    g.bench_function("flexdyn marker_jacobian", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            robot.marker_jacobian(k, &s.q, 0.0, &mut p, &mut r, &mut j);
-            black_box((&p, &r, &j));
-        })
-    });
-    g.bench_function("pinocchio computeFrameJacobian", |b| {
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            // SAFETY: N numbers for a model of N velocities.
-            unsafe { pin_bench_frame_jacobian(pin.handle, frame, s.pin[0].as_ptr()) }
-        })
-    });
-    g.bench_function("pinocchio C frame Jacobian", |b| {
-        let (mut cp, mut cr, mut cj) = ([0.0; 3], [0.0; 9], vec![0.0; 6 * N]);
-        b.iter(|| {
-            let s = next(&states, &mut i);
-            c_frame.call(&[&s.pin[0]], &mut [&mut cp, &mut cr, &mut cj]);
-            black_box((&cp, &cr, &cj));
-        })
-    });
+    let (robot, states, pin) = (&robot, &states, &pin);
+    let terms = vec![vec![
+        timed("flexdyn marker_jacobian", {
+            let mut i = 0;
+            move || {
+                let s = next(states, &mut i);
+                robot.marker_jacobian(k, &s.q, 0.0, &mut p, &mut r, &mut j);
+                black_box((&p, &r, &j));
+            }
+        }),
+        timed("pinocchio computeFrameJacobian", {
+            let mut i = 0;
+            move || {
+                let s = next(states, &mut i);
+                // SAFETY: N numbers for a model of N velocities.
+                unsafe { pin_bench_frame_jacobian(pin.handle, frame, s.pin[0].as_ptr()) }
+            }
+        }),
+        timed("pinocchio C frame Jacobian", {
+            let (mut cp, mut cr, mut cj) = ([0.0; 3], [0.0; 9], vec![0.0; 6 * N]);
+            let mut i = 0;
+            move || {
+                let s = next(states, &mut i);
+                c_frame.call(&[&s.pin[0]], &mut [&mut cp, &mut cr, &mut cj]);
+                black_box((&cp, &cr, &cj));
+            }
+        }),
+    ]];
+    time_group(c, &format!("{name} {marker}"), terms);
+}
+
+/// One timed function: its name and a call of it on the next state.
+type Timed<'a> = (&'static str, Box<dyn FnMut() + 'a>);
+
+/// `f` named `name`, its result kept from the optimiser.
+fn timed<'a, O>(name: &'static str, mut f: impl FnMut() -> O + 'a) -> Timed<'a> {
+    (
+        name,
+        Box::new(move || {
+            black_box(f());
+        }),
+    )
+}
+
+/// Times the functions of `terms` as the criterion group `group`; each
+/// term is flexdyn's function first, then Pinocchio's that it is compared
+/// with. Where `FLEXDYN_BENCH_INTERLEAVED` is set, [`interleaved`] times
+/// them instead.
+fn time_group(c: &mut Criterion<ThreadCpuTime>, group: &str, terms: Vec<Vec<Timed>>) {
+    if std::env::var_os("FLEXDYN_BENCH_INTERLEAVED").is_some() {
+        terms.into_iter().for_each(|term| interleaved(group, term));
+        return;
+    }
+    let mut g = c.benchmark_group(group);
+    for (name, mut f) in terms.into_iter().flatten() {
+        g.bench_function(name, |b| b.iter(&mut f));
+    }
     g.finish();
+}
+
+/// Rounds of batches in [`interleaved`].
+const ROUNDS: usize = 201;
+
+/// Thread CPU time of one batch, in nanoseconds.
+const BATCH_NS: f64 = 2e6;
+
+/// Times the functions of one term in turn, a batch of each (about
+/// [`BATCH_NS`]) per round, so that a machine whose speed drifts over
+/// minutes slows every side of a round alike, and prints for each its
+/// median time per call and the median over the rounds of its batch's time
+/// per call relative to the first function's (flexdyn's) in the same round.
+fn interleaved(group: &str, mut term: Vec<Timed>) {
+    let calls: Vec<usize> = term
+        .iter_mut()
+        .map(|(_, f)| {
+            // Doubling until a quarter batch: the warm-up, and the rate.
+            let (mut n, mut took) = (1usize, 0.0);
+            while took < BATCH_NS / 4.0 {
+                n *= 2;
+                let start = thread_ns();
+                (0..n).for_each(|_| f());
+                took = thread_ns() - start;
+            }
+            ((n as f64 * BATCH_NS / took).ceil() as usize).max(1)
+        })
+        .collect();
+    let mut per_call = vec![Vec::with_capacity(ROUNDS); term.len()];
+    for _ in 0..ROUNDS {
+        for (((_, f), &n), times) in term.iter_mut().zip(&calls).zip(&mut per_call) {
+            let start = thread_ns();
+            (0..n).for_each(|_| f());
+            times.push((thread_ns() - start) / n as f64);
+        }
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    for ((name, _), times) in term.iter().zip(&per_call) {
+        let relative = times
+            .iter()
+            .zip(&per_call[0])
+            .map(|(t, first)| t / first)
+            .collect();
+        println!(
+            "interleaved {group} / {name}: median {:.1} ns; per round {:.4} times the first",
+            median(times.clone()),
+            median(relative)
+        );
+    }
+}
+
+/// Pinocchio's templated function `f` (`rnea`, `aba` or their derivatives:
+/// the model, `q`, `v`, then the state's array `third`, the accelerations 2
+/// or the torques 3) named `name`, on the next state.
+fn templated<'a, const N: usize>(
+    name: &'static str,
+    pin: &'a Pinocchio,
+    states: &'a [State<N>],
+    f: unsafe extern "C" fn(*mut c_void, *const f64, *const f64, *const f64),
+    third: usize,
+) -> Timed<'a> {
+    let mut i = 0;
+    timed(name, move || {
+        let s = next(states, &mut i);
+        // SAFETY: arrays of N numbers for a model of N velocities.
+        unsafe {
+            f(
+                pin.handle,
+                s.pin[0].as_ptr(),
+                s.pin[1].as_ptr(),
+                s.pin[third].as_ptr(),
+            )
+        }
+    })
 }
 
 /// The state after the `i`-th, cycling.
