@@ -195,8 +195,11 @@ fn main() {
         .out_dir(out.join("flexdyn"))
         .emit_rerun_if_changed(true);
     let robots = robots();
-    let mut list =
-        String::from("pub const ROBOTS: &[(&str, &[Joint], &[(&str, &str)], f64)] = &[\n");
+    // One robot: name, joints, (coordinate, URDF joint) pairs, largest snap.
+    let mut list = String::from(
+        "pub type Robot = (&'static str, &'static [Joint], &'static [(&'static str, &'static str)], f64);\n\
+         pub const ROBOTS: &[Robot] = &[\n",
+    );
     for robot in &robots {
         let urdf = robots_dir.join(&robot.urdf);
         println!("cargo:rerun-if-changed={}", urdf.display());
