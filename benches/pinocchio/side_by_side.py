@@ -150,7 +150,7 @@ def main() -> int:
                 try:
                     ours, templated, generated = (results[build][(robot, n)] for n in names)
                 except KeyError as missing:
-                    print(f"error: no criterion result for {missing} in the {build} run",
+                    print(f"error: no timing for {missing} in the {build} run",
                           file=sys.stderr)
                     return 1
                 # Interleaved: the medians of the per-round ratios, not the

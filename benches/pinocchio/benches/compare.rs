@@ -745,15 +745,7 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
                 move || black_box(inverse_dynamics(robot, next(states, &mut i)))
             }),
             templated("pinocchio rnea", pin, states, pin_bench_rnea, 2),
-            timed("pinocchio C rnea", {
-                let mut tau = vec![0.0; N];
-                let mut i = 0;
-                move || {
-                    let s = next(states, &mut i);
-                    c_rnea.call(&[&s.pin[0], &s.pin[1], &s.pin[2]], &mut [&mut tau]);
-                    black_box(&tau);
-                }
-            }),
+            c_vector("pinocchio C rnea", c_rnea, states, 2),
         ],
     ];
     if forward {
@@ -766,15 +758,7 @@ fn compare<R: Model<N, 0, N> + Default, const N: usize>(
                 }
             }),
             templated("pinocchio aba", pin, states, pin_bench_aba, 3),
-            timed("pinocchio C aba", {
-                let mut ddq = vec![0.0; N];
-                let mut i = 0;
-                move || {
-                    let s = next(states, &mut i);
-                    c_aba.call(&[&s.pin[0], &s.pin[1], &s.pin[3]], &mut [&mut ddq]);
-                    black_box(&ddq);
-                }
-            }),
+            c_vector("pinocchio C aba", c_aba, states, 3),
         ]);
     }
     time_group(c, name, terms);
@@ -1230,6 +1214,24 @@ fn templated<'a, const N: usize>(
                 s.pin[third].as_ptr(),
             )
         }
+    })
+}
+
+/// Pinocchio's generated C `f` of one vector of N numbers (`rnea` or
+/// `aba`: `q`, `v`, then the state's array `third`, as for [`templated`])
+/// named `name`, on the next state.
+fn c_vector<'a, const N: usize>(
+    name: &'static str,
+    mut f: CCall,
+    states: &'a [State<N>],
+    third: usize,
+) -> Timed<'a> {
+    let mut out = vec![0.0; N];
+    let mut i = 0;
+    timed(name, move || {
+        let s = next(states, &mut i);
+        f.call(&[&s.pin[0], &s.pin[1], &s.pin[third]], &mut [&mut out]);
+        black_box(&out);
     })
 }
 
