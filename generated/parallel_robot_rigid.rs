@@ -184,266 +184,346 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         _t: f64,
         h: &mut SVector<f64, 12>,
     ) {
-        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
-        (v14, v15), (v16, v17)] = math::sin_cos_array([
-            q[0],
-            q[1],
-            q[3],
-            q[4],
-            q[6],
-            q[7],
-            q[2],
-            q[5],
-            q[8],
-        ]);
-        let p0 = math::F2::times(
-            math::F2::new(qd[0], qd[3]),
-            math::F2::new(qd[0], qd[3]),
-        );
-        let p2 = math::F2::times(math::F2::new(v1, v5), p0);
-        let v18 = p2.lo();
-        let v22 = p2.hi();
-        let p3 = math::F2::times(math::F2::new(v0, v4), p0);
-        let v19 = p3.lo();
-        let v23 = p3.hi();
-        let p1 = math::F2::times(
-            math::F2::new(qd[1], qd[4]),
-            math::F2::new(qd[1], qd[4]),
-        );
-        let p4 = math::F2::times(math::F2::new(v3, v7), p1);
-        let v20 = p4.lo();
-        let v24 = p4.hi();
-        let p5 = math::F2::times(math::F2::new(v2, v6), p1);
-        let v21 = p5.lo();
-        let v25 = p5.hi();
-        let v55 = qd[6] * qd[6];
-        let v26 = v9 * v55;
-        let v27 = v8 * v55;
-        let v56 = qd[7] * qd[7];
-        let v28 = v11 * v56;
-        let v29 = v10 * v56;
-        let p6 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v15));
-        let v58 = qd[2] * v12;
-        let v59 = qd[2] * qd[2];
-        let p7 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v15));
-        let v60 = p7.lo();
-        let v64 = p7.hi();
-        let v62 = qd[5] * v14;
-        let p8 = math::F2::times(math::F2::new(qd[1], qd[4]), math::F2::new(v58, v62));
-        let v63 = qd[5] * qd[5];
-        let v65 = v11 * v17;
-        let v66 = qd[8] * v16;
-        let v80 = qd[7] * v66;
-        let v67 = qd[8] * qd[8];
-        let v68 = v10 * v17;
-        let v69 = math::sub_mul(v56 * v65, 2.0, (v10 * v80));
-        let v81 = math::mul_add(v67, v65, v69);
-        let v48 = math::add_mul(
-            math::add_mul(0.24000000000000005 * v26, 0.06000000000000001, v28),
-            0.32000000000000006,
-            v81,
-        );
-        let p10 = math::F2::sub_mul(
-            math::F2::times(p1, p6),
-            math::F2::new(2.0, 2.0),
-            math::F2::times(math::F2::new(v2, v6), p8),
-        );
-        let p12 = math::F2::mul_add(math::F2::new(v59, v63), p6, p10);
-        let v83 = p12.lo();
-        let v82 = p12.hi();
-        let p14 = math::F2::add_mul(
-            math::F2::add_mul(
-                math::F2::times(
-                    math::F2::new(0.24000000000000005, 0.24000000000000005),
-                    p2,
-                ),
-                math::F2::new(0.06000000000000001, 0.06000000000000001),
-                p4,
-            ),
-            math::F2::new(0.32000000000000006, 0.32000000000000006),
-            p12,
-        );
-        let v50 = p14.lo();
-        let v49 = p14.hi();
-        let p11 = math::F2::add_mul(
-            math::F2::times(p1, p7),
-            math::F2::new(2.0, 2.0),
-            math::F2::times(math::F2::new(v3, v7), p8),
-        );
-        let p9 = math::F2::add_mul(p3, math::F2::new(0.25, 0.25), p5);
-        let v73 = p9.lo();
-        let v75 = p9.hi();
-        let v76 = math::add_mul(v56 * v68, 2.0, (v11 * v80));
-        let v77 = math::add_mul(v27, 0.25, v29);
-        let p13 = math::F2::mul_add(math::F2::new(v59, v63), p7, p11);
-        let v84 = p13.lo();
-        let v85 = p13.hi();
-        let v86 = math::mul_add(v67, v68, v76);
-        h[0] = math::mul_add(
-            v1,
-            (math::sub_mul(
-                math::sub_mul(-0.3946666666666667 * v19, 0.06600000000000002, v21),
-                0.24000000000000005,
-                v84,
-            )),
-            math::add_mul(
-                10.987200000000001 * v1,
-                v0,
-                (math::add_mul(
-                    math::add_mul(0.3946666666666667 * v18, 0.06600000000000002, v20),
-                    0.24000000000000005,
-                    v83,
-                )),
-            ),
-        );
-        h[1] = math::add_mul(
-            v2
-                * (math::add_mul(
-                    math::add_mul(0.06600000000000002 * v18, 0.016000000000000004, v20),
-                    0.06000000000000001,
-                    v83,
-                )),
-            v50,
-            v60,
-        )
-            + math::mul_add(
-                v3,
-                (math::sub_mul(
-                    math::sub_mul(-0.06600000000000002 * v19, 0.016000000000000004, v21),
-                    0.06000000000000001,
-                    v84,
-                )),
-                math::mul_add(
-                    v3,
-                    (math::add_mul(1.6186500000000001, 5.886, v13)),
-                    v3 * v13
-                        * (math::sub_mul(
-                            -0.24000000000000005 * v73,
+        math::dispatch(
+            #[inline(always)]
+            || {
+                let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11),
+                (v12, v13), (v14, v15), (v16, v17)] = math::sin_cos_array([
+                    q[0],
+                    q[1],
+                    q[3],
+                    q[4],
+                    q[6],
+                    q[7],
+                    q[2],
+                    q[5],
+                    q[8],
+                ]);
+                let p0 = math::F2::times(
+                    math::F2::new(qd[0], qd[3]),
+                    math::F2::new(qd[0], qd[3]),
+                );
+                let p2 = math::F2::times(math::F2::new(v1, v5), p0);
+                let v18 = p2.lo();
+                let v22 = p2.hi();
+                let p3 = math::F2::times(math::F2::new(v0, v4), p0);
+                let v19 = p3.lo();
+                let v23 = p3.hi();
+                let p1 = math::F2::times(
+                    math::F2::new(qd[1], qd[4]),
+                    math::F2::new(qd[1], qd[4]),
+                );
+                let p4 = math::F2::times(math::F2::new(v3, v7), p1);
+                let v20 = p4.lo();
+                let v24 = p4.hi();
+                let p5 = math::F2::times(math::F2::new(v2, v6), p1);
+                let v21 = p5.lo();
+                let v25 = p5.hi();
+                let v55 = qd[6] * qd[6];
+                let v26 = v9 * v55;
+                let v27 = v8 * v55;
+                let v56 = qd[7] * qd[7];
+                let v28 = v11 * v56;
+                let v29 = v10 * v56;
+                let p6 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v15));
+                let v58 = qd[2] * v12;
+                let v59 = qd[2] * qd[2];
+                let p7 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v15));
+                let v60 = p7.lo();
+                let v64 = p7.hi();
+                let v62 = qd[5] * v14;
+                let p8 = math::F2::times(
+                    math::F2::new(qd[1], qd[4]),
+                    math::F2::new(v58, v62),
+                );
+                let v63 = qd[5] * qd[5];
+                let v65 = v11 * v17;
+                let v66 = qd[8] * v16;
+                let v80 = qd[7] * v66;
+                let v67 = qd[8] * qd[8];
+                let v68 = v10 * v17;
+                let v69 = math::sub_mul(v56 * v65, 2.0, (v10 * v80));
+                let v81 = math::mul_add(v67, v65, v69);
+                let v48 = math::add_mul(
+                    math::add_mul(0.24000000000000005 * v26, 0.06000000000000001, v28),
+                    0.32000000000000006,
+                    v81,
+                );
+                let p10 = math::F2::sub_mul(
+                    math::F2::times(p1, p6),
+                    math::F2::new(2.0, 2.0),
+                    math::F2::times(math::F2::new(v2, v6), p8),
+                );
+                let p12 = math::F2::mul_add(math::F2::new(v59, v63), p6, p10);
+                let v83 = p12.lo();
+                let v82 = p12.hi();
+                let p14 = math::F2::add_mul(
+                    math::F2::add_mul(
+                        math::F2::times(
+                            math::F2::new(0.24000000000000005, 0.24000000000000005),
+                            p2,
+                        ),
+                        math::F2::new(0.06000000000000001, 0.06000000000000001),
+                        p4,
+                    ),
+                    math::F2::new(0.32000000000000006, 0.32000000000000006),
+                    p12,
+                );
+                let v50 = p14.lo();
+                let v49 = p14.hi();
+                let p11 = math::F2::add_mul(
+                    math::F2::times(p1, p7),
+                    math::F2::new(2.0, 2.0),
+                    math::F2::times(math::F2::new(v3, v7), p8),
+                );
+                let p9 = math::F2::add_mul(p3, math::F2::new(0.25, 0.25), p5);
+                let v73 = p9.lo();
+                let v75 = p9.hi();
+                let v76 = math::add_mul(v56 * v68, 2.0, (v11 * v80));
+                let v77 = math::add_mul(v27, 0.25, v29);
+                let p13 = math::F2::mul_add(math::F2::new(v59, v63), p7, p11);
+                let v84 = p13.lo();
+                let v85 = p13.hi();
+                let v86 = math::mul_add(v67, v68, v76);
+                h[0] = math::mul_add(
+                    v1,
+                    (math::sub_mul(
+                        math::sub_mul(
+                            -0.3946666666666667 * v19,
+                            0.06600000000000002,
+                            v21,
+                        ),
+                        0.24000000000000005,
+                        v84,
+                    )),
+                    math::add_mul(
+                        10.987200000000001 * v1,
+                        v0,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.3946666666666667 * v18,
+                                0.06600000000000002,
+                                v20,
+                            ),
+                            0.24000000000000005,
+                            v83,
+                        )),
+                    ),
+                );
+                h[1] = math::add_mul(
+                    v2
+                        * (math::add_mul(
+                            math::add_mul(
+                                0.06600000000000002 * v18,
+                                0.016000000000000004,
+                                v20,
+                            ),
+                            0.06000000000000001,
+                            v83,
+                        )),
+                    v50,
+                    v60,
+                )
+                    + math::mul_add(
+                        v3,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v19,
+                                0.016000000000000004,
+                                v21,
+                            ),
+                            0.06000000000000001,
+                            v84,
+                        )),
+                        math::mul_add(
+                            v3,
+                            (math::add_mul(1.6186500000000001, 5.886, v13)),
+                            v3 * v13
+                                * (math::sub_mul(
+                                    -0.24000000000000005 * v73,
+                                    0.32000000000000006,
+                                    v84,
+                                )),
+                        ),
+                    );
+                h[2] = math::mul_add(
+                    v3 * v12,
+                    v50,
+                    math::mul_sub(
+                        v2 * v12,
+                        (math::add_mul(
+                            0.24000000000000005 * v73,
                             0.32000000000000006,
                             v84,
                         )),
-                ),
-            );
-        h[2] = math::mul_add(
-            v3 * v12,
-            v50,
-            math::mul_sub(
-                v2 * v12,
-                (math::add_mul(0.24000000000000005 * v73, 0.32000000000000006, v84)),
-                math::add_mul(5.886 * v2 * v12, 0.32000000000000006 * v13 * v12, v59),
-            ),
-        );
-        h[3] = math::mul_add(
-            v5,
-            (math::sub_mul(
-                math::sub_mul(-0.3946666666666667 * v23, 0.06600000000000002, v25),
-                0.24000000000000005,
-                v85,
-            )),
-            math::add_mul(
-                10.987200000000001 * v5,
-                v4,
-                (math::add_mul(
-                    math::add_mul(0.3946666666666667 * v22, 0.06600000000000002, v24),
-                    0.24000000000000005,
-                    v82,
-                )),
-            ),
-        );
-        h[4] = math::add_mul(
-            v6
-                * (math::add_mul(
-                    math::add_mul(0.06600000000000002 * v22, 0.016000000000000004, v24),
-                    0.06000000000000001,
-                    v82,
-                )),
-            v49,
-            v64,
-        )
-            + math::mul_add(
-                v7,
-                (math::sub_mul(
-                    math::sub_mul(-0.06600000000000002 * v23, 0.016000000000000004, v25),
-                    0.06000000000000001,
-                    v85,
-                )),
-                math::mul_add(
-                    v7,
-                    (math::add_mul(1.6186500000000001, 5.886, v15)),
-                    v7 * v15
-                        * (math::sub_mul(
-                            -0.24000000000000005 * v75,
+                        math::add_mul(
+                            5.886 * v2 * v12,
+                            0.32000000000000006 * v13 * v12,
+                            v59,
+                        ),
+                    ),
+                );
+                h[3] = math::mul_add(
+                    v5,
+                    (math::sub_mul(
+                        math::sub_mul(
+                            -0.3946666666666667 * v23,
+                            0.06600000000000002,
+                            v25,
+                        ),
+                        0.24000000000000005,
+                        v85,
+                    )),
+                    math::add_mul(
+                        10.987200000000001 * v5,
+                        v4,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.3946666666666667 * v22,
+                                0.06600000000000002,
+                                v24,
+                            ),
+                            0.24000000000000005,
+                            v82,
+                        )),
+                    ),
+                );
+                h[4] = math::add_mul(
+                    v6
+                        * (math::add_mul(
+                            math::add_mul(
+                                0.06600000000000002 * v22,
+                                0.016000000000000004,
+                                v24,
+                            ),
+                            0.06000000000000001,
+                            v82,
+                        )),
+                    v49,
+                    v64,
+                )
+                    + math::mul_add(
+                        v7,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v23,
+                                0.016000000000000004,
+                                v25,
+                            ),
+                            0.06000000000000001,
+                            v85,
+                        )),
+                        math::mul_add(
+                            v7,
+                            (math::add_mul(1.6186500000000001, 5.886, v15)),
+                            v7 * v15
+                                * (math::sub_mul(
+                                    -0.24000000000000005 * v75,
+                                    0.32000000000000006,
+                                    v85,
+                                )),
+                        ),
+                    );
+                h[5] = math::mul_add(
+                    v7 * v14,
+                    v49,
+                    math::mul_sub(
+                        v6 * v14,
+                        (math::add_mul(
+                            0.24000000000000005 * v75,
                             0.32000000000000006,
                             v85,
                         )),
-                ),
-            );
-        h[5] = math::mul_add(
-            v7 * v14,
-            v49,
-            math::mul_sub(
-                v6 * v14,
-                (math::add_mul(0.24000000000000005 * v75, 0.32000000000000006, v85)),
-                math::add_mul(5.886 * v6 * v14, 0.32000000000000006 * v15 * v14, v63),
-            ),
-        );
-        h[6] = math::mul_add(
-            v9,
-            (math::sub_mul(
-                math::sub_mul(-0.3946666666666667 * v27, 0.06600000000000002, v29),
-                0.24000000000000005,
-                v86,
-            )),
-            math::add_mul(
-                10.987200000000001 * v9,
-                v8,
-                (math::add_mul(
-                    math::add_mul(0.3946666666666667 * v26, 0.06600000000000002, v28),
-                    0.24000000000000005,
-                    v81,
-                )),
-            ),
-        );
-        h[7] = math::add_mul(
-            v10
-                * (math::add_mul(
-                    math::add_mul(0.06600000000000002 * v26, 0.016000000000000004, v28),
-                    0.06000000000000001,
-                    v81,
-                )),
-            v48,
-            v68,
-        )
-            + math::mul_add(
-                v11,
-                (math::sub_mul(
-                    math::sub_mul(-0.06600000000000002 * v27, 0.016000000000000004, v29),
-                    0.06000000000000001,
-                    v86,
-                )),
-                math::mul_add(
-                    v11,
-                    (math::add_mul(1.6186500000000001, 5.886, v17)),
-                    v11 * v17
-                        * (math::sub_mul(
-                            -0.24000000000000005 * v77,
+                        math::add_mul(
+                            5.886 * v6 * v14,
+                            0.32000000000000006 * v15 * v14,
+                            v63,
+                        ),
+                    ),
+                );
+                h[6] = math::mul_add(
+                    v9,
+                    (math::sub_mul(
+                        math::sub_mul(
+                            -0.3946666666666667 * v27,
+                            0.06600000000000002,
+                            v29,
+                        ),
+                        0.24000000000000005,
+                        v86,
+                    )),
+                    math::add_mul(
+                        10.987200000000001 * v9,
+                        v8,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.3946666666666667 * v26,
+                                0.06600000000000002,
+                                v28,
+                            ),
+                            0.24000000000000005,
+                            v81,
+                        )),
+                    ),
+                );
+                h[7] = math::add_mul(
+                    v10
+                        * (math::add_mul(
+                            math::add_mul(
+                                0.06600000000000002 * v26,
+                                0.016000000000000004,
+                                v28,
+                            ),
+                            0.06000000000000001,
+                            v81,
+                        )),
+                    v48,
+                    v68,
+                )
+                    + math::mul_add(
+                        v11,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v27,
+                                0.016000000000000004,
+                                v29,
+                            ),
+                            0.06000000000000001,
+                            v86,
+                        )),
+                        math::mul_add(
+                            v11,
+                            (math::add_mul(1.6186500000000001, 5.886, v17)),
+                            v11 * v17
+                                * (math::sub_mul(
+                                    -0.24000000000000005 * v77,
+                                    0.32000000000000006,
+                                    v86,
+                                )),
+                        ),
+                    );
+                h[8] = math::mul_add(
+                    v11 * v16,
+                    v48,
+                    math::mul_sub(
+                        v10 * v16,
+                        (math::add_mul(
+                            0.24000000000000005 * v77,
                             0.32000000000000006,
                             v86,
                         )),
-                ),
-            );
-        h[8] = math::mul_add(
-            v11 * v16,
-            v48,
-            math::mul_sub(
-                v10 * v16,
-                (math::add_mul(0.24000000000000005 * v77, 0.32000000000000006, v86)),
-                math::add_mul(5.886 * v10 * v16, 0.32000000000000006 * v17 * v16, v67),
-            ),
-        );
-        h[9] = 0.0;
-        h[10] = 0.0;
-        h[11] = 25.506000000000004;
+                        math::add_mul(
+                            5.886 * v10 * v16,
+                            0.32000000000000006 * v17 * v16,
+                            v67,
+                        ),
+                    ),
+                );
+                h[9] = 0.0;
+                h[10] = 0.0;
+                h[11] = 25.506000000000004;
+            },
+        )
     }
     ///Constraint residuals `Phi(q, t)`.
     #[inline]
@@ -813,407 +893,506 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         phi_q: &mut SMatrix<f64, 9, 12>,
         gamma: &mut SVector<f64, 9>,
     ) {
-        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
-        (v16, v17), (v20, v21)] = math::sin_cos_array([
-            q[0],
-            q[1],
-            q[3],
-            q[4],
-            q[6],
-            q[7],
-            q[2],
-            q[5],
-            q[8],
-        ]);
-        let p2 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v17));
-        let v14 = p2.lo();
-        let v18 = p2.hi();
-        let p3 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v17));
-        let v15 = p3.lo();
-        let v19 = p3.hi();
-        let v22 = v11 * v21;
-        let v23 = v10 * v21;
-        let v24 = v10 * v20;
-        let p4 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v12, v16));
-        let v26 = p4.lo();
-        let v25 = p4.hi();
-        let p0 = math::F2::times(
-            math::F2::new(qd[0], qd[3]),
-            math::F2::new(qd[0], qd[3]),
-        );
-        let p5 = math::F2::times(math::F2::new(v1, v5), p0);
-        let v27 = p5.lo();
-        let v31 = p5.hi();
-        let p6 = math::F2::times(math::F2::new(v0, v4), p0);
-        let v28 = p6.lo();
-        let v32 = p6.hi();
-        let p1 = math::F2::times(
-            math::F2::new(qd[1], qd[4]),
-            math::F2::new(qd[1], qd[4]),
-        );
-        let p7 = math::F2::times(math::F2::new(v3, v7), p1);
-        let v29 = p7.lo();
-        let v33 = p7.hi();
-        let p8 = math::F2::times(math::F2::new(v2, v6), p1);
-        let v30 = p8.lo();
-        let v34 = p8.hi();
-        let v64 = qd[6] * qd[6];
-        let v35 = v9 * v64;
-        let v36 = v8 * v64;
-        let v65 = qd[7] * qd[7];
-        let v37 = v11 * v65;
-        let v38 = v10 * v65;
-        let v66 = qd[2] * v12;
-        let v67 = qd[2] * qd[2];
-        let v68 = qd[5] * v16;
-        let p10 = math::F2::times(math::F2::new(qd[1], qd[4]), math::F2::new(v66, v68));
-        let v69 = qd[5] * qd[5];
-        let v70 = qd[8] * v20;
-        let v89 = qd[7] * v70;
-        let v71 = qd[8] * qd[8];
-        let v72 = math::sub_mul(v65 * v22, 2.0, (v10 * v89));
-        let v73 = math::add_mul(v35, 0.25, v37);
-        let v90 = math::mul_add(v71, v22, v72);
-        let v57 = math::add_mul(0.24000000000000005 * v73, 0.32000000000000006, v90);
-        let p13 = math::F2::sub_mul(
-            math::F2::times(p1, p2),
-            math::F2::new(2.0, 2.0),
-            math::F2::times(math::F2::new(v2, v6), p10),
-        );
-        let p11 = math::F2::add_mul(p5, math::F2::new(0.25, 0.25), p7);
-        let v77 = p11.lo();
-        let v75 = p11.hi();
-        let p15 = math::F2::mul_add(math::F2::new(v67, v69), p2, p13);
-        let v92 = p15.lo();
-        let v91 = p15.hi();
-        let p17 = math::F2::add_mul(
-            math::F2::times(
-                math::F2::new(0.24000000000000005, 0.24000000000000005),
-                p11,
-            ),
-            math::F2::new(0.32000000000000006, 0.32000000000000006),
-            p15,
-        );
-        let v59 = p17.lo();
-        let v58 = p17.hi();
-        let p9 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v12, v16));
-        let v78 = p9.lo();
-        let v79 = p9.hi();
-        let v80 = v11 * v20;
-        let p14 = math::F2::add_mul(
-            math::F2::times(p1, p3),
-            math::F2::new(2.0, 2.0),
-            math::F2::times(math::F2::new(v3, v7), p10),
-        );
-        let p12 = math::F2::add_mul(p6, math::F2::new(0.25, 0.25), p8);
-        let v82 = p12.lo();
-        let v84 = p12.hi();
-        let v85 = math::add_mul(v65 * v23, 2.0, (v11 * v89));
-        let v86 = math::add_mul(v36, 0.25, v38);
-        let p16 = math::F2::mul_add(math::F2::new(v67, v69), p3, p14);
-        let v93 = p16.lo();
-        let v94 = p16.hi();
-        let v95 = math::mul_add(v71, v23, v85);
-        *m = SMatrix::zeros();
-        *phi_q = SMatrix::zeros();
-        m[(0, 0)] = 0.3946666666666667;
-        m[(0, 1)] = math::add_mul(
-            v1 * (math::add_mul(0.06600000000000002 * v3, 0.24000000000000005, v14)),
-            v0,
-            (math::mul_add(0.06600000000000002, v2, 0.24000000000000005 * v15)),
-        );
-        m[(1, 0)] = m[(0, 1)];
-        m[(0, 2)] = math::mul_sub(
-            0.24000000000000005 * v0,
-            v78,
-            0.24000000000000005 * v1 * v26,
-        );
-        m[(2, 0)] = m[(0, 2)];
-        m[(1, 1)] = math::add_mul(
-            v3 * v13
-                * (math::add_mul(0.06000000000000001 * v3, 0.32000000000000006, v14)),
-            v3,
-            (math::add_mul(0.016000000000000004 * v3, 0.06000000000000001, v14)),
-        )
-            + math::add_mul(
-                v2 * v13
-                    * (math::mul_add(
-                        0.06000000000000001,
-                        v2,
-                        0.32000000000000006 * v15,
-                    )),
-                v2,
-                (math::mul_add(0.016000000000000004, v2, 0.06000000000000001 * v15)),
-            );
-        m[(2, 2)] = 0.32000000000000006;
-        m[(3, 3)] = 0.3946666666666667;
-        m[(3, 4)] = math::add_mul(
-            v5 * (math::add_mul(0.06600000000000002 * v7, 0.24000000000000005, v18)),
-            v4,
-            (math::mul_add(0.06600000000000002, v6, 0.24000000000000005 * v19)),
-        );
-        m[(4, 3)] = m[(3, 4)];
-        m[(3, 5)] = math::mul_sub(
-            0.24000000000000005 * v4,
-            v79,
-            0.24000000000000005 * v5 * v25,
-        );
-        m[(5, 3)] = m[(3, 5)];
-        m[(4, 4)] = math::add_mul(
-            v7 * v17
-                * (math::add_mul(0.06000000000000001 * v7, 0.32000000000000006, v18)),
-            v7,
-            (math::add_mul(0.016000000000000004 * v7, 0.06000000000000001, v18)),
-        )
-            + math::add_mul(
-                v6 * v17
-                    * (math::mul_add(
-                        0.06000000000000001,
-                        v6,
-                        0.32000000000000006 * v19,
-                    )),
-                v6,
-                (math::mul_add(0.016000000000000004, v6, 0.06000000000000001 * v19)),
-            );
-        m[(5, 5)] = 0.32000000000000006;
-        m[(6, 6)] = 0.3946666666666667;
-        m[(6, 7)] = math::add_mul(
-            v9 * (math::add_mul(0.06600000000000002 * v11, 0.24000000000000005, v22)),
-            v8,
-            (math::mul_add(0.06600000000000002, v10, 0.24000000000000005 * v23)),
-        );
-        m[(7, 6)] = m[(6, 7)];
-        m[(6, 8)] = math::mul_sub(
-            0.24000000000000005 * v8,
-            v80,
-            0.24000000000000005 * v9 * v24,
-        );
-        m[(8, 6)] = m[(6, 8)];
-        m[(7, 7)] = math::add_mul(
-            v11 * v21
-                * (math::add_mul(0.06000000000000001 * v11, 0.32000000000000006, v22)),
-            v11,
-            (math::add_mul(0.016000000000000004 * v11, 0.06000000000000001, v22)),
-        )
-            + math::add_mul(
-                v10 * v21
-                    * (math::mul_add(
-                        0.06000000000000001,
-                        v10,
-                        0.32000000000000006 * v23,
-                    )),
-                v10,
-                (math::mul_add(0.016000000000000004, v10, 0.06000000000000001 * v23)),
-            );
-        m[(8, 8)] = 0.32000000000000006;
-        m[(9, 9)] = 2.6;
-        m[(10, 10)] = 2.6;
-        m[(11, 11)] = 2.6;
-        h[0] = math::mul_add(
-            v1,
-            (math::sub_mul(
-                math::sub_mul(-0.3946666666666667 * v28, 0.06600000000000002, v30),
-                0.24000000000000005,
-                v93,
-            )),
-            math::add_mul(
-                10.987200000000001 * v1,
-                v0,
-                (math::add_mul(
-                    math::add_mul(0.3946666666666667 * v27, 0.06600000000000002, v29),
-                    0.24000000000000005,
-                    v92,
-                )),
-            ),
-        );
-        h[1] = math::add_mul(
-            v59 * v15,
-            v2,
-            (math::add_mul(
-                math::add_mul(0.06600000000000002 * v27, 0.016000000000000004, v29),
-                0.06000000000000001,
-                v92,
-            )),
-        )
-            + math::mul_add(
-                v3,
-                (math::sub_mul(
-                    math::sub_mul(-0.06600000000000002 * v28, 0.016000000000000004, v30),
-                    0.06000000000000001,
-                    v93,
-                )),
-                math::mul_add(
-                    v3,
-                    (math::add_mul(1.6186500000000001, 5.886, v13)),
+        math::dispatch(
+            #[inline(always)]
+            || {
+                let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11),
+                (v12, v13), (v16, v17), (v20, v21)] = math::sin_cos_array([
+                    q[0],
+                    q[1],
+                    q[3],
+                    q[4],
+                    q[6],
+                    q[7],
+                    q[2],
+                    q[5],
+                    q[8],
+                ]);
+                let p2 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v17));
+                let v14 = p2.lo();
+                let v18 = p2.hi();
+                let p3 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v17));
+                let v15 = p3.lo();
+                let v19 = p3.hi();
+                let v22 = v11 * v21;
+                let v23 = v10 * v21;
+                let v24 = v10 * v20;
+                let p4 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v12, v16));
+                let v26 = p4.lo();
+                let v25 = p4.hi();
+                let p0 = math::F2::times(
+                    math::F2::new(qd[0], qd[3]),
+                    math::F2::new(qd[0], qd[3]),
+                );
+                let p5 = math::F2::times(math::F2::new(v1, v5), p0);
+                let v27 = p5.lo();
+                let v31 = p5.hi();
+                let p6 = math::F2::times(math::F2::new(v0, v4), p0);
+                let v28 = p6.lo();
+                let v32 = p6.hi();
+                let p1 = math::F2::times(
+                    math::F2::new(qd[1], qd[4]),
+                    math::F2::new(qd[1], qd[4]),
+                );
+                let p7 = math::F2::times(math::F2::new(v3, v7), p1);
+                let v29 = p7.lo();
+                let v33 = p7.hi();
+                let p8 = math::F2::times(math::F2::new(v2, v6), p1);
+                let v30 = p8.lo();
+                let v34 = p8.hi();
+                let v64 = qd[6] * qd[6];
+                let v35 = v9 * v64;
+                let v36 = v8 * v64;
+                let v65 = qd[7] * qd[7];
+                let v37 = v11 * v65;
+                let v38 = v10 * v65;
+                let v66 = qd[2] * v12;
+                let v67 = qd[2] * qd[2];
+                let v68 = qd[5] * v16;
+                let p10 = math::F2::times(
+                    math::F2::new(qd[1], qd[4]),
+                    math::F2::new(v66, v68),
+                );
+                let v69 = qd[5] * qd[5];
+                let v70 = qd[8] * v20;
+                let v89 = qd[7] * v70;
+                let v71 = qd[8] * qd[8];
+                let v72 = math::sub_mul(v65 * v22, 2.0, (v10 * v89));
+                let v73 = math::add_mul(v35, 0.25, v37);
+                let v90 = math::mul_add(v71, v22, v72);
+                let v57 = math::add_mul(
+                    0.24000000000000005 * v73,
+                    0.32000000000000006,
+                    v90,
+                );
+                let p13 = math::F2::sub_mul(
+                    math::F2::times(p1, p2),
+                    math::F2::new(2.0, 2.0),
+                    math::F2::times(math::F2::new(v2, v6), p10),
+                );
+                let p11 = math::F2::add_mul(p5, math::F2::new(0.25, 0.25), p7);
+                let v77 = p11.lo();
+                let v75 = p11.hi();
+                let p15 = math::F2::mul_add(math::F2::new(v67, v69), p2, p13);
+                let v92 = p15.lo();
+                let v91 = p15.hi();
+                let p17 = math::F2::add_mul(
+                    math::F2::times(
+                        math::F2::new(0.24000000000000005, 0.24000000000000005),
+                        p11,
+                    ),
+                    math::F2::new(0.32000000000000006, 0.32000000000000006),
+                    p15,
+                );
+                let v59 = p17.lo();
+                let v58 = p17.hi();
+                let p9 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v12, v16));
+                let v78 = p9.lo();
+                let v79 = p9.hi();
+                let v80 = v11 * v20;
+                let p14 = math::F2::add_mul(
+                    math::F2::times(p1, p3),
+                    math::F2::new(2.0, 2.0),
+                    math::F2::times(math::F2::new(v3, v7), p10),
+                );
+                let p12 = math::F2::add_mul(p6, math::F2::new(0.25, 0.25), p8);
+                let v82 = p12.lo();
+                let v84 = p12.hi();
+                let v85 = math::add_mul(v65 * v23, 2.0, (v11 * v89));
+                let v86 = math::add_mul(v36, 0.25, v38);
+                let p16 = math::F2::mul_add(math::F2::new(v67, v69), p3, p14);
+                let v93 = p16.lo();
+                let v94 = p16.hi();
+                let v95 = math::mul_add(v71, v23, v85);
+                *m = SMatrix::zeros();
+                *phi_q = SMatrix::zeros();
+                m[(0, 0)] = 0.3946666666666667;
+                m[(0, 1)] = math::add_mul(
+                    v1
+                        * (math::add_mul(
+                            0.06600000000000002 * v3,
+                            0.24000000000000005,
+                            v14,
+                        )),
+                    v0,
+                    (math::mul_add(0.06600000000000002, v2, 0.24000000000000005 * v15)),
+                );
+                m[(1, 0)] = m[(0, 1)];
+                m[(0, 2)] = math::mul_sub(
+                    0.24000000000000005 * v0,
+                    v78,
+                    0.24000000000000005 * v1 * v26,
+                );
+                m[(2, 0)] = m[(0, 2)];
+                m[(1, 1)] = math::add_mul(
                     v3 * v13
-                        * (math::sub_mul(
-                            -0.24000000000000005 * v82,
+                        * (math::add_mul(
+                            0.06000000000000001 * v3,
                             0.32000000000000006,
+                            v14,
+                        )),
+                    v3,
+                    (math::add_mul(0.016000000000000004 * v3, 0.06000000000000001, v14)),
+                )
+                    + math::add_mul(
+                        v2 * v13
+                            * (math::mul_add(
+                                0.06000000000000001,
+                                v2,
+                                0.32000000000000006 * v15,
+                            )),
+                        v2,
+                        (math::mul_add(
+                            0.016000000000000004,
+                            v2,
+                            0.06000000000000001 * v15,
+                        )),
+                    );
+                m[(2, 2)] = 0.32000000000000006;
+                m[(3, 3)] = 0.3946666666666667;
+                m[(3, 4)] = math::add_mul(
+                    v5
+                        * (math::add_mul(
+                            0.06600000000000002 * v7,
+                            0.24000000000000005,
+                            v18,
+                        )),
+                    v4,
+                    (math::mul_add(0.06600000000000002, v6, 0.24000000000000005 * v19)),
+                );
+                m[(4, 3)] = m[(3, 4)];
+                m[(3, 5)] = math::mul_sub(
+                    0.24000000000000005 * v4,
+                    v79,
+                    0.24000000000000005 * v5 * v25,
+                );
+                m[(5, 3)] = m[(3, 5)];
+                m[(4, 4)] = math::add_mul(
+                    v7 * v17
+                        * (math::add_mul(
+                            0.06000000000000001 * v7,
+                            0.32000000000000006,
+                            v18,
+                        )),
+                    v7,
+                    (math::add_mul(0.016000000000000004 * v7, 0.06000000000000001, v18)),
+                )
+                    + math::add_mul(
+                        v6 * v17
+                            * (math::mul_add(
+                                0.06000000000000001,
+                                v6,
+                                0.32000000000000006 * v19,
+                            )),
+                        v6,
+                        (math::mul_add(
+                            0.016000000000000004,
+                            v6,
+                            0.06000000000000001 * v19,
+                        )),
+                    );
+                m[(5, 5)] = 0.32000000000000006;
+                m[(6, 6)] = 0.3946666666666667;
+                m[(6, 7)] = math::add_mul(
+                    v9
+                        * (math::add_mul(
+                            0.06600000000000002 * v11,
+                            0.24000000000000005,
+                            v22,
+                        )),
+                    v8,
+                    (math::mul_add(0.06600000000000002, v10, 0.24000000000000005 * v23)),
+                );
+                m[(7, 6)] = m[(6, 7)];
+                m[(6, 8)] = math::mul_sub(
+                    0.24000000000000005 * v8,
+                    v80,
+                    0.24000000000000005 * v9 * v24,
+                );
+                m[(8, 6)] = m[(6, 8)];
+                m[(7, 7)] = math::add_mul(
+                    v11 * v21
+                        * (math::add_mul(
+                            0.06000000000000001 * v11,
+                            0.32000000000000006,
+                            v22,
+                        )),
+                    v11,
+                    (math::add_mul(0.016000000000000004 * v11, 0.06000000000000001, v22)),
+                )
+                    + math::add_mul(
+                        v10 * v21
+                            * (math::mul_add(
+                                0.06000000000000001,
+                                v10,
+                                0.32000000000000006 * v23,
+                            )),
+                        v10,
+                        (math::mul_add(
+                            0.016000000000000004,
+                            v10,
+                            0.06000000000000001 * v23,
+                        )),
+                    );
+                m[(8, 8)] = 0.32000000000000006;
+                m[(9, 9)] = 2.6;
+                m[(10, 10)] = 2.6;
+                m[(11, 11)] = 2.6;
+                h[0] = math::mul_add(
+                    v1,
+                    (math::sub_mul(
+                        math::sub_mul(
+                            -0.3946666666666667 * v28,
+                            0.06600000000000002,
+                            v30,
+                        ),
+                        0.24000000000000005,
+                        v93,
+                    )),
+                    math::add_mul(
+                        10.987200000000001 * v1,
+                        v0,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.3946666666666667 * v27,
+                                0.06600000000000002,
+                                v29,
+                            ),
+                            0.24000000000000005,
+                            v92,
+                        )),
+                    ),
+                );
+                h[1] = math::add_mul(
+                    v59 * v15,
+                    v2,
+                    (math::add_mul(
+                        math::add_mul(
+                            0.06600000000000002 * v27,
+                            0.016000000000000004,
+                            v29,
+                        ),
+                        0.06000000000000001,
+                        v92,
+                    )),
+                )
+                    + math::mul_add(
+                        v3,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v28,
+                                0.016000000000000004,
+                                v30,
+                            ),
+                            0.06000000000000001,
                             v93,
                         )),
-                ),
-            );
-        h[2] = math::mul_add(
-            v2 * v12,
-            (math::add_mul(0.24000000000000005 * v82, 0.32000000000000006, v93)),
-            math::mul_sub(
-                v59,
-                v78,
-                math::mul_add(5.886, v26, 0.32000000000000006 * v13 * v12 * v67),
-            ),
-        );
-        h[3] = math::mul_add(
-            v5,
-            (math::sub_mul(
-                math::sub_mul(-0.3946666666666667 * v32, 0.06600000000000002, v34),
-                0.24000000000000005,
-                v94,
-            )),
-            math::add_mul(
-                10.987200000000001 * v5,
-                v4,
-                (math::add_mul(
-                    math::add_mul(0.3946666666666667 * v31, 0.06600000000000002, v33),
-                    0.24000000000000005,
-                    v91,
-                )),
-            ),
-        );
-        h[4] = math::add_mul(
-            v58 * v19,
-            v6,
-            (math::add_mul(
-                math::add_mul(0.06600000000000002 * v31, 0.016000000000000004, v33),
-                0.06000000000000001,
-                v91,
-            )),
-        )
-            + math::mul_add(
-                v7,
-                (math::sub_mul(
-                    math::sub_mul(-0.06600000000000002 * v32, 0.016000000000000004, v34),
-                    0.06000000000000001,
-                    v94,
-                )),
-                math::mul_add(
-                    v7,
-                    (math::add_mul(1.6186500000000001, 5.886, v17)),
-                    v7 * v17
-                        * (math::sub_mul(
-                            -0.24000000000000005 * v84,
-                            0.32000000000000006,
+                        math::mul_add(
+                            v3,
+                            (math::add_mul(1.6186500000000001, 5.886, v13)),
+                            v3 * v13
+                                * (math::sub_mul(
+                                    -0.24000000000000005 * v82,
+                                    0.32000000000000006,
+                                    v93,
+                                )),
+                        ),
+                    );
+                h[2] = math::mul_add(
+                    v2 * v12,
+                    (math::add_mul(0.24000000000000005 * v82, 0.32000000000000006, v93)),
+                    math::mul_sub(
+                        v59,
+                        v78,
+                        math::mul_add(5.886, v26, 0.32000000000000006 * v13 * v12 * v67),
+                    ),
+                );
+                h[3] = math::mul_add(
+                    v5,
+                    (math::sub_mul(
+                        math::sub_mul(
+                            -0.3946666666666667 * v32,
+                            0.06600000000000002,
+                            v34,
+                        ),
+                        0.24000000000000005,
+                        v94,
+                    )),
+                    math::add_mul(
+                        10.987200000000001 * v5,
+                        v4,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.3946666666666667 * v31,
+                                0.06600000000000002,
+                                v33,
+                            ),
+                            0.24000000000000005,
+                            v91,
+                        )),
+                    ),
+                );
+                h[4] = math::add_mul(
+                    v58 * v19,
+                    v6,
+                    (math::add_mul(
+                        math::add_mul(
+                            0.06600000000000002 * v31,
+                            0.016000000000000004,
+                            v33,
+                        ),
+                        0.06000000000000001,
+                        v91,
+                    )),
+                )
+                    + math::mul_add(
+                        v7,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v32,
+                                0.016000000000000004,
+                                v34,
+                            ),
+                            0.06000000000000001,
                             v94,
                         )),
-                ),
-            );
-        h[5] = math::mul_add(
-            v6 * v16,
-            (math::add_mul(0.24000000000000005 * v84, 0.32000000000000006, v94)),
-            math::mul_sub(
-                v58,
-                v79,
-                math::mul_add(5.886, v25, 0.32000000000000006 * v17 * v16 * v69),
-            ),
-        );
-        h[6] = math::mul_add(
-            v9,
-            (math::sub_mul(
-                math::sub_mul(-0.3946666666666667 * v36, 0.06600000000000002, v38),
-                0.24000000000000005,
-                v95,
-            )),
-            math::add_mul(
-                10.987200000000001 * v9,
-                v8,
-                (math::add_mul(
-                    math::add_mul(0.3946666666666667 * v35, 0.06600000000000002, v37),
-                    0.24000000000000005,
-                    v90,
-                )),
-            ),
-        );
-        h[7] = math::add_mul(
-            v57 * v23,
-            v10,
-            (math::add_mul(
-                math::add_mul(0.06600000000000002 * v35, 0.016000000000000004, v37),
-                0.06000000000000001,
-                v90,
-            )),
-        )
-            + math::mul_add(
-                v11,
-                (math::sub_mul(
-                    math::sub_mul(-0.06600000000000002 * v36, 0.016000000000000004, v38),
-                    0.06000000000000001,
-                    v95,
-                )),
-                math::mul_add(
-                    v11,
-                    (math::add_mul(1.6186500000000001, 5.886, v21)),
-                    v11 * v21
-                        * (math::sub_mul(
-                            -0.24000000000000005 * v86,
-                            0.32000000000000006,
+                        math::mul_add(
+                            v7,
+                            (math::add_mul(1.6186500000000001, 5.886, v17)),
+                            v7 * v17
+                                * (math::sub_mul(
+                                    -0.24000000000000005 * v84,
+                                    0.32000000000000006,
+                                    v94,
+                                )),
+                        ),
+                    );
+                h[5] = math::mul_add(
+                    v6 * v16,
+                    (math::add_mul(0.24000000000000005 * v84, 0.32000000000000006, v94)),
+                    math::mul_sub(
+                        v58,
+                        v79,
+                        math::mul_add(5.886, v25, 0.32000000000000006 * v17 * v16 * v69),
+                    ),
+                );
+                h[6] = math::mul_add(
+                    v9,
+                    (math::sub_mul(
+                        math::sub_mul(
+                            -0.3946666666666667 * v36,
+                            0.06600000000000002,
+                            v38,
+                        ),
+                        0.24000000000000005,
+                        v95,
+                    )),
+                    math::add_mul(
+                        10.987200000000001 * v9,
+                        v8,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.3946666666666667 * v35,
+                                0.06600000000000002,
+                                v37,
+                            ),
+                            0.24000000000000005,
+                            v90,
+                        )),
+                    ),
+                );
+                h[7] = math::add_mul(
+                    v57 * v23,
+                    v10,
+                    (math::add_mul(
+                        math::add_mul(
+                            0.06600000000000002 * v35,
+                            0.016000000000000004,
+                            v37,
+                        ),
+                        0.06000000000000001,
+                        v90,
+                    )),
+                )
+                    + math::mul_add(
+                        v11,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v36,
+                                0.016000000000000004,
+                                v38,
+                            ),
+                            0.06000000000000001,
                             v95,
                         )),
-                ),
-            );
-        h[8] = math::mul_add(
-            v10 * v20,
-            (math::add_mul(0.24000000000000005 * v86, 0.32000000000000006, v95)),
-            math::mul_sub(
-                v57,
-                v80,
-                math::mul_add(5.886, v24, 0.32000000000000006 * v21 * v20 * v71),
-            ),
-        );
-        h[9] = 0.0;
-        h[10] = 0.0;
-        h[11] = 25.506000000000004;
-        phi_q[(0, 0)] = -0.4 * v0;
-        phi_q[(0, 1)] = math::mul_sub(-0.1, v2, 0.8 * v15);
-        phi_q[(0, 2)] = -0.8 * v3 * v12;
-        phi_q[(0, 9)] = -1.0;
-        phi_q[(1, 2)] = 0.8 * v13;
-        phi_q[(1, 10)] = -1.0;
-        phi_q[(2, 0)] = 0.4 * v1;
-        phi_q[(2, 1)] = math::add_mul(0.1 * v3, 0.8, v14);
-        phi_q[(2, 2)] = -0.8 * v26;
-        phi_q[(2, 11)] = -1.0;
-        phi_q[(3, 3)] = -0.4 * v4;
-        phi_q[(3, 4)] = math::mul_sub(-0.1, v6, 0.8 * v19);
-        phi_q[(3, 5)] = -0.8 * v7 * v16;
-        phi_q[(3, 9)] = 0.5;
-        phi_q[(3, 10)] = -0.8660254037844386;
-        phi_q[(4, 5)] = 0.8 * v17;
-        phi_q[(4, 9)] = 0.8660254037844386;
-        phi_q[(4, 10)] = 0.5;
-        phi_q[(5, 3)] = 0.4 * v5;
-        phi_q[(5, 4)] = math::add_mul(0.1 * v7, 0.8, v18);
-        phi_q[(5, 5)] = -0.8 * v25;
-        phi_q[(5, 11)] = -1.0;
-        phi_q[(6, 6)] = -0.4 * v8;
-        phi_q[(6, 7)] = math::mul_sub(-0.1, v10, 0.8 * v23);
-        phi_q[(6, 8)] = -0.8 * v11 * v20;
-        phi_q[(6, 9)] = 0.5;
-        phi_q[(6, 10)] = 0.8660254037844386;
-        phi_q[(7, 8)] = 0.8 * v21;
-        phi_q[(7, 9)] = -0.8660254037844386;
-        phi_q[(7, 10)] = 0.5;
-        phi_q[(8, 6)] = 0.4 * v9;
-        phi_q[(8, 7)] = math::add_mul(0.1 * v11, 0.8, v22);
-        phi_q[(8, 8)] = -0.8 * v24;
-        phi_q[(8, 11)] = -1.0;
-        gamma[0] = math::add_mul(0.4 * v77, 0.8, v92);
-        gamma[1] = 0.8 * v12 * v67;
-        gamma[2] = math::add_mul(0.4 * v82, 0.8, v93);
-        gamma[3] = math::add_mul(0.4 * v75, 0.8, v91);
-        gamma[4] = 0.8 * v16 * v69;
-        gamma[5] = math::add_mul(0.4 * v84, 0.8, v94);
-        gamma[6] = math::add_mul(0.4 * v73, 0.8, v90);
-        gamma[7] = 0.8 * v20 * v71;
-        gamma[8] = math::add_mul(0.4 * v86, 0.8, v95);
+                        math::mul_add(
+                            v11,
+                            (math::add_mul(1.6186500000000001, 5.886, v21)),
+                            v11 * v21
+                                * (math::sub_mul(
+                                    -0.24000000000000005 * v86,
+                                    0.32000000000000006,
+                                    v95,
+                                )),
+                        ),
+                    );
+                h[8] = math::mul_add(
+                    v10 * v20,
+                    (math::add_mul(0.24000000000000005 * v86, 0.32000000000000006, v95)),
+                    math::mul_sub(
+                        v57,
+                        v80,
+                        math::mul_add(5.886, v24, 0.32000000000000006 * v21 * v20 * v71),
+                    ),
+                );
+                h[9] = 0.0;
+                h[10] = 0.0;
+                h[11] = 25.506000000000004;
+                phi_q[(0, 0)] = -0.4 * v0;
+                phi_q[(0, 1)] = math::mul_sub(-0.1, v2, 0.8 * v15);
+                phi_q[(0, 2)] = -0.8 * v3 * v12;
+                phi_q[(0, 9)] = -1.0;
+                phi_q[(1, 2)] = 0.8 * v13;
+                phi_q[(1, 10)] = -1.0;
+                phi_q[(2, 0)] = 0.4 * v1;
+                phi_q[(2, 1)] = math::add_mul(0.1 * v3, 0.8, v14);
+                phi_q[(2, 2)] = -0.8 * v26;
+                phi_q[(2, 11)] = -1.0;
+                phi_q[(3, 3)] = -0.4 * v4;
+                phi_q[(3, 4)] = math::mul_sub(-0.1, v6, 0.8 * v19);
+                phi_q[(3, 5)] = -0.8 * v7 * v16;
+                phi_q[(3, 9)] = 0.5;
+                phi_q[(3, 10)] = -0.8660254037844386;
+                phi_q[(4, 5)] = 0.8 * v17;
+                phi_q[(4, 9)] = 0.8660254037844386;
+                phi_q[(4, 10)] = 0.5;
+                phi_q[(5, 3)] = 0.4 * v5;
+                phi_q[(5, 4)] = math::add_mul(0.1 * v7, 0.8, v18);
+                phi_q[(5, 5)] = -0.8 * v25;
+                phi_q[(5, 11)] = -1.0;
+                phi_q[(6, 6)] = -0.4 * v8;
+                phi_q[(6, 7)] = math::mul_sub(-0.1, v10, 0.8 * v23);
+                phi_q[(6, 8)] = -0.8 * v11 * v20;
+                phi_q[(6, 9)] = 0.5;
+                phi_q[(6, 10)] = 0.8660254037844386;
+                phi_q[(7, 8)] = 0.8 * v21;
+                phi_q[(7, 9)] = -0.8660254037844386;
+                phi_q[(7, 10)] = 0.5;
+                phi_q[(8, 6)] = 0.4 * v9;
+                phi_q[(8, 7)] = math::add_mul(0.1 * v11, 0.8, v22);
+                phi_q[(8, 8)] = -0.8 * v24;
+                phi_q[(8, 11)] = -1.0;
+                gamma[0] = math::add_mul(0.4 * v77, 0.8, v92);
+                gamma[1] = 0.8 * v12 * v67;
+                gamma[2] = math::add_mul(0.4 * v82, 0.8, v93);
+                gamma[3] = math::add_mul(0.4 * v75, 0.8, v91);
+                gamma[4] = 0.8 * v16 * v69;
+                gamma[5] = math::add_mul(0.4 * v84, 0.8, v94);
+                gamma[6] = math::add_mul(0.4 * v73, 0.8, v90);
+                gamma[7] = 0.8 * v20 * v71;
+                gamma[8] = math::add_mul(0.4 * v86, 0.8, v95);
+            },
+        )
     }
     ///Inverse dynamics `tau = M(q, t) qdd + h(q, qd, t)`, the generalized forces that give the accelerations `qdd` (without constraint forces), as one program: the forward derivative of the momenta along the motion, not `M` times `qdd`.
     #[inline]
@@ -1225,350 +1404,404 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         _t: f64,
         tau: &mut SVector<f64, 12>,
     ) {
-        let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11), (v12, v13),
-        (v14, v15), (v16, v17)] = math::sin_cos_array([
-            q[0],
-            q[1],
-            q[3],
-            q[4],
-            q[6],
-            q[7],
-            q[2],
-            q[5],
-            q[8],
-        ]);
-        let p0 = math::F2::times(
-            math::F2::new(qd[0], qd[3]),
-            math::F2::new(qd[0], qd[3]),
-        );
-        let p1 = math::F2::times(
-            math::F2::new(qd[1], qd[4]),
-            math::F2::new(qd[1], qd[4]),
-        );
-        let v79 = qd[6] * qd[6];
-        let v80 = qd[7] * qd[7];
-        let p2 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v15));
-        let v82 = qd[2] * v12;
-        let v83 = qd[2] * qd[2];
-        let p3 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v15));
-        let v84 = p3.lo();
-        let v88 = p3.hi();
-        let v86 = qd[5] * v14;
-        let p9 = math::F2::times(math::F2::new(qd[1], qd[4]), math::F2::new(v82, v86));
-        let v87 = qd[5] * qd[5];
-        let v89 = v11 * v17;
-        let v90 = qd[8] * v16;
-        let v122 = qd[7] * v90;
-        let v91 = qd[8] * qd[8];
-        let v92 = v10 * v17;
-        let p4 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v12, v14));
-        let v93 = p4.lo();
-        let v94 = p4.hi();
-        let v95 = v11 * v16;
-        let v96 = math::add_mul(v8 * qdd[6], v9, v79);
-        let v97 = math::add_mul(v10 * qdd[7], v11, v80);
-        let v98 = math::sub_mul(v80 * v89, 2.0, (v10 * v122));
-        let v99 = math::add_mul(v91 * v89, qdd[7], v92);
-        let v123 = math::mul_add(qdd[8], v95, v98);
-        let v132 = v99 + v123;
-        let v72 = math::add_mul(
-            math::add_mul(0.24000000000000005 * v96, 0.06000000000000001, v97),
-            0.32000000000000006,
-            v132,
-        );
-        let p5 = math::F2::add_mul(
-            math::F2::times(math::F2::new(v0, v4), math::F2::new(qdd[0], qdd[3])),
-            math::F2::new(v1, v5),
-            p0,
-        );
-        let v104 = p5.lo();
-        let v100 = p5.hi();
-        let p6 = math::F2::add_mul(
-            math::F2::times(math::F2::new(v2, v6), math::F2::new(qdd[1], qdd[4])),
-            math::F2::new(v3, v7),
-            p1,
-        );
-        let v105 = p6.lo();
-        let v101 = p6.hi();
-        let p13 = math::F2::sub_mul(
-            math::F2::times(p1, p2),
-            math::F2::new(2.0, 2.0),
-            math::F2::times(math::F2::new(v2, v6), p9),
-        );
-        let p10 = math::F2::add_mul(
-            math::F2::times(math::F2::new(v83, v87), p2),
-            math::F2::new(qdd[1], qdd[4]),
-            p3,
-        );
-        let p15 = math::F2::mul_add(math::F2::new(qdd[2], qdd[5]), p4, p13);
-        let p17 = math::F2::plus(p10, p15);
-        let v134 = p17.lo();
-        let v133 = p17.hi();
-        let p19 = math::F2::add_mul(
-            math::F2::add_mul(
-                math::F2::times(
-                    math::F2::new(0.24000000000000005, 0.24000000000000005),
-                    p5,
-                ),
-                math::F2::new(0.06000000000000001, 0.06000000000000001),
-                p6,
-            ),
-            math::F2::new(0.32000000000000006, 0.32000000000000006),
-            p17,
-        );
-        let v74 = p19.lo();
-        let v73 = p19.hi();
-        let p7 = math::F2::sub_mul(
-            math::F2::times(math::F2::new(v0, v4), p0),
-            math::F2::new(v1, v5),
-            math::F2::new(qdd[0], qdd[3]),
-        );
-        let v108 = p7.lo();
-        let v112 = p7.hi();
-        let p8 = math::F2::sub_mul(
-            math::F2::times(math::F2::new(v2, v6), p1),
-            math::F2::new(v3, v7),
-            math::F2::new(qdd[1], qdd[4]),
-        );
-        let v109 = p8.lo();
-        let v113 = p8.hi();
-        let p14 = math::F2::add_mul(
-            math::F2::times(p1, p3),
-            math::F2::new(2.0, 2.0),
-            math::F2::times(math::F2::new(v3, v7), p9),
-        );
-        let p11 = math::F2::mul_sub(
-            p3,
-            math::F2::new(v83, v87),
-            math::F2::times(math::F2::new(qdd[1], qdd[4]), p2),
-        );
-        let v116 = math::sub_mul(v8 * v79, v9, qdd[6]);
-        let v117 = math::sub_mul(v10 * v80, v11, qdd[7]);
-        let v118 = math::add_mul(v80 * v92, 2.0, (v11 * v122));
-        let v119 = math::mul_sub(v92, v91, qdd[7] * v89);
-        let p16 = math::F2::mul_add(
-            math::F2::times(math::F2::new(v2, v6), math::F2::new(v12, v14)),
-            math::F2::new(qdd[2], qdd[5]),
-            p14,
-        );
-        let p12 = math::F2::add_mul(p7, math::F2::new(0.25, 0.25), p8);
-        let v127 = p12.lo();
-        let v129 = p12.hi();
-        let v130 = math::mul_add(v10 * v16, qdd[8], v118);
-        let v131 = math::add_mul(v116, 0.25, v117);
-        let p18 = math::F2::plus(p11, p16);
-        let v135 = p18.lo();
-        let v136 = p18.hi();
-        let v137 = v119 + v130;
-        tau[0] = math::mul_add(
-            v0,
-            (math::add_mul(
-                math::add_mul(0.3946666666666667 * v104, 0.06600000000000002, v105),
-                0.24000000000000005,
-                v134,
-            )),
-            math::add_mul(
-                10.987200000000001 * v1,
-                v1,
-                (math::sub_mul(
-                    math::sub_mul(-0.3946666666666667 * v108, 0.06600000000000002, v109),
-                    0.24000000000000005,
-                    v135,
-                )),
-            ),
-        );
-        tau[1] = math::add_mul(
-            v3
-                * (math::sub_mul(
-                    math::sub_mul(
-                        -0.06600000000000002 * v108,
-                        0.016000000000000004,
-                        v109,
+        math::dispatch(
+            #[inline(always)]
+            || {
+                let [(v0, v1), (v2, v3), (v4, v5), (v6, v7), (v8, v9), (v10, v11),
+                (v12, v13), (v14, v15), (v16, v17)] = math::sin_cos_array([
+                    q[0],
+                    q[1],
+                    q[3],
+                    q[4],
+                    q[6],
+                    q[7],
+                    q[2],
+                    q[5],
+                    q[8],
+                ]);
+                let p0 = math::F2::times(
+                    math::F2::new(qd[0], qd[3]),
+                    math::F2::new(qd[0], qd[3]),
+                );
+                let p1 = math::F2::times(
+                    math::F2::new(qd[1], qd[4]),
+                    math::F2::new(qd[1], qd[4]),
+                );
+                let v79 = qd[6] * qd[6];
+                let v80 = qd[7] * qd[7];
+                let p2 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v13, v15));
+                let v82 = qd[2] * v12;
+                let v83 = qd[2] * qd[2];
+                let p3 = math::F2::times(math::F2::new(v2, v6), math::F2::new(v13, v15));
+                let v84 = p3.lo();
+                let v88 = p3.hi();
+                let v86 = qd[5] * v14;
+                let p9 = math::F2::times(
+                    math::F2::new(qd[1], qd[4]),
+                    math::F2::new(v82, v86),
+                );
+                let v87 = qd[5] * qd[5];
+                let v89 = v11 * v17;
+                let v90 = qd[8] * v16;
+                let v122 = qd[7] * v90;
+                let v91 = qd[8] * qd[8];
+                let v92 = v10 * v17;
+                let p4 = math::F2::times(math::F2::new(v3, v7), math::F2::new(v12, v14));
+                let v93 = p4.lo();
+                let v94 = p4.hi();
+                let v95 = v11 * v16;
+                let v96 = math::add_mul(v8 * qdd[6], v9, v79);
+                let v97 = math::add_mul(v10 * qdd[7], v11, v80);
+                let v98 = math::sub_mul(v80 * v89, 2.0, (v10 * v122));
+                let v99 = math::add_mul(v91 * v89, qdd[7], v92);
+                let v123 = math::mul_add(qdd[8], v95, v98);
+                let v132 = v99 + v123;
+                let v72 = math::add_mul(
+                    math::add_mul(0.24000000000000005 * v96, 0.06000000000000001, v97),
+                    0.32000000000000006,
+                    v132,
+                );
+                let p5 = math::F2::add_mul(
+                    math::F2::times(
+                        math::F2::new(v0, v4),
+                        math::F2::new(qdd[0], qdd[3]),
                     ),
-                    0.06000000000000001,
-                    v135,
-                )),
-            v74,
-            v84,
-        )
-            + math::mul_add(
-                v2,
-                (math::add_mul(
+                    math::F2::new(v1, v5),
+                    p0,
+                );
+                let v104 = p5.lo();
+                let v100 = p5.hi();
+                let p6 = math::F2::add_mul(
+                    math::F2::times(
+                        math::F2::new(v2, v6),
+                        math::F2::new(qdd[1], qdd[4]),
+                    ),
+                    math::F2::new(v3, v7),
+                    p1,
+                );
+                let v105 = p6.lo();
+                let v101 = p6.hi();
+                let p13 = math::F2::sub_mul(
+                    math::F2::times(p1, p2),
+                    math::F2::new(2.0, 2.0),
+                    math::F2::times(math::F2::new(v2, v6), p9),
+                );
+                let p10 = math::F2::add_mul(
+                    math::F2::times(math::F2::new(v83, v87), p2),
+                    math::F2::new(qdd[1], qdd[4]),
+                    p3,
+                );
+                let p15 = math::F2::mul_add(math::F2::new(qdd[2], qdd[5]), p4, p13);
+                let p17 = math::F2::plus(p10, p15);
+                let v134 = p17.lo();
+                let v133 = p17.hi();
+                let p19 = math::F2::add_mul(
+                    math::F2::add_mul(
+                        math::F2::times(
+                            math::F2::new(0.24000000000000005, 0.24000000000000005),
+                            p5,
+                        ),
+                        math::F2::new(0.06000000000000001, 0.06000000000000001),
+                        p6,
+                    ),
+                    math::F2::new(0.32000000000000006, 0.32000000000000006),
+                    p17,
+                );
+                let v74 = p19.lo();
+                let v73 = p19.hi();
+                let p7 = math::F2::sub_mul(
+                    math::F2::times(math::F2::new(v0, v4), p0),
+                    math::F2::new(v1, v5),
+                    math::F2::new(qdd[0], qdd[3]),
+                );
+                let v108 = p7.lo();
+                let v112 = p7.hi();
+                let p8 = math::F2::sub_mul(
+                    math::F2::times(math::F2::new(v2, v6), p1),
+                    math::F2::new(v3, v7),
+                    math::F2::new(qdd[1], qdd[4]),
+                );
+                let v109 = p8.lo();
+                let v113 = p8.hi();
+                let p14 = math::F2::add_mul(
+                    math::F2::times(p1, p3),
+                    math::F2::new(2.0, 2.0),
+                    math::F2::times(math::F2::new(v3, v7), p9),
+                );
+                let p11 = math::F2::mul_sub(
+                    p3,
+                    math::F2::new(v83, v87),
+                    math::F2::times(math::F2::new(qdd[1], qdd[4]), p2),
+                );
+                let v116 = math::sub_mul(v8 * v79, v9, qdd[6]);
+                let v117 = math::sub_mul(v10 * v80, v11, qdd[7]);
+                let v118 = math::add_mul(v80 * v92, 2.0, (v11 * v122));
+                let v119 = math::mul_sub(v92, v91, qdd[7] * v89);
+                let p16 = math::F2::mul_add(
+                    math::F2::times(math::F2::new(v2, v6), math::F2::new(v12, v14)),
+                    math::F2::new(qdd[2], qdd[5]),
+                    p14,
+                );
+                let p12 = math::F2::add_mul(p7, math::F2::new(0.25, 0.25), p8);
+                let v127 = p12.lo();
+                let v129 = p12.hi();
+                let v130 = math::mul_add(v10 * v16, qdd[8], v118);
+                let v131 = math::add_mul(v116, 0.25, v117);
+                let p18 = math::F2::plus(p11, p16);
+                let v135 = p18.lo();
+                let v136 = p18.hi();
+                let v137 = v119 + v130;
+                tau[0] = math::mul_add(
+                    v0,
+                    (math::add_mul(
+                        math::add_mul(
+                            0.3946666666666667 * v104,
+                            0.06600000000000002,
+                            v105,
+                        ),
+                        0.24000000000000005,
+                        v134,
+                    )),
                     math::add_mul(
-                        0.06600000000000002 * v104,
-                        0.016000000000000004,
-                        v105,
+                        10.987200000000001 * v1,
+                        v1,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.3946666666666667 * v108,
+                                0.06600000000000002,
+                                v109,
+                            ),
+                            0.24000000000000005,
+                            v135,
+                        )),
                     ),
-                    0.06000000000000001,
-                    v134,
-                )),
-                math::mul_add(
-                    v3,
-                    (math::add_mul(1.6186500000000001, 5.886, v13)),
-                    v3 * v13
-                        * (math::mul_sub(
-                            -0.24000000000000005,
+                );
+                tau[1] = math::add_mul(
+                    v3
+                        * (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v108,
+                                0.016000000000000004,
+                                v109,
+                            ),
+                            0.06000000000000001,
+                            v135,
+                        )),
+                    v74,
+                    v84,
+                )
+                    + math::mul_add(
+                        v2,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.06600000000000002 * v104,
+                                0.016000000000000004,
+                                v105,
+                            ),
+                            0.06000000000000001,
+                            v134,
+                        )),
+                        math::mul_add(
+                            v3,
+                            (math::add_mul(1.6186500000000001, 5.886, v13)),
+                            v3 * v13
+                                * (math::mul_sub(
+                                    -0.24000000000000005,
+                                    v127,
+                                    0.32000000000000006 * v135,
+                                )),
+                        ),
+                    );
+                tau[2] = math::mul_add(
+                    v74,
+                    v93,
+                    math::add_mul(
+                        math::mul_sub(
+                            v13,
+                            (math::sub_mul(
+                                0.32000000000000006 * v13 * qdd[2],
+                                0.32000000000000006 * v12,
+                                v83,
+                            )),
+                            5.886 * v2 * v12,
+                        ),
+                        v2 * v12,
+                        (math::mul_add(
+                            0.24000000000000005,
                             v127,
                             0.32000000000000006 * v135,
                         )),
-                ),
-            );
-        tau[2] = math::mul_add(
-            v74,
-            v93,
-            math::add_mul(
-                math::mul_sub(
-                    v13,
-                    (math::sub_mul(
-                        0.32000000000000006 * v13 * qdd[2],
-                        0.32000000000000006 * v12,
-                        v83,
+                    ),
+                );
+                tau[3] = math::mul_add(
+                    v4,
+                    (math::add_mul(
+                        math::add_mul(
+                            0.3946666666666667 * v100,
+                            0.06600000000000002,
+                            v101,
+                        ),
+                        0.24000000000000005,
+                        v133,
                     )),
-                    5.886 * v2 * v12,
-                ),
-                v2 * v12,
-                (math::mul_add(0.24000000000000005, v127, 0.32000000000000006 * v135)),
-            ),
-        );
-        tau[3] = math::mul_add(
-            v4,
-            (math::add_mul(
-                math::add_mul(0.3946666666666667 * v100, 0.06600000000000002, v101),
-                0.24000000000000005,
-                v133,
-            )),
-            math::add_mul(
-                10.987200000000001 * v5,
-                v5,
-                (math::sub_mul(
-                    math::sub_mul(-0.3946666666666667 * v112, 0.06600000000000002, v113),
-                    0.24000000000000005,
-                    v136,
-                )),
-            ),
-        );
-        tau[4] = math::add_mul(
-            v7
-                * (math::sub_mul(
-                    math::sub_mul(
-                        -0.06600000000000002 * v112,
-                        0.016000000000000004,
-                        v113,
-                    ),
-                    0.06000000000000001,
-                    v136,
-                )),
-            v73,
-            v88,
-        )
-            + math::mul_add(
-                v6,
-                (math::add_mul(
                     math::add_mul(
-                        0.06600000000000002 * v100,
-                        0.016000000000000004,
-                        v101,
+                        10.987200000000001 * v5,
+                        v5,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.3946666666666667 * v112,
+                                0.06600000000000002,
+                                v113,
+                            ),
+                            0.24000000000000005,
+                            v136,
+                        )),
                     ),
-                    0.06000000000000001,
-                    v133,
-                )),
-                math::mul_add(
-                    v7,
-                    (math::add_mul(1.6186500000000001, 5.886, v15)),
-                    v7 * v15
-                        * (math::mul_sub(
-                            -0.24000000000000005,
+                );
+                tau[4] = math::add_mul(
+                    v7
+                        * (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v112,
+                                0.016000000000000004,
+                                v113,
+                            ),
+                            0.06000000000000001,
+                            v136,
+                        )),
+                    v73,
+                    v88,
+                )
+                    + math::mul_add(
+                        v6,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.06600000000000002 * v100,
+                                0.016000000000000004,
+                                v101,
+                            ),
+                            0.06000000000000001,
+                            v133,
+                        )),
+                        math::mul_add(
+                            v7,
+                            (math::add_mul(1.6186500000000001, 5.886, v15)),
+                            v7 * v15
+                                * (math::mul_sub(
+                                    -0.24000000000000005,
+                                    v129,
+                                    0.32000000000000006 * v136,
+                                )),
+                        ),
+                    );
+                tau[5] = math::mul_add(
+                    v73,
+                    v94,
+                    math::add_mul(
+                        math::mul_sub(
+                            v15,
+                            (math::sub_mul(
+                                0.32000000000000006 * v15 * qdd[5],
+                                0.32000000000000006 * v14,
+                                v87,
+                            )),
+                            5.886 * v6 * v14,
+                        ),
+                        v6 * v14,
+                        (math::mul_add(
+                            0.24000000000000005,
                             v129,
                             0.32000000000000006 * v136,
                         )),
-                ),
-            );
-        tau[5] = math::mul_add(
-            v73,
-            v94,
-            math::add_mul(
-                math::mul_sub(
-                    v15,
-                    (math::sub_mul(
-                        0.32000000000000006 * v15 * qdd[5],
-                        0.32000000000000006 * v14,
-                        v87,
-                    )),
-                    5.886 * v6 * v14,
-                ),
-                v6 * v14,
-                (math::mul_add(0.24000000000000005, v129, 0.32000000000000006 * v136)),
-            ),
-        );
-        tau[6] = math::mul_add(
-            v8,
-            (math::add_mul(
-                math::add_mul(0.3946666666666667 * v96, 0.06600000000000002, v97),
-                0.24000000000000005,
-                v132,
-            )),
-            math::add_mul(
-                10.987200000000001 * v9,
-                v9,
-                (math::sub_mul(
-                    math::sub_mul(-0.3946666666666667 * v116, 0.06600000000000002, v117),
-                    0.24000000000000005,
-                    v137,
-                )),
-            ),
-        );
-        tau[7] = math::add_mul(
-            v11
-                * (math::sub_mul(
-                    math::sub_mul(
-                        -0.06600000000000002 * v116,
-                        0.016000000000000004,
-                        v117,
                     ),
-                    0.06000000000000001,
-                    v137,
-                )),
-            v72,
-            v92,
-        )
-            + math::mul_add(
-                v10,
-                (math::add_mul(
-                    math::add_mul(0.06600000000000002 * v96, 0.016000000000000004, v97),
-                    0.06000000000000001,
-                    v132,
-                )),
-                math::mul_add(
-                    v11,
-                    (math::add_mul(1.6186500000000001, 5.886, v17)),
-                    v11 * v17
-                        * (math::mul_sub(
-                            -0.24000000000000005,
+                );
+                tau[6] = math::mul_add(
+                    v8,
+                    (math::add_mul(
+                        math::add_mul(
+                            0.3946666666666667 * v96,
+                            0.06600000000000002,
+                            v97,
+                        ),
+                        0.24000000000000005,
+                        v132,
+                    )),
+                    math::add_mul(
+                        10.987200000000001 * v9,
+                        v9,
+                        (math::sub_mul(
+                            math::sub_mul(
+                                -0.3946666666666667 * v116,
+                                0.06600000000000002,
+                                v117,
+                            ),
+                            0.24000000000000005,
+                            v137,
+                        )),
+                    ),
+                );
+                tau[7] = math::add_mul(
+                    v11
+                        * (math::sub_mul(
+                            math::sub_mul(
+                                -0.06600000000000002 * v116,
+                                0.016000000000000004,
+                                v117,
+                            ),
+                            0.06000000000000001,
+                            v137,
+                        )),
+                    v72,
+                    v92,
+                )
+                    + math::mul_add(
+                        v10,
+                        (math::add_mul(
+                            math::add_mul(
+                                0.06600000000000002 * v96,
+                                0.016000000000000004,
+                                v97,
+                            ),
+                            0.06000000000000001,
+                            v132,
+                        )),
+                        math::mul_add(
+                            v11,
+                            (math::add_mul(1.6186500000000001, 5.886, v17)),
+                            v11 * v17
+                                * (math::mul_sub(
+                                    -0.24000000000000005,
+                                    v131,
+                                    0.32000000000000006 * v137,
+                                )),
+                        ),
+                    );
+                tau[8] = math::mul_add(
+                    v72,
+                    v95,
+                    math::add_mul(
+                        math::mul_sub(
+                            v17,
+                            (math::sub_mul(
+                                0.32000000000000006 * v17 * qdd[8],
+                                0.32000000000000006 * v16,
+                                v91,
+                            )),
+                            5.886 * v10 * v16,
+                        ),
+                        v10 * v16,
+                        (math::mul_add(
+                            0.24000000000000005,
                             v131,
                             0.32000000000000006 * v137,
                         )),
-                ),
-            );
-        tau[8] = math::mul_add(
-            v72,
-            v95,
-            math::add_mul(
-                math::mul_sub(
-                    v17,
-                    (math::sub_mul(
-                        0.32000000000000006 * v17 * qdd[8],
-                        0.32000000000000006 * v16,
-                        v91,
-                    )),
-                    5.886 * v10 * v16,
-                ),
-                v10 * v16,
-                (math::mul_add(0.24000000000000005, v131, 0.32000000000000006 * v137)),
-            ),
-        );
-        tau[9] = 2.6 * qdd[9];
-        tau[10] = 2.6 * qdd[10];
-        tau[11] = math::add_mul(25.506000000000004, 2.6, qdd[11]);
+                    ),
+                );
+                tau[9] = 2.6 * qdd[9];
+                tau[10] = 2.6 * qdd[10];
+                tau[11] = math::add_mul(25.506000000000004, 2.6, qdd[11]);
+            },
+        )
     }
     ///Actuator map `B` (constant): actuator `j` adds `B[:, j] tau[j]` to the generalized forces.
     #[inline]
@@ -1586,127 +1819,150 @@ impl flexdyn_runtime::Model<12, 9, 3> for ParallelRobotRigid {
         qd: &SVector<f64, 12>,
         _t: f64,
     ) -> f64 {
-        let [(v0, v1), (v4, v5), (v10, v11), (v14, v15), (v20, v21), (v24, v25),
-        (v30, v31), (v34, v35), (v38, v39)] = math::sin_cos_array([
-            q[0],
-            q[1],
-            q[3],
-            q[4],
-            q[6],
-            q[7],
-            q[2],
-            q[5],
-            q[8],
-        ]);
-        let p0 = math::F2::times(math::F2::new(v0, v10), math::F2::new(qd[0], qd[3]));
-        let v2 = p0.lo();
-        let v12 = p0.hi();
-        let p1 = math::F2::times(math::F2::new(v1, v11), math::F2::new(qd[0], qd[3]));
-        let v3 = p1.lo();
-        let v13 = p1.hi();
-        let p2 = math::F2::times(math::F2::new(v4, v14), math::F2::new(qd[1], qd[4]));
-        let p3 = math::F2::times(math::F2::new(v5, v15), math::F2::new(qd[1], qd[4]));
-        let p4 = math::F2::sub_mul(
-            math::F2::times(math::F2::new(-0.4, -0.4), p0),
-            math::F2::new(0.1, 0.1),
-            p2,
-        );
-        let v8 = p4.lo();
-        let v18 = p4.hi();
-        let p5 = math::F2::add_mul(
-            math::F2::times(math::F2::new(0.4, 0.4), p1),
-            math::F2::new(0.1, 0.1),
-            p3,
-        );
-        let v9 = p5.lo();
-        let v19 = p5.hi();
-        let v22 = v20 * qd[6];
-        let v23 = v21 * qd[6];
-        let v26 = v24 * qd[7];
-        let v27 = v25 * qd[7];
-        let v28 = math::sub_mul(-0.4 * v22, 0.1, v26);
-        let v29 = math::add_mul(0.4 * v23, 0.1, v27);
-        let v42 = qd[2] * v30;
-        let v43 = qd[5] * v34;
-        let p6 = math::F2::minus(
-            p4,
-            math::F2::add_mul(
-                math::F2::times(
-                    math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v31, v35)),
+        math::dispatch(
+            #[inline(always)]
+            || {
+                let [(v0, v1), (v4, v5), (v10, v11), (v14, v15), (v20, v21), (v24, v25),
+                (v30, v31), (v34, v35), (v38, v39)] = math::sin_cos_array([
+                    q[0],
+                    q[1],
+                    q[3],
+                    q[4],
+                    q[6],
+                    q[7],
+                    q[2],
+                    q[5],
+                    q[8],
+                ]);
+                let p0 = math::F2::times(
+                    math::F2::new(v0, v10),
+                    math::F2::new(qd[0], qd[3]),
+                );
+                let v2 = p0.lo();
+                let v12 = p0.hi();
+                let p1 = math::F2::times(
+                    math::F2::new(v1, v11),
+                    math::F2::new(qd[0], qd[3]),
+                );
+                let v3 = p1.lo();
+                let v13 = p1.hi();
+                let p2 = math::F2::times(
+                    math::F2::new(v4, v14),
+                    math::F2::new(qd[1], qd[4]),
+                );
+                let p3 = math::F2::times(
+                    math::F2::new(v5, v15),
+                    math::F2::new(qd[1], qd[4]),
+                );
+                let p4 = math::F2::sub_mul(
+                    math::F2::times(math::F2::new(-0.4, -0.4), p0),
+                    math::F2::new(0.1, 0.1),
                     p2,
-                ),
-                math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v5, v15)),
-                math::F2::new(v42, v43),
-            ),
-        );
-        let v32 = p6.lo();
-        let v36 = p6.hi();
-        let p7 = math::F2::plus(
-            p5,
-            math::F2::sub_mul(
-                math::F2::times(
-                    math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v31, v35)),
+                );
+                let v8 = p4.lo();
+                let v18 = p4.hi();
+                let p5 = math::F2::add_mul(
+                    math::F2::times(math::F2::new(0.4, 0.4), p1),
+                    math::F2::new(0.1, 0.1),
                     p3,
-                ),
-                math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v4, v14)),
-                math::F2::new(v42, v43),
-            ),
-        );
-        let v33 = p7.lo();
-        let v37 = p7.hi();
-        let v44 = qd[8] * v38;
-        let v40 = v28 - math::add_mul(0.8 * v39 * v26, 0.8 * v25, v44);
-        let v41 = v29 + math::sub_mul(0.8 * v39 * v27, 0.8 * v24, v44);
-        math::add_mul(0.25 * v9 * v33, 0.25 * v19, v37)
-            + math::add_mul(0.25 * v29 * v41, 0.02 * v9, v3)
-            + (math::add_mul(
-                math::add_mul(
-                    math::add_mul(
-                        math::mul_add(
-                            0.061333333333333344 * qd[6],
-                            qd[6],
-                            math::add_mul(
-                                0.061333333333333344 * qd[0] * qd[0],
-                                0.061333333333333344 * qd[3],
-                                qd[3],
+                );
+                let v9 = p5.lo();
+                let v19 = p5.hi();
+                let v22 = v20 * qd[6];
+                let v23 = v21 * qd[6];
+                let v26 = v24 * qd[7];
+                let v27 = v25 * qd[7];
+                let v28 = math::sub_mul(-0.4 * v22, 0.1, v26);
+                let v29 = math::add_mul(0.4 * v23, 0.1, v27);
+                let v42 = qd[2] * v30;
+                let v43 = qd[5] * v34;
+                let p6 = math::F2::minus(
+                    p4,
+                    math::F2::add_mul(
+                        math::F2::times(
+                            math::F2::times(
+                                math::F2::new(0.8, 0.8),
+                                math::F2::new(v31, v35),
                             ),
+                            p2,
                         ),
-                        1.3,
-                        (math::mul_add(
-                            qd[11],
-                            qd[11],
-                            math::add_mul(qd[9] * qd[9], qd[10], qd[10]),
-                        )),
+                        math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v5, v15)),
+                        math::F2::new(v42, v43),
                     ),
-                    0.16000000000000003 * v31 * v31 * qd[2],
-                    qd[2],
-                ),
-                0.3 * v9,
-                v9,
-            ) + math::add_mul(0.02 * v19 * v13, 0.02 * v29, v23))
-            + (math::add_mul(
-                math::add_mul(0.3 * v8 * v8, 0.3 * v18, v18),
-                0.25 * v32,
-                v32,
-            )
-                + (math::mul_sub(0.25 * v8, v32, 0.02 * v28 * v22)
-                    + math::mul_add(
-                        0.3 * v28,
-                        v28,
-                        math::add_mul(
-                            0.16000000000000003 * v35 * v35 * qd[5] * qd[5],
-                            0.16000000000000003 * v39 * v39 * qd[8],
-                            qd[8],
+                );
+                let v32 = p6.lo();
+                let v36 = p6.hi();
+                let p7 = math::F2::plus(
+                    p5,
+                    math::F2::sub_mul(
+                        math::F2::times(
+                            math::F2::times(
+                                math::F2::new(0.8, 0.8),
+                                math::F2::new(v31, v35),
+                            ),
+                            p3,
                         ),
-                    )))
-            + (math::mul_sub(
-                0.25 * v41,
-                v41,
-                math::add_mul(0.02 * v8 * v2, 0.02 * v18, v12),
-            ) + math::add_mul(0.25 * v36 * v36, 0.25 * v40, v40)
-                + (math::add_mul(0.3 * v19 * v19, 0.3 * v29, v29)
-                    + math::add_mul(0.25 * v18 * v36, 0.25 * v28, v40)
-                    + math::add_mul(0.25 * v33 * v33, 0.25 * v37, v37)))
+                        math::F2::times(math::F2::new(0.8, 0.8), math::F2::new(v4, v14)),
+                        math::F2::new(v42, v43),
+                    ),
+                );
+                let v33 = p7.lo();
+                let v37 = p7.hi();
+                let v44 = qd[8] * v38;
+                let v40 = v28 - math::add_mul(0.8 * v39 * v26, 0.8 * v25, v44);
+                let v41 = v29 + math::sub_mul(0.8 * v39 * v27, 0.8 * v24, v44);
+                math::add_mul(0.25 * v9 * v33, 0.25 * v19, v37)
+                    + math::add_mul(0.25 * v29 * v41, 0.02 * v9, v3)
+                    + (math::add_mul(
+                        math::add_mul(
+                            math::add_mul(
+                                math::mul_add(
+                                    0.061333333333333344 * qd[6],
+                                    qd[6],
+                                    math::add_mul(
+                                        0.061333333333333344 * qd[0] * qd[0],
+                                        0.061333333333333344 * qd[3],
+                                        qd[3],
+                                    ),
+                                ),
+                                1.3,
+                                (math::mul_add(
+                                    qd[11],
+                                    qd[11],
+                                    math::add_mul(qd[9] * qd[9], qd[10], qd[10]),
+                                )),
+                            ),
+                            0.16000000000000003 * v31 * v31 * qd[2],
+                            qd[2],
+                        ),
+                        0.3 * v9,
+                        v9,
+                    ) + math::add_mul(0.02 * v19 * v13, 0.02 * v29, v23))
+                    + (math::add_mul(
+                        math::add_mul(0.3 * v8 * v8, 0.3 * v18, v18),
+                        0.25 * v32,
+                        v32,
+                    )
+                        + (math::mul_sub(0.25 * v8, v32, 0.02 * v28 * v22)
+                            + math::mul_add(
+                                0.3 * v28,
+                                v28,
+                                math::add_mul(
+                                    0.16000000000000003 * v35 * v35 * qd[5] * qd[5],
+                                    0.16000000000000003 * v39 * v39 * qd[8],
+                                    qd[8],
+                                ),
+                            )))
+                    + (math::mul_sub(
+                        0.25 * v41,
+                        v41,
+                        math::add_mul(0.02 * v8 * v2, 0.02 * v18, v12),
+                    ) + math::add_mul(0.25 * v36 * v36, 0.25 * v40, v40)
+                        + (math::add_mul(0.3 * v19 * v19, 0.3 * v29, v29)
+                            + math::add_mul(0.25 * v18 * v36, 0.25 * v28, v40)
+                            + math::add_mul(0.25 * v33 * v33, 0.25 * v37, v37)))
+            },
+        )
     }
     ///Potential energy `V` (gravity and elastic).
     #[inline]

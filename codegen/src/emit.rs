@@ -134,6 +134,12 @@ const FLAT_STATEMENTS: usize = 512;
 /// Variables per declaration in longer programs.
 const DECLARATION_GROUP: usize = 64;
 
+/// Functions with at least this many operations run their statements
+/// through the runtime's `math::dispatch` (compiled twice on x86-64, the
+/// copy for the processor chosen at run time): below it the call that
+/// selects the copy costs about what AVX saves.
+const DISPATCHED_OPERATIONS: usize = 128;
+
 /// Binding strength of printed Rust expressions, for the parentheses that
 /// the association of the lowered operations needs (on top of those the
 /// lowering asks for).
@@ -418,6 +424,7 @@ impl Emitter<'_> {
     fn function(&mut self, group: &mut [Scheduled]) -> TokenStream {
         let spec = group[0].spec();
         let mut lowered = Vec::with_capacity(group.len());
+        let operations: usize = group.iter().map(|f| f.program.ops.total()).sum();
         for f in group.iter_mut() {
             if spec.inputs != Inputs::Constant {
                 let marker = f.marker.map(|k| self.model.markers[k].name.clone());
@@ -498,12 +505,16 @@ impl Emitter<'_> {
 
         let fname = format_ident!("{}", spec.name);
         let doc = spec.doc;
+        let statements = if operations >= DISPATCHED_OPERATIONS {
+            quote!(math::dispatch(#[inline(always)] || { #body #tail }))
+        } else {
+            quote!(#body #tail)
+        };
         quote! {
             #[doc = #doc]
             #[inline]
             fn #fname(&self, #marker #inputs #args) #ret {
-                #body
-                #tail
+                #statements
             }
         }
     }
