@@ -191,9 +191,12 @@ fn main() {
     let models = out.join("pinocchio_c");
     std::fs::create_dir_all(&models).unwrap_or_else(|e| fail(&e.to_string()));
 
+    // The scenes are written below, from the URDFs (watched one by one):
+    // watching the scene files themselves would rerun this script, and
+    // rebuild the bench, on every `cargo bench`.
     let mut builder = flexdyn_codegen::Builder::new()
         .out_dir(out.join("flexdyn"))
-        .emit_rerun_if_changed(true);
+        .emit_rerun_if_changed(false);
     let robots = robots();
     // One robot: name, joints, (coordinate, URDF joint) pairs, largest snap.
     let mut list = String::from(
